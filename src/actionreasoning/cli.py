@@ -1,0 +1,177 @@
+"""The `actionreasoning` command."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+from rich.table import Table
+
+from actionreasoning.errors import ActionReasoningError, ConfigError
+from actionreasoning.eval.results import TrialResult
+from actionreasoning.eval.run import RunConfig, run_eval
+from actionreasoning.eval.summary import RunSummary
+from actionreasoning.eval.trial import AVAILABLE_METHODS, Method
+from actionreasoning.world.geometry import quat_yaw
+from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.scene_spec import SceneSpec
+
+app = typer.Typer(
+    help="LLM action reasoning for robot brick stacking: simulate, evaluate, report.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+)
+console = Console()
+err_console = Console(stderr=True)
+
+PatternOption = Annotated[
+    str, typer.Option(help="'pyramid', 'grid', or a pattern file (JSON/YAML, see README).")
+]
+
+
+def _fail(error: ActionReasoningError) -> None:
+    err_console.print(f"[bold red]error:[/] {error}", highlight=False, soft_wrap=True)
+    raise typer.Exit(code=2)
+
+
+def _check_method(method: Method, llm: str, workers: int) -> None:
+    if method not in AVAILABLE_METHODS:
+        raise ConfigError(
+            f"--method {method} is not available yet; available: "
+            + ", ".join(str(m) for m in AVAILABLE_METHODS)
+        )
+    if llm != "builtin":
+        raise ConfigError(f"--llm {llm!r} is not available yet; only 'builtin' is")
+    if workers != 1:
+        raise ConfigError("--workers above 1 is not available yet")
+
+
+def _summary_table(summary: RunSummary) -> Table:
+    s = summary.successful
+    table = Table(title=f"{summary.method} on {summary.pattern} (over successful trials)")
+    for column in ("Rot. Err (°)", "Ctr. Off. (cm)", "IoU (%)", "Success"):
+        table.add_column(column, justify="right")
+
+    def cell(metric: str, scale: float = 1.0) -> str:
+        stats = s[metric]
+        return "n/a" if stats.mean is None else f"{stats.mean * scale:.3f} ± {stats.std * scale:.3f}"
+
+    table.add_row(
+        cell("rotation_error_deg"),
+        cell("center_offset_cm"),
+        cell("iou", 100.0),
+        f"{summary.successes}/{summary.trials}",
+    )
+    return table
+
+
+def _trial_line(result: TrialResult) -> str:
+    m = result.metrics
+    status = "ok" if result.success else f"FAILED ({result.failure.reason})"
+    return (
+        f"trial {result.trial}: {status}; {m.center_offset_cm:.3f} cm, "
+        f"{m.rotation_error_deg:.3f} deg, IoU {m.iou:.3f}"
+    )
+
+
+def _run_with_progress(config: RunConfig) -> RunSummary:
+    if not console.is_terminal:
+        return run_eval(config, on_trial=lambda r: print(_trial_line(r), flush=True))
+    columns = (
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[successes]} ok"),
+        TimeRemainingColumn(),
+    )
+    with Progress(*columns, console=console) as progress:
+        task = progress.add_task(
+            f"{config.method} / {config.pattern_name}", total=config.trials, successes=0
+        )
+        done = {"ok": 0}
+
+        def on_trial(result: TrialResult) -> None:
+            done["ok"] += result.success
+            progress.console.print(_trial_line(result), highlight=False)
+            progress.update(task, advance=1, successes=done["ok"])
+
+        return run_eval(config, on_trial=on_trial)
+
+
+@app.command("eval")
+def eval_command(
+    out: Annotated[Path, typer.Option(help="Output directory (created; must not hold results).")],
+    method: Annotated[Method, typer.Option(help="Reasoning method.")] = Method.CLASSICAL,
+    pattern: PatternOption = "pyramid",
+    trials: Annotated[int, typer.Option(min=1, help="Number of trials.")] = 10,
+    seed: Annotated[int, typer.Option(help="Run seed; trial k uses a seed from (seed, k).")] = 0,
+    llm: Annotated[str, typer.Option(help="Reasoning backend: builtin.")] = "builtin",
+    base_url: Annotated[str | None, typer.Option(help="Base URL of an OpenAI-compatible server.")] = None,
+    workers: Annotated[int, typer.Option(min=1, help="Parallel worker processes.")] = 1,
+    snapshots: Annotated[bool, typer.Option(help="Write per-stage PNG snapshots of every trial.")] = False,
+) -> None:
+    """Run randomized trials of one method on one pattern and write results and summaries."""
+    try:
+        _check_method(method, llm, workers)
+        goal = load_pattern(pattern, SceneSpec())
+        config = RunConfig(
+            method=method, pattern_name=pattern, goal=goal, trials=trials, seed=seed, out=out,
+            llm=llm, snapshots=snapshots,
+        )  # fmt: skip
+        summary = _run_with_progress(config)
+    except ActionReasoningError as error:
+        _fail(error)
+    console.print(_summary_table(summary))
+    console.print(f"wall time {summary.wall_time_s:.1f} s; results in {out}/", highlight=False)
+
+
+@app.command()
+def demo(
+    out: Annotated[Path, typer.Option(help="Output directory for the report.")] = Path("demo"),
+    pattern: PatternOption = "pyramid",
+    seed: Annotated[int, typer.Option(help="Seed of the demo trial.")] = 0,
+) -> None:
+    """Build a pattern once and write a report with pictures of every stage."""
+    try:
+        goal = load_pattern(pattern, SceneSpec())
+        config = RunConfig(
+            method=Method.CLASSICAL, pattern_name=pattern, goal=goal, trials=1, seed=seed,
+            out=out, snapshots=True,
+        )  # fmt: skip
+        summary = _run_with_progress(config)
+    except ActionReasoningError as error:
+        _fail(error)
+    report = out / "report.md"
+    report.write_text(
+        (out / "summary.md").read_text()
+        + "\n## Stages\n\nStages left to right, bricks top to bottom.\n\n"
+        + "![stages](snapshots/trial_000/stages.png)\n\n## Result\n\n"
+        + "![build](snapshots/trial_000/final_build.png)\n"
+        + "![overview](snapshots/trial_000/final_overview.png)\n"
+    )
+    console.print(_summary_table(summary))
+    console.print(f"report: {report}", highlight=False)
+
+
+@app.command("pattern")
+def pattern_command(
+    pattern: Annotated[str, typer.Argument(help="'pyramid', 'grid', or a pattern file.")],
+) -> None:
+    """Validate a goal pattern and print its target poses in the world frame."""
+    try:
+        goal = load_pattern(pattern, SceneSpec())
+    except ActionReasoningError as error:
+        _fail(error)
+    table = Table(title=f"pattern {goal.name}: {len(goal.targets)} bricks, valid")
+    for column in ("#", "x (m)", "y (m)", "z (m)", "yaw (deg)"):
+        table.add_column(column, justify="right")
+    for target in goal.targets:
+        x, y, z = target.pose.position_m
+        yaw = quat_yaw(target.pose.quat_xyzw)
+        table.add_row(str(target.index), f"{x:.3f}", f"{y:.3f}", f"{z:.3f}", f"{math.degrees(yaw):.1f}")
+    console.print(table)
+

@@ -1,0 +1,105 @@
+"""The paper's classical baseline (section IV-C-1): a minimal hand-scripted pick and place.
+
+What an engineer writes without event handling: fixed approach, lift and release heights,
+fixed step counts, the release at a fixed height above the target, no contact or collision
+checks and no feedback. It does what any careful script would do up front: it places brick k
+on target k in build order, and picks the grasp yaw (brick yaw or +180 deg) that keeps the
+wrist joint small at both ends so the wrist never spins through its limit.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
+from actionreasoning.world.geometry import quat_yaw, top_down_quat
+from actionreasoning.world.models import GoalPattern, Pose
+
+
+@dataclass(frozen=True)
+class ClassicalScript:
+    """The fixed numbers of the script (metres and servo ticks)."""
+
+    approach_height_m: float = 0.12
+    transfer_height_m: float = 0.30
+    release_height_m: float = 0.01
+    transfer_ticks: int = 480
+    vertical_ticks: int = 240
+
+
+@dataclass(frozen=True)
+class StageEvent:
+    """A stage the script finished, for snapshots and logs."""
+
+    brick: int
+    stage: str
+
+
+class ClassicalController:
+    """Runs the fixed script brick by brick."""
+
+    def __init__(self, controller: WaypointController, script: ClassicalScript = ClassicalScript()):
+        self.controller = controller
+        self.script = script
+
+    def grasp_yaws(self, brick: int, target: Pose) -> tuple[float, float]:
+        """Gripper yaw at pick and at place (rad), the pair with the smaller wrist angles."""
+        position, quat = self.controller.scene.brick_pose(brick)
+        brick_yaw = quat_yaw(quat)
+        turn = quat_yaw(target.quat_xyzw) - brick_yaw
+        best: tuple[float, float, float] | None = None
+        for flip in (0.0, math.pi):
+            pick_yaw = brick_yaw + flip
+            wrist = max(
+                abs(self._wrist(position, pick_yaw)),
+                abs(self._wrist(target.position_m, pick_yaw + turn)),
+            )
+            if best is None or wrist < best[0]:
+                best = (wrist, pick_yaw, pick_yaw + turn)
+        assert best is not None
+        return best[1], best[2]
+
+    def _wrist(self, position, yaw: float) -> float:
+        arm = self.controller.arm
+        above = (position[0], position[1], self.script.transfer_height_m)
+        return arm.solve(above, top_down_quat(yaw)).joints_rad[6]
+
+    def place_brick(self, brick: int, target: Pose):
+        """Pick brick ``brick`` and put it on ``target``; yields each finished stage's name."""
+        s, run = self.script, self.controller.execute
+        position, _ = self.controller.scene.brick_pose(brick)
+        pick_yaw, place_yaw = self.grasp_yaws(brick, target)
+        px, py, pz = position
+        tx, ty, tz = target.position_m
+
+        def at(x: float, y: float, z: float, yaw: float) -> Pose:
+            return Pose(position_m=(x, y, z), quat_xyzw=top_down_quat(yaw))
+
+        steps = [
+            ("pre_grasp", Waypoint(pose=at(px, py, pz + s.approach_height_m, pick_yaw),
+                                   gripper=GripperCommand.OPEN, ticks=s.transfer_ticks)),
+            ("descent", Waypoint(pose=at(px, py, pz, pick_yaw), path="linear", ticks=s.vertical_ticks)),
+            ("grasp", Waypoint(pose=at(px, py, pz, pick_yaw), gripper=GripperCommand.CLOSE, ticks=1)),
+            ("lift", Waypoint(pose=at(px, py, s.transfer_height_m, pick_yaw), path="linear",
+                              ticks=s.vertical_ticks)),
+            ("transfer", Waypoint(pose=at(tx, ty, s.transfer_height_m, place_yaw), ticks=s.transfer_ticks)),
+            ("placement", Waypoint(pose=at(tx, ty, tz + s.release_height_m, place_yaw), path="linear",
+                                   ticks=s.vertical_ticks)),
+            ("release", Waypoint(pose=at(tx, ty, tz + s.release_height_m, place_yaw),
+                                 gripper=GripperCommand.OPEN, ticks=1)),
+            ("retreat", Waypoint(pose=at(tx, ty, s.transfer_height_m, place_yaw), path="linear",
+                                 ticks=s.vertical_ticks)),
+        ]  # fmt: skip
+        for stage, waypoint in steps:
+            run(waypoint, settle=False)
+            yield stage
+
+
+def run_classical(controller: WaypointController, goal: GoalPattern, on_stage=None) -> None:
+    """Build ``goal`` with the classical script: brick k goes to target k."""
+    script = ClassicalController(controller)
+    for target in goal.targets:
+        for stage in script.place_brick(target.index, target.pose):
+            if on_stage is not None:
+                on_stage(StageEvent(brick=target.index, stage=stage))

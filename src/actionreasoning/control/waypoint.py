@@ -1,0 +1,175 @@
+"""The waypoint controller: an SE(3) tool pose plus a gripper command becomes joint motion.
+
+A waypoint is solved by IK (null-space rest pose, refined to tolerance), interpolated in
+joint space with a smooth profile over K_t servo ticks, and optionally followed by a
+convergence wait. ``linear`` waypoints move the tool centre point on a straight line
+(IK every centimetre). An unreachable waypoint raises :class:`UnreachableError`; it is
+never silently approximated.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import StrEnum
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+from scipy.spatial.transform import Rotation, Slerp
+
+from actionreasoning.errors import UnreachableError
+from actionreasoning.sim.kinematics import KinematicArm
+from actionreasoning.sim.robot_model import FINGER_MAX_M, FINGER_MIN_M
+from actionreasoning.sim.scene import Scene
+from actionreasoning.world.models import Pose
+
+LINEAR_STEP_M = 0.01
+
+
+class GripperCommand(StrEnum):
+    """What the gripper does once the arm has reached the waypoint."""
+
+    OPEN = "open"
+    CLOSE = "close"
+    HOLD = "hold"
+
+
+class Waypoint(BaseModel):
+    """A target tool pose, a gripper command and how to get there."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    pose: Pose
+    gripper: GripperCommand = GripperCommand.HOLD
+    path: Literal["joint", "linear"] = "joint"
+    ticks: int | None = Field(None, ge=1, description="K_t; derived from the speed limits if None.")
+
+
+@dataclass(frozen=True)
+class ControllerLimits:
+    """Speeds and tolerances of the waypoint controller."""
+
+    max_joint_speed_radps: float = 1.2
+    max_linear_speed_mps: float = 0.12
+    min_ticks: int = 48
+    settle_max_ticks: int = 480
+    joint_tolerance_rad: float = 2e-3
+    joint_speed_tolerance_radps: float = 0.02
+    gripper_ticks: int = 120
+
+
+@dataclass(frozen=True)
+class ExecutionReport:
+    """What executing a waypoint did, measured after the move."""
+
+    ticks: int
+    converged: bool
+    position_error_m: float
+    orientation_error_deg: float
+
+
+class WaypointController:
+    """Drives the scene's arm through waypoints."""
+
+    def __init__(
+        self, scene: Scene, arm: KinematicArm, limits: ControllerLimits = ControllerLimits()
+    ) -> None:
+        self.scene = scene
+        self.arm = arm
+        self.limits = limits
+
+    def solve(self, pose: Pose, seed_rad: np.ndarray | None = None) -> np.ndarray:
+        """Arm joints for a tool pose; raises :class:`UnreachableError` if IK misses it."""
+        solution = self.arm.solve(
+            pose.position_m, pose.quat_xyzw, seed_rad
+        )
+        if not solution.reached:
+            x, y, z = pose.position_m
+            raise UnreachableError(
+                f"pose ({x:.3f}, {y:.3f}, {z:.3f}) m is out of reach: IK leaves "
+                f"{solution.position_error_m * 1000:.1f} mm and "
+                f"{solution.orientation_error_deg:.2f} deg of error"
+            )
+        return np.array(solution.joints_rad)
+
+    def plan(self, waypoint: Waypoint) -> list[np.ndarray]:
+        """Joint-space knots from the current arm targets to the waypoint."""
+        start = self.scene.arm_targets
+        if waypoint.path == "joint":
+            return [start, self.solve(waypoint.pose)]
+        position, quat = self.arm.forward(start)
+        goal = np.asarray(waypoint.pose.position_m)
+        distance = float(np.linalg.norm(goal - np.asarray(position)))
+        steps = max(1, math.ceil(distance / LINEAR_STEP_M))
+        slerp = Slerp([0.0, 1.0], Rotation.from_quat([quat, waypoint.pose.quat_xyzw]))
+        knots = [start]
+        for s in np.linspace(0.0, 1.0, steps + 1)[1:]:
+            pose = Pose(
+                position_m=tuple(np.asarray(position) + s * (goal - np.asarray(position))),
+                quat_xyzw=tuple(slerp(s).as_quat()),
+            )
+            knots.append(self.solve(pose, knots[-1]))
+        return knots
+
+    def execute(self, waypoint: Waypoint, settle: bool = True) -> ExecutionReport:
+        """Move to the waypoint, apply its gripper command, and report the measured result."""
+        knots = self.plan(waypoint)
+        ticks = self._move(knots, waypoint)
+        converged = True
+        if settle:
+            extra, converged = self._settle(knots[-1])
+            ticks += extra
+        ticks += self._actuate_gripper(waypoint.gripper)
+        position, quat = self.scene.tcp_pose()
+        relative = Rotation.from_quat(quat).inv() * Rotation.from_quat(waypoint.pose.quat_xyzw)
+        return ExecutionReport(
+            ticks=ticks,
+            converged=converged,
+            position_error_m=float(np.linalg.norm(np.subtract(position, waypoint.pose.position_m))),
+            orientation_error_deg=float(np.degrees(relative.magnitude())),
+        )
+
+    def _move(self, knots: list[np.ndarray], waypoint: Waypoint) -> int:
+        lim, dt = self.limits, self.scene.physics.time_step_s
+        if waypoint.ticks is not None:
+            total = waypoint.ticks
+        elif waypoint.path == "linear":
+            start, _ = self.arm.forward(knots[0])
+            distance = float(np.linalg.norm(np.subtract(waypoint.pose.position_m, start)))
+            total = math.ceil(distance / lim.max_linear_speed_mps / dt)
+        else:
+            total = math.ceil(float(np.max(np.abs(knots[-1] - knots[0]))) / lim.max_joint_speed_radps / dt)
+        total = max(total, lim.min_ticks, len(knots) - 1)
+        path = np.array(knots)
+        along = np.linspace(0.0, 1.0, len(knots))
+        for tick in range(1, total + 1):
+            s = _min_jerk(tick / total)
+            target = np.array([np.interp(s, along, path[:, j]) for j in range(path.shape[1])])
+            self.scene.set_arm_targets(target)
+            self.scene.step()
+        return total
+
+    def _settle(self, target: np.ndarray) -> tuple[int, bool]:
+        lim = self.limits
+        for tick in range(lim.settle_max_ticks):
+            joints, speeds = self.scene.arm_joints()
+            if (
+                np.max(np.abs(joints - target)) < lim.joint_tolerance_rad
+                and np.max(np.abs(speeds)) < lim.joint_speed_tolerance_radps
+            ):
+                return tick, True
+            self.scene.step()
+        return lim.settle_max_ticks, False
+
+    def _actuate_gripper(self, command: GripperCommand) -> int:
+        if command is GripperCommand.HOLD:
+            return 0
+        self.scene.set_finger_target(FINGER_MAX_M if command is GripperCommand.OPEN else FINGER_MIN_M)
+        self.scene.step(self.limits.gripper_ticks)
+        return self.limits.gripper_ticks
+
+
+def _min_jerk(s: float) -> float:
+    """Minimum-jerk time scaling: 0 -> 0, 1 -> 1, zero velocity and acceleration at both ends."""
+    return s**3 * (10.0 - 15.0 * s + 6.0 * s**2)

@@ -1,0 +1,1 @@
+"""Evaluation: trials, metrics, aggregation and reports."""

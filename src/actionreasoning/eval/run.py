@@ -1,0 +1,81 @@
+"""An evaluation run: trials of one method on one pattern, written to an output directory.
+
+results.jsonl gets one line per finished trial, flushed as it finishes; summary.json and
+summary.md are written at the end.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from actionreasoning.errors import ConfigError
+from actionreasoning.eval.results import TrialResult
+from actionreasoning.eval.snapshots import SnapshotRecorder
+from actionreasoning.eval.summary import RunSummary, summarize, summary_markdown
+from actionreasoning.eval.trial import Method, SuccessRule, TrialSpec, run_trial
+from actionreasoning.world.models import GoalPattern
+
+RESULTS_FILE = "results.jsonl"
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """The options of one eval run."""
+
+    method: Method
+    pattern_name: str
+    goal: GoalPattern
+    trials: int
+    seed: int
+    out: Path
+    llm: str = "builtin"
+    snapshots: bool = False
+
+
+def prepare_out_dir(out: Path) -> Path:
+    """Create ``out``; refuse one that already holds results, so runs never mix."""
+    results = out / RESULTS_FILE
+    if results.exists() and results.stat().st_size > 0:
+        raise ConfigError(f"{results} already exists: choose another --out or remove it")
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"--out {out} exists and is not a directory")
+    out.mkdir(parents=True, exist_ok=True)
+    return results
+
+
+def run_eval(
+    config: RunConfig, on_trial: Callable[[TrialResult], None] | None = None
+) -> RunSummary:
+    """Run every trial, append each result as it finishes, then write the summaries."""
+    results_path = prepare_out_dir(config.out)
+    rule = SuccessRule()
+    started = time.perf_counter()
+    results: list[TrialResult] = []
+    with results_path.open("a", encoding="utf-8") as sink:
+        for trial in range(config.trials):
+            spec = TrialSpec(
+                method=config.method,
+                pattern_name=config.pattern_name,
+                goal=config.goal,
+                run_seed=config.seed,
+                trial=trial,
+                llm=config.llm,
+            )
+            hook = (
+                SnapshotRecorder(config.out / "snapshots" / f"trial_{trial:03d}")
+                if config.snapshots
+                else None
+            )
+            result = run_trial(spec, rule, hook)
+            sink.write(result.model_dump_json() + "\n")
+            sink.flush()
+            results.append(result)
+            if on_trial is not None:
+                on_trial(result)
+    summary = summarize(results, time.perf_counter() - started, rule)
+    (config.out / "summary.json").write_text(summary.model_dump_json(indent=2) + "\n")
+    (config.out / "summary.md").write_text(summary_markdown(summary))
+    return summary

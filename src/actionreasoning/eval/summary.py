@@ -1,0 +1,143 @@
+"""Aggregate a run's trials into summary.json and a Table-I style summary.md."""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Sequence
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict
+
+from actionreasoning.eval.results import LLMUsage, TrialResult
+from actionreasoning.eval.trial import SuccessRule
+
+METRICS = ("rotation_error_deg", "center_offset_cm", "iou", "symmetric_rotation_error_deg")
+
+
+class MetricStats(BaseModel):
+    """Mean and (population) standard deviation of a per-trial metric; None without data."""
+
+    model_config = ConfigDict(frozen=True)
+
+    mean: float | None
+    std: float | None
+
+
+class RunSummary(BaseModel):
+    """The figures of one eval run (one method, one pattern)."""
+
+    model_config = ConfigDict(frozen=True)
+
+    method: str
+    pattern: str
+    llm: str
+    seed: int
+    trials: int
+    successes: int
+    success_rate: float
+    bricks_placed_mean: float
+    success_rule: str
+    successful: dict[str, MetricStats]
+    all_trials: dict[str, MetricStats]
+    failures: dict[str, int]
+    failure_examples: dict[str, int]
+    llm_usage: LLMUsage
+    wall_time_s: float
+
+
+def describe_rule(rule: SuccessRule) -> str:
+    """The success rule in words, as printed in every summary."""
+    return (
+        f"every brick within {rule.max_center_offset_cm:g} cm and {rule.max_rotation_error_deg:g} deg "
+        f"(plain geodesic) of its target, and every brick at rest (< {rule.max_speed_mps * 100:g} cm/s, "
+        f"< {rule.max_angular_speed_radps:g} rad/s) after the final settle"
+    )
+
+
+def _stats(results: Sequence[TrialResult], metric: str) -> MetricStats:
+    values = [getattr(r.metrics, metric) for r in results]
+    if not values:
+        return MetricStats(mean=None, std=None)
+    return MetricStats(mean=float(np.mean(values)), std=float(np.std(values)))
+
+
+def summarize(
+    results: Sequence[TrialResult], wall_time_s: float, rule: SuccessRule = SuccessRule()
+) -> RunSummary:
+    """Means and standard deviations over successful trials (the paper's protocol) and all trials."""
+    if not results:
+        raise ValueError("no trial results to summarize")
+    first = results[0]
+    ok = [r for r in results if r.success]
+    failures = Counter(r.failure.reason for r in results if r.failure is not None)
+    examples: dict[str, int] = {}
+    for r in results:
+        if r.failure is not None:
+            examples.setdefault(r.failure.reason, r.trial)
+    return RunSummary(
+        method=first.method,
+        pattern=first.pattern,
+        llm=first.llm,
+        seed=first.seed,
+        trials=len(results),
+        successes=len(ok),
+        success_rate=len(ok) / len(results),
+        bricks_placed_mean=float(np.mean([r.bricks_placed for r in results])),
+        success_rule=describe_rule(rule),
+        successful={m: _stats(ok, m) for m in METRICS},
+        all_trials={m: _stats(results, m) for m in METRICS},
+        failures=dict(sorted(failures.items())),
+        failure_examples=examples,
+        llm_usage=LLMUsage(
+            calls=sum(r.llm_usage.calls for r in results),
+            prompt_tokens=sum(r.llm_usage.prompt_tokens for r in results),
+            completion_tokens=sum(r.llm_usage.completion_tokens for r in results),
+            latency_s=sum(r.llm_usage.latency_s for r in results),
+        ),
+        wall_time_s=wall_time_s,
+    )
+
+
+def _cell(stats: MetricStats, scale: float = 1.0, digits: int = 3) -> str:
+    if stats.mean is None or stats.std is None:
+        return "n/a"
+    return f"{stats.mean * scale:.{digits}f} ± {stats.std * scale:.{digits}f}"
+
+
+def summary_markdown(summary: RunSummary) -> str:
+    """A Table-I style markdown report of one run."""
+    s = summary.successful
+    lines = [
+        f"# {summary.method} on {summary.pattern}",
+        "",
+        f"Reasoning backend: `{summary.llm}` · seed {summary.seed} · {summary.trials} trials · "
+        f"wall time {summary.wall_time_s:.1f} s",
+        "",
+        "Means ± standard deviations over successful trials (per-brick values averaged per trial).",
+        "",
+        "| Method | Rot. Err (°) ↓ | Ctr. Off. (cm) ↓ | IoU (%) ↑ | Sym. Rot. Err (°) ↓ | Success |",
+        "|---|---|---|---|---|---|",
+        f"| {summary.method} | {_cell(s['rotation_error_deg'])} | {_cell(s['center_offset_cm'])} | "
+        f"{_cell(s['iou'], 100.0, 2)} | {_cell(s['symmetric_rotation_error_deg'])} | "
+        f"{summary.successes}/{summary.trials} ({summary.success_rate:.0%}) |",
+        "",
+        f"Bricks placed per trial: {summary.bricks_placed_mean:.2f}.",
+        f"Success rule: {summary.success_rule}.",
+        "",
+    ]
+    if summary.failures:
+        lines += ["| Failure reason | Trials | Example trial |", "|---|---|---|"]
+        lines += [
+            f"| `{reason}` | {count} | {summary.failure_examples[reason]} |"
+            for reason, count in summary.failures.items()
+        ]
+    else:
+        lines.append("No failures.")
+    if summary.llm_usage.calls:
+        u = summary.llm_usage
+        lines += [
+            "",
+            f"LLM: {u.calls} calls, {u.prompt_tokens} prompt and {u.completion_tokens} completion "
+            f"tokens, {u.latency_s:.1f} s latency.",
+        ]
+    return "\n".join(lines) + "\n"

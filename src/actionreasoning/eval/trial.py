@@ -1,0 +1,168 @@
+"""One trial: build a scene from the trial's seed, run a method, measure the result."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from enum import StrEnum
+
+import numpy as np
+
+from actionreasoning.control.classical import StageEvent, run_classical
+from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
+from actionreasoning.errors import ConfigError, UnreachableError
+from actionreasoning.eval.metrics import brick_metrics
+from actionreasoning.eval.results import BrickResult, Failure, TrialMetrics, TrialResult
+from actionreasoning.sim.kinematics import KinematicArm
+from actionreasoning.sim.scene import Scene
+from actionreasoning.world.geometry import top_down_quat
+from actionreasoning.world.layout import sample_pick_poses
+from actionreasoning.world.models import GoalPattern, Pose
+from actionreasoning.world.scene_spec import SceneSpec
+
+#: Where the arm waits between bricks and at the end: above the middle of the workspace.
+READY_POSE = Pose(position_m=(0.45, -0.25, 0.40), quat_xyzw=top_down_quat(0.0))
+SPAWN_SETTLE_TICKS = 60
+FINAL_SETTLE_TICKS = 240
+
+
+class Method(StrEnum):
+    """The reasoning methods a trial can run."""
+
+    AGENTS = "agents"
+    SINGLE_AGENT = "single-agent"
+    CLASSICAL = "classical"
+
+
+AVAILABLE_METHODS = (Method.CLASSICAL,)
+
+
+@dataclass(frozen=True)
+class SuccessRule:
+    """A trial succeeds when every brick is within these limits of its target and at rest."""
+
+    max_center_offset_cm: float = 2.0
+    max_rotation_error_deg: float = 5.0
+    max_speed_mps: float = 0.01
+    max_angular_speed_radps: float = 0.05
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    """Everything that defines one trial."""
+
+    method: Method
+    pattern_name: str
+    goal: GoalPattern
+    run_seed: int
+    trial: int
+    llm: str = "builtin"
+    scene: SceneSpec = SceneSpec()
+
+
+def trial_seed(run_seed: int, trial: int) -> int:
+    """The seed of trial ``trial``: derived from the run seed and the index only."""
+    return int(np.random.SeedSequence([run_seed, trial]).generate_state(1)[0])
+
+
+StageHook = Callable[[Scene, StageEvent], None]
+
+
+def run_trial(
+    spec: TrialSpec, rule: SuccessRule = SuccessRule(), on_stage: StageHook | None = None
+) -> TrialResult:
+    """Run one trial start to finish; failures become a ``failure`` record, never a crash."""
+    if spec.method not in AVAILABLE_METHODS:
+        raise ConfigError(f"method '{spec.method}' is not available yet (available: classical)")
+    seed = trial_seed(spec.run_seed, spec.trial)
+    poses = sample_pick_poses(np.random.default_rng(seed), len(spec.goal.targets), spec.scene)
+    arm = KinematicArm()
+    scene = Scene(spec.scene, poses, arm.solve(READY_POSE.position_m, READY_POSE.quat_xyzw).joints_rad)
+    try:
+        scene.step(SPAWN_SETTLE_TICKS)
+        controller = WaypointController(scene, arm)
+        failure = None
+        try:
+            run_classical(
+                controller,
+                spec.goal,
+                None if on_stage is None else (lambda event: on_stage(scene, event)),
+            )
+            controller.execute(Waypoint(pose=READY_POSE, gripper=GripperCommand.OPEN))
+        except UnreachableError as error:
+            failure = Failure(reason="unreachable", detail=str(error))
+        scene.step(FINAL_SETTLE_TICKS)
+        if on_stage is not None:
+            on_stage(scene, StageEvent(brick=-1, stage="final"))
+        return _measure(spec, seed, scene, rule, failure)
+    finally:
+        scene.close()
+        arm.close()
+
+
+def _measure(
+    spec: TrialSpec, seed: int, scene: Scene, rule: SuccessRule, failure: Failure | None
+) -> TrialResult:
+    bricks = []
+    for target in spec.goal.targets:
+        brick = target.index
+        position, quat = scene.brick_pose(brick)
+        m = brick_metrics(
+            position, quat, target.size_m, target.pose.position_m, target.pose.quat_xyzw, target.size_m
+        )
+        bricks.append(
+            BrickResult(
+                id=brick,
+                size=target.size_m,
+                target_position=target.pose.position_m,
+                target_orientation=target.pose.quat_xyzw,
+                final_position=position,
+                final_orientation=quat,
+                center_offset_cm=m.center_offset_cm,
+                rotation_error_deg=m.rotation_error_deg,
+                symmetric_rotation_error_deg=m.symmetric_rotation_error_deg,
+                iou=m.iou,
+            )
+        )
+    within = [
+        b.center_offset_cm <= rule.max_center_offset_cm
+        and b.rotation_error_deg <= rule.max_rotation_error_deg
+        for b in bricks
+    ]
+    moving = [
+        b.id
+        for b in bricks
+        if np.linalg.norm(scene.brick_velocity(b.id)[0]) > rule.max_speed_mps
+        or np.linalg.norm(scene.brick_velocity(b.id)[1]) > rule.max_angular_speed_radps
+    ]
+    if failure is None and not all(within):
+        worst = max(bricks, key=lambda b: b.center_offset_cm)
+        failure = Failure(
+            reason="misplaced",
+            detail=f"{within.count(False)} of {len(bricks)} bricks outside "
+            f"{rule.max_center_offset_cm} cm / {rule.max_rotation_error_deg} deg; worst brick "
+            f"{worst.id}: {worst.center_offset_cm:.2f} cm, {worst.rotation_error_deg:.2f} deg",
+        )
+    if failure is None and moving:
+        failure = Failure(reason="not_at_rest", detail=f"bricks still moving: {moving}")
+    return TrialResult(
+        method=str(spec.method),
+        pattern=spec.pattern_name,
+        seed=spec.run_seed,
+        trial=spec.trial,
+        trial_seed=seed,
+        success=failure is None,
+        llm=spec.llm if spec.method is not Method.CLASSICAL else "none",
+        bricks=tuple(bricks),
+        bricks_placed=sum(within),
+        metrics=TrialMetrics(
+            center_offset_cm=float(np.mean([b.center_offset_cm for b in bricks])),
+            rotation_error_deg=float(np.mean([b.rotation_error_deg for b in bricks])),
+            symmetric_rotation_error_deg=float(
+                np.mean([b.symmetric_rotation_error_deg for b in bricks])
+            ),
+            iou=float(np.mean([b.iou for b in bricks])),
+        ),
+        failure=failure,
+        sim_steps=scene.ticks,
+    )

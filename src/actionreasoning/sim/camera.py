@@ -1,0 +1,61 @@
+"""Headless pictures of the scene with PyBullet's TinyRenderer (no display needed).
+
+Rendering reads the scene but never steps or changes it, so taking snapshots does not
+alter a trial's outcome (tests check this).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pybullet as p
+
+from actionreasoning.sim.scene import Scene
+from actionreasoning.world.geometry import Vec3
+
+
+@dataclass(frozen=True)
+class CameraView:
+    """A look-at camera: target point, distance (m), yaw and pitch (deg)."""
+
+    target_m: Vec3
+    distance_m: float
+    yaw_deg: float
+    pitch_deg: float
+    fov_deg: float = 50.0
+
+
+def overview(scene: Scene) -> CameraView:
+    """The whole workspace: pick area, arm and build area."""
+    return CameraView(target_m=(0.3, -0.05, 0.05), distance_m=2.3, yaw_deg=-50.0, pitch_deg=-55.0)
+
+
+def build_closeup(scene: Scene) -> CameraView:
+    """The build area seen from outside, facing the arm."""
+    x, y, _ = scene.spec.build_center_m
+    return CameraView(
+        target_m=(x, y, 0.08), distance_m=0.9, yaw_deg=scene.spec.build_azimuth_deg + 90.0,
+        pitch_deg=-30.0,
+    )  # fmt: skip
+
+
+def render(scene: Scene, view: CameraView, width: int = 480, height: int = 360) -> np.ndarray:
+    """An RGB image (height x width x 3, uint8) of the scene from ``view``."""
+    cid = scene.client
+    view_matrix = p.computeViewMatrixFromYawPitchRoll(
+        cameraTargetPosition=view.target_m,
+        distance=view.distance_m,
+        yaw=view.yaw_deg,
+        pitch=view.pitch_deg,
+        roll=0.0,
+        upAxisIndex=2,
+        physicsClientId=cid,
+    )
+    projection = p.computeProjectionMatrixFOV(
+        fov=view.fov_deg, aspect=width / height, nearVal=0.05, farVal=5.0, physicsClientId=cid
+    )
+    _, _, rgba, _, _ = p.getCameraImage(
+        width, height, view_matrix, projection, renderer=p.ER_TINY_RENDERER, physicsClientId=cid
+    )
+    return np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3]

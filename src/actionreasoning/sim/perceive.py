@@ -1,0 +1,82 @@
+"""perceive(): the one function that turns the simulator into a WorldState."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from actionreasoning.sim.robot_model import FINGER_PAD_BELOW_TCP_M
+from actionreasoning.sim.scene import Scene
+from actionreasoning.world.models import (
+    BrickState,
+    BrickStatus,
+    GoalPattern,
+    Pose,
+    Progress,
+    RobotState,
+    WorldState,
+)
+
+GRASP_CONTACT_N = 1.0
+TOPPLED_TILT_DEG = 20.0
+
+
+def perceive(scene: Scene, goal: GoalPattern, progress: Progress = Progress()) -> WorldState:
+    """Measure the scene: robot, every brick with its status, the goal and the progress."""
+    joints, _ = scene.arm_joints()
+    left, right = scene.finger_positions()
+    tcp_position, tcp_quat = scene.tcp_pose()
+    contacts = [scene.finger_contacts(i) for i in range(len(scene.bricks))]
+    held = [c[0].normal_n > GRASP_CONTACT_N and c[1].normal_n > GRASP_CONTACT_N for c in contacts]
+    finger_forces = (0.0, 0.0)
+    if any(held):
+        left_c, right_c = contacts[held.index(True)]
+        finger_forces = (left_c.normal_n, right_c.normal_n)
+    robot = RobotState(
+        ee_pose=Pose(position_m=tcp_position, quat_xyzw=tcp_quat),
+        joint_positions_rad=tuple(float(q) for q in joints),
+        gripper_width_m=left + right,
+        finger_depth_m=FINGER_PAD_BELOW_TCP_M,
+        finger_forces_n=finger_forces,
+    )
+    bricks = []
+    for i in range(len(scene.bricks)):
+        position, quat = scene.brick_pose(i)
+        linear, angular = scene.brick_velocity(i)
+        status = _status(scene, i, position, quat, held[i], progress)
+        bricks.append(
+            BrickState(
+                id=i,
+                size_m=scene.spec.brick_size_m,
+                mass_kg=scene.spec.brick_mass_kg,
+                friction=scene.spec.brick_friction,
+                pose=Pose(position_m=position, quat_xyzw=quat),
+                linear_velocity_mps=linear,
+                angular_velocity_radps=angular,
+                status=status,
+            )
+        )
+    return WorldState(
+        time_s=scene.time_s, robot=robot, bricks=tuple(bricks), goal=goal, progress=progress
+    )
+
+
+def _status(scene: Scene, brick: int, position, quat, held: bool, progress: Progress) -> BrickStatus:
+    if held:
+        return "grasped"
+    up = Rotation.from_quat(quat).apply([0.0, 0.0, 1.0])
+    if math.degrees(math.acos(float(np.clip(abs(up[2]), 0.0, 1.0)))) > TOPPLED_TILT_DEG:
+        return "toppled"
+    if brick in progress.placed_ids:
+        return "placed"
+    spec = scene.spec
+    radius = math.hypot(position[0], position[1])
+    azimuth = math.degrees(math.atan2(position[1], position[0]))
+    in_pick_area = (
+        spec.pick_radius_m[0] - 0.05 <= radius <= spec.pick_radius_m[1] + 0.05
+        and spec.pick_azimuth_deg[0] - 5.0 <= azimuth <= spec.pick_azimuth_deg[1] + 5.0
+        and position[2] < spec.brick_size_m[2]
+    )
+    return "in_pick_area" if in_pick_area else "dropped"

@@ -1,0 +1,247 @@
+"""The PyBullet world: ground, arm with gripper, and bricks, in DIRECT (headless) mode.
+
+Physics settings are measured (DESIGN section 8, re-checked at our brick size by
+``bench/grip_slip.py``): at 1/240 s a held 1.5 kg brick needs about 150 solver iterations
+not to roll in the hand, and a 2 mm contact breaking threshold stops stale fingertip
+contacts from dragging a brick as the fingers open.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pybullet as p
+import pybullet_data
+
+from actionreasoning.sim.robot_model import (
+    ARM_JOINTS,
+    FINGER_LEFT,
+    FINGER_MAX_M,
+    FINGER_MIN_M,
+    FINGER_RIGHT,
+    TCP_LINK,
+    load_robot,
+)
+from actionreasoning.world.geometry import QuatXYZW, Vec3
+from actionreasoning.world.models import Pose
+from actionreasoning.world.scene_spec import SceneSpec
+
+BRICK_COLORS = (
+    (0.80, 0.30, 0.22, 1.0),
+    (0.85, 0.45, 0.25, 1.0),
+    (0.70, 0.25, 0.20, 1.0),
+    (0.90, 0.55, 0.35, 1.0),
+    (0.75, 0.35, 0.30, 1.0),
+    (0.65, 0.30, 0.15, 1.0),
+)
+
+
+@dataclass(frozen=True)
+class PhysicsConfig:
+    """Simulator settings; the defaults hold a 1.5 kg brick without slip."""
+
+    time_step_s: float = 1.0 / 240.0
+    solver_iterations: int = 150
+    contact_breaking_threshold_m: float = 0.002
+    finger_friction: float = 1.2
+    spinning_friction: float = 0.001
+    grip_force_n: float = 110.0
+    finger_speed_mps: float = 0.10
+    arm_force_nm: float = 300.0
+
+
+@dataclass(frozen=True)
+class FingerContact:
+    """Contact between one finger pad and one brick, summed over contact points (N)."""
+
+    normal_n: float
+    tangential_n: float
+
+
+class Scene:
+    """One trial's world. Bricks have ids 0..n-1 in spawn order."""
+
+    def __init__(
+        self,
+        spec: SceneSpec,
+        brick_poses: Sequence[Pose],
+        ready_joints_rad: Sequence[float],
+        physics: PhysicsConfig = PhysicsConfig(),
+    ) -> None:
+        self.spec = spec
+        self.physics = physics
+        self.client = p.connect(p.DIRECT)
+        self._setup_physics()
+        self.robot = load_robot(self.client)
+        self._setup_gripper()
+        self.bricks = [self._spawn_brick(i, pose) for i, pose in enumerate(brick_poses)]
+        for joint, angle in zip(ARM_JOINTS, ready_joints_rad):
+            p.resetJointState(self.robot, joint, angle, physicsClientId=self.client)
+        self.arm_targets = np.array(ready_joints_rad, dtype=float)
+        self.finger_target_m = FINGER_MAX_M
+        self.ticks = 0
+        self._apply_targets()
+
+    # --- set-up -----------------------------------------------------------------------
+    def _setup_physics(self) -> None:
+        cfg, cid = self.physics, self.client
+        p.setGravity(0, 0, -9.81, physicsClientId=cid)
+        p.setPhysicsEngineParameter(
+            fixedTimeStep=cfg.time_step_s,
+            numSolverIterations=cfg.solver_iterations,
+            contactBreakingThreshold=cfg.contact_breaking_threshold_m,
+            deterministicOverlappingPairs=1,
+            physicsClientId=cid,
+        )
+        p.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=cid)
+        self.ground = p.loadURDF("plane.urdf", physicsClientId=cid)
+        p.changeDynamics(
+            self.ground, -1, lateralFriction=self.spec.ground_friction, physicsClientId=cid
+        )
+
+    def _setup_gripper(self) -> None:
+        cfg, cid = self.physics, self.client
+        for finger in (FINGER_LEFT, FINGER_RIGHT):
+            p.changeDynamics(
+                self.robot,
+                finger,
+                lateralFriction=cfg.finger_friction,
+                spinningFriction=cfg.spinning_friction,
+                rollingFriction=0.0,
+                physicsClientId=cid,
+            )
+            p.resetJointState(self.robot, finger, FINGER_MAX_M, physicsClientId=cid)
+        gear = p.createConstraint(
+            self.robot, FINGER_LEFT, self.robot, FINGER_RIGHT, p.JOINT_GEAR,
+            [0, 1, 0], [0, 0, 0], [0, 0, 0], physicsClientId=cid,
+        )  # fmt: skip
+        # Couple the fingers (ratio -1: they move as mirror images) so that the finger that
+        # touches first cannot push the brick off centre.
+        p.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=200, physicsClientId=cid)
+
+    def _spawn_brick(self, index: int, pose: Pose) -> int:
+        cid, spec = self.client, self.spec
+        half = [s / 2.0 for s in spec.brick_size_m]
+        shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
+        visual = p.createVisualShape(
+            p.GEOM_BOX, halfExtents=half, rgbaColor=BRICK_COLORS[index % len(BRICK_COLORS)],
+            physicsClientId=cid,
+        )  # fmt: skip
+        body = p.createMultiBody(
+            baseMass=spec.brick_mass_kg,
+            baseCollisionShapeIndex=shape,
+            baseVisualShapeIndex=visual,
+            basePosition=pose.position_m,
+            baseOrientation=pose.quat_xyzw,
+            physicsClientId=cid,
+        )
+        p.changeDynamics(
+            body, -1,
+            lateralFriction=spec.brick_friction,
+            spinningFriction=self.physics.spinning_friction,
+            rollingFriction=0.0,
+            physicsClientId=cid,
+        )  # fmt: skip
+        return body
+
+    # --- actuation --------------------------------------------------------------------
+    def set_arm_targets(self, joints_rad: Sequence[float]) -> None:
+        """Position targets for the seven arm joints (applied from the next step on)."""
+        self.arm_targets = np.asarray(joints_rad, dtype=float)
+        self._apply_targets()
+
+    def set_finger_target(self, half_width_m: float) -> None:
+        """Drive each finger pad to ``half_width_m`` from the centre, with the grip force limit."""
+        self.finger_target_m = float(np.clip(half_width_m, FINGER_MIN_M, FINGER_MAX_M))
+        self._apply_targets()
+
+    def _apply_targets(self) -> None:
+        cfg, cid = self.physics, self.client
+        p.setJointMotorControlArray(
+            self.robot, list(ARM_JOINTS), p.POSITION_CONTROL,
+            targetPositions=list(self.arm_targets),
+            forces=[cfg.arm_force_nm] * len(ARM_JOINTS),
+            physicsClientId=cid,
+        )  # fmt: skip
+        for finger in (FINGER_LEFT, FINGER_RIGHT):
+            p.setJointMotorControl2(
+                self.robot, finger, p.POSITION_CONTROL,
+                targetPosition=self.finger_target_m,
+                force=cfg.grip_force_n,
+                maxVelocity=cfg.finger_speed_mps,
+                physicsClientId=cid,
+            )  # fmt: skip
+
+    def step(self, ticks: int = 1) -> None:
+        """Advance the simulation by ``ticks`` fixed time steps."""
+        for _ in range(ticks):
+            p.stepSimulation(physicsClientId=self.client)
+        self.ticks += ticks
+
+    # --- measurement ------------------------------------------------------------------
+    @property
+    def time_s(self) -> float:
+        """Simulated time since the scene was built."""
+        return self.ticks * self.physics.time_step_s
+
+    def arm_joints(self) -> tuple[np.ndarray, np.ndarray]:
+        """Measured arm joint angles (rad) and velocities (rad/s)."""
+        states = p.getJointStates(self.robot, list(ARM_JOINTS), physicsClientId=self.client)
+        return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+
+    def finger_positions(self) -> tuple[float, float]:
+        """Measured distance of each finger pad from the gripper centre (m)."""
+        left, right = p.getJointStates(
+            self.robot, [FINGER_LEFT, FINGER_RIGHT], physicsClientId=self.client
+        )
+        return left[0], right[0]
+
+    def tcp_pose(self) -> tuple[Vec3, QuatXYZW]:
+        """Measured tool-centre-point pose."""
+        state = p.getLinkState(
+            self.robot, TCP_LINK, computeForwardKinematics=True, physicsClientId=self.client
+        )
+        return tuple(state[4]), tuple(state[5])  # type: ignore[return-value]
+
+    def tcp_velocity(self) -> Vec3:
+        """Measured tool-centre-point linear velocity (m/s)."""
+        state = p.getLinkState(
+            self.robot, TCP_LINK, computeLinkVelocity=True, physicsClientId=self.client
+        )
+        return tuple(state[6])  # type: ignore[return-value]
+
+    def brick_pose(self, brick: int) -> tuple[Vec3, QuatXYZW]:
+        """Measured pose of brick ``brick``."""
+        position, quat = p.getBasePositionAndOrientation(
+            self.bricks[brick], physicsClientId=self.client
+        )
+        return tuple(position), tuple(quat)  # type: ignore[return-value]
+
+    def brick_velocity(self, brick: int) -> tuple[Vec3, Vec3]:
+        """Measured linear (m/s) and angular (rad/s) velocity of brick ``brick``."""
+        linear, angular = p.getBaseVelocity(self.bricks[brick], physicsClientId=self.client)
+        return tuple(linear), tuple(angular)  # type: ignore[return-value]
+
+    def finger_contacts(self, brick: int) -> tuple[FingerContact, FingerContact]:
+        """Normal and tangential contact force between each finger pad and a brick."""
+        return tuple(  # type: ignore[return-value]
+            self._contact(self.bricks[brick], finger) for finger in (FINGER_LEFT, FINGER_RIGHT)
+        )
+
+    def _contact(self, body: int, finger: int) -> FingerContact:
+        points = p.getContactPoints(
+            bodyA=self.robot, bodyB=body, linkIndexA=finger, physicsClientId=self.client
+        )
+        normal = sum(pt[9] for pt in points)
+        friction = sum(
+            (pt[10] * np.asarray(pt[11]) + pt[12] * np.asarray(pt[13]) for pt in points),
+            np.zeros(3),
+        )
+        return FingerContact(normal_n=float(normal), tangential_n=float(np.linalg.norm(friction)))
+
+    def close(self) -> None:
+        """Disconnect from the physics server."""
+        if p.isConnected(self.client):
+            p.disconnect(self.client)

@@ -1,0 +1,1 @@
+"""The world model: scene specification, bricks, goal patterns and the typed WorldState."""

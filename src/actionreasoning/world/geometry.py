@@ -1,0 +1,42 @@
+"""Small rigid-body helpers shared by every layer (quaternions are always x, y, z, w)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+Vec3 = tuple[float, float, float]
+QuatXYZW = tuple[float, float, float, float]
+
+#: A gripper pointing straight down: its z axis along world -z (a half turn about x).
+TOP_DOWN = Rotation.from_euler("x", math.pi)
+
+
+def yaw_quat(yaw_rad: float) -> QuatXYZW:
+    """Quaternion (x, y, z, w) of a rotation by ``yaw_rad`` about the world z axis."""
+    return tuple(Rotation.from_euler("z", yaw_rad).as_quat())  # type: ignore[return-value]
+
+
+def quat_yaw(quat_xyzw: QuatXYZW) -> float:
+    """Yaw (rad) of a rotation: the heading of its x axis projected on the ground plane."""
+    x_axis = Rotation.from_quat(quat_xyzw).apply([1.0, 0.0, 0.0])
+    return math.atan2(x_axis[1], x_axis[0])
+
+
+def top_down_quat(yaw_rad: float) -> QuatXYZW:
+    """Orientation of a downward-pointing gripper turned by ``yaw_rad`` about world z."""
+    return tuple((Rotation.from_euler("z", yaw_rad) * TOP_DOWN).as_quat())  # type: ignore[return-value]
+
+
+def wrap_angle(angle_rad: float) -> float:
+    """Wrap an angle into [-pi, pi)."""
+    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def box_corners(position: Vec3, quat_xyzw: QuatXYZW, size: Vec3) -> np.ndarray:
+    """The 8 corners (8 x 3, metres, world frame) of an oriented box centred at ``position``."""
+    half = np.asarray(size, dtype=float) / 2.0
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    return Rotation.from_quat(quat_xyzw).apply(signs * half) + np.asarray(position, dtype=float)

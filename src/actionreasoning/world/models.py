@@ -1,0 +1,101 @@
+"""Typed world model S_t and goal G (DESIGN section 3).
+
+Everything the reasoning layer knows about the world is one :class:`WorldState`: plain
+pydantic models with a JSON schema, round-trip serialisable. Units: metres, kilograms,
+newtons, seconds; orientations are quaternions (x, y, z, w) in the world frame, whose
+origin is the arm's base on the ground with z up.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from actionreasoning.world.geometry import QuatXYZW, Vec3
+
+BrickStatus = Literal["in_pick_area", "grasped", "placed", "dropped", "toppled"]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+class Pose(_Model):
+    """A rigid pose in the world frame."""
+
+    position_m: Vec3
+    quat_xyzw: QuatXYZW = (0.0, 0.0, 0.0, 1.0)
+
+
+class RobotState(_Model):
+    """The arm and gripper as measured by the simulator."""
+
+    ee_pose: Pose = Field(description="Tool centre point (between the finger pads).")
+    joint_positions_rad: tuple[float, ...]
+    gripper_width_m: float = Field(description="Gap between the finger pads.")
+    finger_depth_m: float = Field(description="Finger pad length below the tool centre point.")
+    finger_forces_n: tuple[float, float] = Field(
+        description="Normal contact force on the left and right finger pads."
+    )
+
+
+class BrickState(_Model):
+    """One brick as measured by the simulator."""
+
+    id: int
+    size_m: Vec3
+    mass_kg: float
+    friction: float
+    pose: Pose
+    linear_velocity_mps: Vec3 = (0.0, 0.0, 0.0)
+    angular_velocity_radps: Vec3 = (0.0, 0.0, 0.0)
+    status: BrickStatus = "in_pick_area"
+
+
+class TargetBrick(_Model):
+    """One brick of a goal pattern: where its centre goes, in build order."""
+
+    index: int
+    pose: Pose
+    size_m: Vec3
+
+
+class GoalPattern(_Model):
+    """The goal G: target brick poses in the world frame, in build order."""
+
+    name: str
+    gap_m: float | None = None
+    brick_size_m: Vec3
+    targets: tuple[TargetBrick, ...]
+
+
+class Progress(_Model):
+    """Building progress: which bricks are placed and what is being done now."""
+
+    placed_ids: tuple[int, ...] = ()
+    current_brick: int | None = None
+    step: str | None = None
+
+
+class WorldState(_Model):
+    """The serialized world S_t handed to reasoners."""
+
+    time_s: float
+    robot: RobotState
+    bricks: tuple[BrickState, ...]
+    goal: GoalPattern
+    progress: Progress = Progress()
+
+    def brick(self, brick_id: int) -> BrickState:
+        """The brick with ``brick_id`` (KeyError if there is none)."""
+        for brick in self.bricks:
+            if brick.id == brick_id:
+                return brick
+        raise KeyError(f"no brick with id {brick_id}")
+
+    @property
+    def obstacles(self) -> tuple[BrickState, ...]:
+        """Placed bricks: obstacles for every later move."""
+        placed = set(self.progress.placed_ids)
+        return tuple(b for b in self.bricks if b.id in placed)

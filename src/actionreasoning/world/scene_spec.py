@@ -1,0 +1,60 @@
+"""Scene specification: brick properties, the pick and build areas, and the arm's reach.
+
+The numbers are measured, not guessed: ``bench/reach_band.py`` sweeps top-down grasps
+over radius and height and prints the band in which the arm's IK converges with margin.
+"""
+
+from __future__ import annotations
+
+import math
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from actionreasoning.world.geometry import Vec3
+
+
+class ReachBand(BaseModel):
+    """Where a top-down tool centre point can go: an annulus around the base, up to a height."""
+
+    model_config = ConfigDict(frozen=True)
+
+    min_radius_m: float = 0.42
+    max_radius_m: float = 0.76
+    max_height_m: float = 0.45
+
+    def contains(self, x: float, y: float, z: float) -> bool:
+        """Whether a top-down grasp centre at (x, y, z) lies inside the band."""
+        radius = math.hypot(x, y)
+        return self.min_radius_m <= radius <= self.max_radius_m and 0.0 <= z <= self.max_height_m
+
+
+class SceneSpec(BaseModel):
+    """Everything that defines a scene apart from the goal pattern and the seed."""
+
+    model_config = ConfigDict(frozen=True)
+
+    brick_size_m: Vec3 = (0.20, 0.095, 0.06)
+    brick_mass_kg: float = 1.5
+    brick_friction: float = 0.8
+    ground_friction: float = 0.8
+    build_radius_m: float = 0.58
+    build_azimuth_deg: float = 40.0
+    pick_radius_m: tuple[float, float] = (0.44, 0.72)
+    pick_azimuth_deg: tuple[float, float] = (-150.0, -15.0)
+    pick_min_spacing_m: float = Field(0.24, description="Minimum centre distance of spawned bricks.")
+    reach: ReachBand = ReachBand()
+
+    @property
+    def build_center_m(self) -> Vec3:
+        """Centre of the build area on the ground."""
+        azimuth = math.radians(self.build_azimuth_deg)
+        return (
+            self.build_radius_m * math.cos(azimuth),
+            self.build_radius_m * math.sin(azimuth),
+            0.0,
+        )
+
+    @property
+    def build_yaw_rad(self) -> float:
+        """Yaw of a row in the build area: rows run tangentially, bricks' short side faces the base."""
+        return math.radians(self.build_azimuth_deg) + math.pi / 2.0
