@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 from pathlib import Path
@@ -38,7 +39,7 @@ def _row_axis() -> np.ndarray:
 
 
 def _row_gaps(layer: list[np.ndarray]) -> list[float]:
-    return [float((b - a) @ _row_axis()) - L for a, b in zip(layer, layer[1:])]
+    return [float((b - a) @ _row_axis()) - L for a, b in itertools.pairwise(layer)]
 
 
 def _brick(x: float, y: float, z: float, yaw: float = 0.0) -> dict:
@@ -83,7 +84,9 @@ def test_pyramid_geometry() -> None:
     assert [len(layer) for layer in layers] == [3, 2, 1]
     for gap in _row_gaps(layers[0]) + _row_gaps(layers[1]):
         assert gap == pytest.approx(0.05, abs=1e-9)
-    for upper, (left, right) in zip(layers[1], zip(layers[0], layers[0][1:])):
+    for upper, (left, right) in zip(
+        layers[1], zip(layers[0], layers[0][1:], strict=False), strict=False
+    ):
         np.testing.assert_allclose(upper[:2], ((left + right) / 2.0)[:2], atol=1e-9)
     top_mid = (layers[1][0] + layers[1][1]) / 2.0
     np.testing.assert_allclose(layers[2][0][:2], top_mid[:2], atol=1e-9)
@@ -108,7 +111,7 @@ def test_grid_geometry() -> None:
     assert len(bottom) == len(top) == 3
     for gap in _row_gaps(bottom) + _row_gaps(top):
         assert gap == pytest.approx(0.02, abs=1e-9)
-    for lower, upper in zip(bottom, top):
+    for lower, upper in zip(bottom, top, strict=False):
         np.testing.assert_allclose(upper[:2], lower[:2], atol=1e-12)
         assert upper[2] - lower[2] == pytest.approx(H)
 

@@ -58,7 +58,9 @@ def _summary_table(summary: RunSummary) -> Table:
 
     def cell(metric: str, scale: float = 1.0) -> str:
         stats = s[metric]
-        return "n/a" if stats.mean is None else f"{stats.mean * scale:.3f} ± {stats.std * scale:.3f}"
+        return (
+            "n/a" if stats.mean is None else f"{stats.mean * scale:.3f} ± {stats.std * scale:.3f}"
+        )
 
     table.add_row(
         cell("rotation_error_deg"),
@@ -110,18 +112,28 @@ def eval_command(
     trials: Annotated[int, typer.Option(min=1, help="Number of trials.")] = 10,
     seed: Annotated[int, typer.Option(help="Run seed; trial k uses a seed from (seed, k).")] = 0,
     llm: Annotated[str, typer.Option(help="Reasoning backend: builtin.")] = "builtin",
-    base_url: Annotated[str | None, typer.Option(help="Base URL of an OpenAI-compatible server.")] = None,
+    base_url: Annotated[
+        str | None, typer.Option(help="Base URL of an OpenAI-compatible server.")
+    ] = None,
     workers: Annotated[int, typer.Option(min=1, help="Parallel worker processes.")] = 1,
-    snapshots: Annotated[bool, typer.Option(help="Write per-stage PNG snapshots of every trial.")] = False,
+    snapshots: Annotated[
+        bool, typer.Option(help="Write per-stage PNG snapshots of every trial.")
+    ] = False,
 ) -> None:
     """Run randomized trials of one method on one pattern and write results and summaries."""
     try:
         _check_method(method, llm, workers)
         goal = load_pattern(pattern, SceneSpec())
         config = RunConfig(
-            method=method, pattern_name=pattern, goal=goal, trials=trials, seed=seed, out=out,
-            llm=llm, snapshots=snapshots,
-        )  # fmt: skip
+            method=method,
+            pattern_name=pattern,
+            goal=goal,
+            trials=trials,
+            seed=seed,
+            out=out,
+            llm=llm,
+            snapshots=snapshots,
+        )
         summary = _run_with_progress(config)
     except ActionReasoningError as error:
         _fail(error)
@@ -139,9 +151,14 @@ def demo(
     try:
         goal = load_pattern(pattern, SceneSpec())
         config = RunConfig(
-            method=Method.CLASSICAL, pattern_name=pattern, goal=goal, trials=1, seed=seed,
-            out=out, snapshots=True,
-        )  # fmt: skip
+            method=Method.CLASSICAL,
+            pattern_name=pattern,
+            goal=goal,
+            trials=1,
+            seed=seed,
+            out=out,
+            snapshots=True,
+        )
         summary = _run_with_progress(config)
     except ActionReasoningError as error:
         _fail(error)
@@ -172,6 +189,7 @@ def pattern_command(
     for target in goal.targets:
         x, y, z = target.pose.position_m
         yaw = quat_yaw(target.pose.quat_xyzw)
-        table.add_row(str(target.index), f"{x:.3f}", f"{y:.3f}", f"{z:.3f}", f"{math.degrees(yaw):.1f}")
+        table.add_row(
+            str(target.index), f"{x:.3f}", f"{y:.3f}", f"{z:.3f}", f"{math.degrees(yaw):.1f}"
+        )
     console.print(table)
-

@@ -77,20 +77,59 @@ class ClassicalController:
             return Pose(position_m=(x, y, z), quat_xyzw=top_down_quat(yaw))
 
         steps = [
-            ("pre_grasp", Waypoint(pose=at(px, py, pz + s.approach_height_m, pick_yaw),
-                                   gripper=GripperCommand.OPEN, ticks=s.transfer_ticks)),
-            ("descent", Waypoint(pose=at(px, py, pz, pick_yaw), path="linear", ticks=s.vertical_ticks)),
-            ("grasp", Waypoint(pose=at(px, py, pz, pick_yaw), gripper=GripperCommand.CLOSE, ticks=1)),
-            ("lift", Waypoint(pose=at(px, py, s.transfer_height_m, pick_yaw), path="linear",
-                              ticks=s.vertical_ticks)),
-            ("transfer", Waypoint(pose=at(tx, ty, s.transfer_height_m, place_yaw), ticks=s.transfer_ticks)),
-            ("placement", Waypoint(pose=at(tx, ty, tz + s.release_height_m, place_yaw), path="linear",
-                                   ticks=s.vertical_ticks)),
-            ("release", Waypoint(pose=at(tx, ty, tz + s.release_height_m, place_yaw),
-                                 gripper=GripperCommand.OPEN, ticks=1)),
-            ("retreat", Waypoint(pose=at(tx, ty, s.transfer_height_m, place_yaw), path="linear",
-                                 ticks=s.vertical_ticks)),
-        ]  # fmt: skip
+            (
+                "pre_grasp",
+                Waypoint(
+                    pose=at(px, py, pz + s.approach_height_m, pick_yaw),
+                    gripper=GripperCommand.OPEN,
+                    ticks=s.transfer_ticks,
+                ),
+            ),
+            (
+                "descent",
+                Waypoint(pose=at(px, py, pz, pick_yaw), path="linear", ticks=s.vertical_ticks),
+            ),
+            (
+                "grasp",
+                Waypoint(pose=at(px, py, pz, pick_yaw), gripper=GripperCommand.CLOSE, ticks=1),
+            ),
+            (
+                "lift",
+                Waypoint(
+                    pose=at(px, py, s.transfer_height_m, pick_yaw),
+                    path="linear",
+                    ticks=s.vertical_ticks,
+                ),
+            ),
+            (
+                "transfer",
+                Waypoint(pose=at(tx, ty, s.transfer_height_m, place_yaw), ticks=s.transfer_ticks),
+            ),
+            (
+                "placement",
+                Waypoint(
+                    pose=at(tx, ty, tz + s.release_height_m, place_yaw),
+                    path="linear",
+                    ticks=s.vertical_ticks,
+                ),
+            ),
+            (
+                "release",
+                Waypoint(
+                    pose=at(tx, ty, tz + s.release_height_m, place_yaw),
+                    gripper=GripperCommand.OPEN,
+                    ticks=1,
+                ),
+            ),
+            (
+                "retreat",
+                Waypoint(
+                    pose=at(tx, ty, s.transfer_height_m, place_yaw),
+                    path="linear",
+                    ticks=s.vertical_ticks,
+                ),
+            ),
+        ]
         for stage, waypoint in steps:
             run(waypoint, settle=False)
             yield stage

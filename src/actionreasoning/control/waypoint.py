@@ -56,7 +56,7 @@ class ControllerLimits:
     settle_max_ticks: int = 480
     joint_tolerance_rad: float = 2e-3
     joint_speed_tolerance_radps: float = 0.02
-    gripper_ticks: int = 120
+    gripper_ticks: int = 150
 
 
 @dataclass(frozen=True)
@@ -81,9 +81,7 @@ class WaypointController:
 
     def solve(self, pose: Pose, seed_rad: np.ndarray | None = None) -> np.ndarray:
         """Arm joints for a tool pose; raises :class:`UnreachableError` if IK misses it."""
-        solution = self.arm.solve(
-            pose.position_m, pose.quat_xyzw, seed_rad
-        )
+        solution = self.arm.solve(pose.position_m, pose.quat_xyzw, seed_rad)
         if not solution.reached:
             x, y, z = pose.position_m
             raise UnreachableError(
@@ -139,7 +137,9 @@ class WaypointController:
             distance = float(np.linalg.norm(np.subtract(waypoint.pose.position_m, start)))
             total = math.ceil(distance / lim.max_linear_speed_mps / dt)
         else:
-            total = math.ceil(float(np.max(np.abs(knots[-1] - knots[0]))) / lim.max_joint_speed_radps / dt)
+            total = math.ceil(
+                float(np.max(np.abs(knots[-1] - knots[0]))) / lim.max_joint_speed_radps / dt
+            )
         total = max(total, lim.min_ticks, len(knots) - 1)
         path = np.array(knots)
         along = np.linspace(0.0, 1.0, len(knots))
@@ -165,7 +165,9 @@ class WaypointController:
     def _actuate_gripper(self, command: GripperCommand) -> int:
         if command is GripperCommand.HOLD:
             return 0
-        self.scene.set_finger_target(FINGER_MAX_M if command is GripperCommand.OPEN else FINGER_MIN_M)
+        self.scene.set_finger_target(
+            FINGER_MAX_M if command is GripperCommand.OPEN else FINGER_MIN_M
+        )
         self.scene.step(self.limits.gripper_ticks)
         return self.limits.gripper_ticks
 

@@ -48,9 +48,10 @@ class RunSummary(BaseModel):
 def describe_rule(rule: SuccessRule) -> str:
     """The success rule in words, as printed in every summary."""
     return (
-        f"every brick within {rule.max_center_offset_cm:g} cm and {rule.max_rotation_error_deg:g} deg "
-        f"(plain geodesic) of its target, and every brick at rest (< {rule.max_speed_mps * 100:g} cm/s, "
-        f"< {rule.max_angular_speed_radps:g} rad/s) after the final settle"
+        f"every brick within {rule.max_center_offset_cm:g} cm and "
+        f"{rule.max_rotation_error_deg:g} deg (plain geodesic) of its target, and every brick "
+        f"at rest (< {rule.max_speed_mps * 100:g} cm/s, < {rule.max_angular_speed_radps:g} rad/s) "
+        "after the final settle"
     )
 
 
@@ -64,7 +65,7 @@ def _stats(results: Sequence[TrialResult], metric: str) -> MetricStats:
 def summarize(
     results: Sequence[TrialResult], wall_time_s: float, rule: SuccessRule = SuccessRule()
 ) -> RunSummary:
-    """Means and standard deviations over successful trials (the paper's protocol) and all trials."""
+    """Means and standard deviations over successful trials (the paper's protocol) and all."""
     if not results:
         raise ValueError("no trial results to summarize")
     first = results[0]
@@ -115,7 +116,8 @@ def summary_markdown(summary: RunSummary) -> str:
         "",
         "Means ± standard deviations over successful trials (per-brick values averaged per trial).",
         "",
-        "| Method | Rot. Err (°) ↓ | Ctr. Off. (cm) ↓ | IoU (%) ↑ | Sym. Rot. Err (°) ↓ | Success |",
+        "| Method | Rot. Err (°) ↓ | Ctr. Off. (cm) ↓ | IoU (%) ↑ | Sym. Rot. Err (°) ↓ "
+        "| Success |",
         "|---|---|---|---|---|---|",
         f"| {summary.method} | {_cell(s['rotation_error_deg'])} | {_cell(s['center_offset_cm'])} | "
         f"{_cell(s['iou'], 100.0, 2)} | {_cell(s['symmetric_rotation_error_deg'])} | "

@@ -77,7 +77,9 @@ def run_trial(
     seed = trial_seed(spec.run_seed, spec.trial)
     poses = sample_pick_poses(np.random.default_rng(seed), len(spec.goal.targets), spec.scene)
     arm = KinematicArm()
-    scene = Scene(spec.scene, poses, arm.solve(READY_POSE.position_m, READY_POSE.quat_xyzw).joints_rad)
+    scene = Scene(
+        spec.scene, poses, arm.solve(READY_POSE.position_m, READY_POSE.quat_xyzw).joints_rad
+    )
     try:
         scene.step(SPAWN_SETTLE_TICKS)
         controller = WaypointController(scene, arm)
@@ -108,7 +110,12 @@ def _measure(
         brick = target.index
         position, quat = scene.brick_pose(brick)
         m = brick_metrics(
-            position, quat, target.size_m, target.pose.position_m, target.pose.quat_xyzw, target.size_m
+            position,
+            quat,
+            target.size_m,
+            target.pose.position_m,
+            target.pose.quat_xyzw,
+            target.size_m,
         )
         bricks.append(
             BrickResult(

@@ -35,9 +35,11 @@ def build_closeup(scene: Scene) -> CameraView:
     """The build area seen from outside, facing the arm."""
     x, y, _ = scene.spec.build_center_m
     return CameraView(
-        target_m=(x, y, 0.08), distance_m=0.9, yaw_deg=scene.spec.build_azimuth_deg + 90.0,
+        target_m=(x, y, 0.08),
+        distance_m=0.9,
+        yaw_deg=scene.spec.build_azimuth_deg + 90.0,
         pitch_deg=-30.0,
-    )  # fmt: skip
+    )
 
 
 def render(scene: Scene, view: CameraView, width: int = 480, height: int = 360) -> np.ndarray:

@@ -79,9 +79,7 @@ class KinematicArm:
         """
         azimuth = math.atan2(position_m[1], position_m[0])
         wrist = wrap_angle(azimuth + math.pi - quat_yaw(quat_xyzw))
-        rest = np.clip(
-            (azimuth,) + REST_POSE_RAD[1:6] + (wrist,), self.lower_rad, self.upper_rad
-        )
+        rest = np.clip((azimuth, *REST_POSE_RAD[1:6], wrist), self.lower_rad, self.upper_rad)
         return tuple(float(q) for q in rest)
 
     def solve(
@@ -91,12 +89,16 @@ class KinematicArm:
         rest_rad: Sequence[float] | None = None,
         refine_iterations: int = 30,
     ) -> IKSolution:
-        """Joint angles that put the tool centre point at the pose; ``rest_rad`` seeds and biases."""
-        rest = list(rest_rad) if rest_rad is not None else list(self.default_rest(position_m, quat_xyzw))
+        """Joint angles putting the tool centre point at the pose; ``rest_rad`` seeds and biases."""
+        rest = (
+            list(rest_rad)
+            if rest_rad is not None
+            else list(self.default_rest(position_m, quat_xyzw))
+        )
         finger = [FINGER_MAX_M] * (self._n_movable - len(ARM_JOINTS))
         lower = list(self.lower_rad) + [0.0] * len(finger)
         upper = list(self.upper_rad) + [0.1] * len(finger)
-        ranges = [u - lo for u, lo in zip(upper, lower)]
+        ranges = [u - lo for u, lo in zip(upper, lower, strict=False)]
         self._set(rest)
         joints = self._ik(position_m, quat_xyzw, lower, upper, ranges, rest + finger)
         for _ in range(refine_iterations):
@@ -136,5 +138,5 @@ class KinematicArm:
         )
 
     def _set(self, joints_rad: Sequence[float]) -> None:
-        for joint, angle in zip(ARM_JOINTS, joints_rad):
+        for joint, angle in zip(ARM_JOINTS, joints_rad, strict=False):
             p.resetJointState(self._robot, joint, float(angle), physicsClientId=self._client)

@@ -63,7 +63,9 @@ def perceive(scene: Scene, goal: GoalPattern, progress: Progress = Progress()) -
     )
 
 
-def _status(scene: Scene, brick: int, position, quat, held: bool, progress: Progress) -> BrickStatus:
+def _status(
+    scene: Scene, brick: int, position, quat, held: bool, progress: Progress
+) -> BrickStatus:
     if held:
         return "grasped"
     up = Rotation.from_quat(quat).apply([0.0, 0.0, 1.0])

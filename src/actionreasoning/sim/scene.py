@@ -77,7 +77,7 @@ class Scene:
         self.robot = load_robot(self.client)
         self._setup_gripper()
         self.bricks = [self._spawn_brick(i, pose) for i, pose in enumerate(brick_poses)]
-        for joint, angle in zip(ARM_JOINTS, ready_joints_rad):
+        for joint, angle in zip(ARM_JOINTS, ready_joints_rad, strict=False):
             p.resetJointState(self.robot, joint, angle, physicsClientId=self.client)
         self.arm_targets = np.array(ready_joints_rad, dtype=float)
         self.finger_target_m = FINGER_MAX_M
@@ -114,9 +114,16 @@ class Scene:
             )
             p.resetJointState(self.robot, finger, FINGER_MAX_M, physicsClientId=cid)
         gear = p.createConstraint(
-            self.robot, FINGER_LEFT, self.robot, FINGER_RIGHT, p.JOINT_GEAR,
-            [0, 1, 0], [0, 0, 0], [0, 0, 0], physicsClientId=cid,
-        )  # fmt: skip
+            self.robot,
+            FINGER_LEFT,
+            self.robot,
+            FINGER_RIGHT,
+            p.JOINT_GEAR,
+            [0, 1, 0],
+            [0, 0, 0],
+            [0, 0, 0],
+            physicsClientId=cid,
+        )
         # Couple the fingers (ratio -1: they move as mirror images) so that the finger that
         # touches first cannot push the brick off centre.
         p.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=200, physicsClientId=cid)
@@ -126,9 +133,11 @@ class Scene:
         half = [s / 2.0 for s in spec.brick_size_m]
         shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
         visual = p.createVisualShape(
-            p.GEOM_BOX, halfExtents=half, rgbaColor=BRICK_COLORS[index % len(BRICK_COLORS)],
+            p.GEOM_BOX,
+            halfExtents=half,
+            rgbaColor=BRICK_COLORS[index % len(BRICK_COLORS)],
             physicsClientId=cid,
-        )  # fmt: skip
+        )
         body = p.createMultiBody(
             baseMass=spec.brick_mass_kg,
             baseCollisionShapeIndex=shape,
@@ -138,12 +147,13 @@ class Scene:
             physicsClientId=cid,
         )
         p.changeDynamics(
-            body, -1,
+            body,
+            -1,
             lateralFriction=spec.brick_friction,
             spinningFriction=self.physics.spinning_friction,
             rollingFriction=0.0,
             physicsClientId=cid,
-        )  # fmt: skip
+        )
         return body
 
     # --- actuation --------------------------------------------------------------------
@@ -160,19 +170,23 @@ class Scene:
     def _apply_targets(self) -> None:
         cfg, cid = self.physics, self.client
         p.setJointMotorControlArray(
-            self.robot, list(ARM_JOINTS), p.POSITION_CONTROL,
+            self.robot,
+            list(ARM_JOINTS),
+            p.POSITION_CONTROL,
             targetPositions=list(self.arm_targets),
             forces=[cfg.arm_force_nm] * len(ARM_JOINTS),
             physicsClientId=cid,
-        )  # fmt: skip
+        )
         for finger in (FINGER_LEFT, FINGER_RIGHT):
             p.setJointMotorControl2(
-                self.robot, finger, p.POSITION_CONTROL,
+                self.robot,
+                finger,
+                p.POSITION_CONTROL,
                 targetPosition=self.finger_target_m,
                 force=cfg.grip_force_n,
                 maxVelocity=cfg.finger_speed_mps,
                 physicsClientId=cid,
-            )  # fmt: skip
+            )
 
     def step(self, ticks: int = 1) -> None:
         """Advance the simulation by ``ticks`` fixed time steps."""

@@ -33,8 +33,11 @@ def sample_pick_poses(rng: np.random.Generator, count: int, spec: SceneSpec) -> 
         centre = np.array([radius * math.cos(azimuth), radius * math.sin(azimuth)])
         if all(np.linalg.norm(centre - c) >= spec.pick_min_spacing_m for c in centres):
             centres.append(centre)
-            poses.append(Pose(position_m=(*map(float, centre), half_height), quat_xyzw=yaw_quat(yaw)))
+            poses.append(
+                Pose(position_m=(*map(float, centre), half_height), quat_xyzw=yaw_quat(yaw))
+            )
     raise ConfigError(
         f"cannot lay out {count} bricks {spec.pick_min_spacing_m} m apart in the pick area "
-        f"(radius {r_min}-{r_max} m, azimuth {spec.pick_azimuth_deg[0]} to {spec.pick_azimuth_deg[1]} deg)"
+        f"(radius {r_min}-{r_max} m, azimuth {spec.pick_azimuth_deg[0]} to "
+        f"{spec.pick_azimuth_deg[1]} deg)"
     )

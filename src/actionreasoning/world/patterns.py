@@ -44,8 +44,11 @@ HULL_TOL_M = 1e-6  # a centre this close to its support hull still counts as sup
 #: Built-ins: bricks per layer (each layer a row centred over the one below) and the gap.
 _BUILTINS = {"pyramid": ((3, 2, 1), 0.05), "grid": ((3, 3), 0.02)}
 
-_PARSERS = {".json": ("JSON", json.loads), ".yaml": ("YAML", yaml.safe_load),
-            ".yml": ("YAML", yaml.safe_load)}
+_PARSERS = {
+    ".json": ("JSON", json.loads),
+    ".yaml": ("YAML", yaml.safe_load),
+    ".yml": ("YAML", yaml.safe_load),
+}
 
 Finite = Annotated[float, Strict()]
 Positive = Annotated[float, Strict(), Field(gt=0.0)]
@@ -129,12 +132,14 @@ def load_pattern(name_or_path: str | Path, spec: SceneSpec) -> GoalPattern:
     blocks = _place(pattern, spec)
     _validate(source, blocks, spec)
     targets = tuple(
-        TargetBrick(index=b.index, pose=Pose(position_m=b.centre, quat_xyzw=yaw_quat(b.yaw)),
-                    size_m=b.size)
+        TargetBrick(
+            index=b.index, pose=Pose(position_m=b.centre, quat_xyzw=yaw_quat(b.yaw)), size_m=b.size
+        )
         for b in blocks
     )
-    return GoalPattern(name=pattern.name, gap_m=gap, brick_size_m=pattern.brick_size,
-                       targets=targets)
+    return GoalPattern(
+        name=pattern.name, gap_m=gap, brick_size_m=pattern.brick_size, targets=targets
+    )
 
 
 def _one_line(text: object) -> str:
@@ -178,8 +183,12 @@ def _place(pattern: PatternFile, spec: SceneSpec) -> list[_Block]:
     turn = spec.build_yaw_rad if pattern.origin is None else 0.0
     c, s = math.cos(turn), math.sin(turn)
     return [
-        _Block(i, (ox + c * x - s * y, oy + s * x + c * y, oz + z),
-               turn + math.radians(brick.yaw_deg), pattern.brick_size)
+        _Block(
+            i,
+            (ox + c * x - s * y, oy + s * x + c * y, oz + z),
+            turn + math.radians(brick.yaw_deg),
+            pattern.brick_size,
+        )
         for i, brick in enumerate(pattern.bricks)
         for x, y, z in [brick.position]
     ]
@@ -208,10 +217,11 @@ def _check_ground(source: str, block: _Block) -> None:
 def _check_reach(source: str, block: _Block, spec: SceneSpec) -> None:
     band = spec.reach
     if not band.contains(*block.centre):
-        limits = (f"radius {band.min_radius_m}-{band.max_radius_m} m, "
-                  f"height 0-{band.max_height_m} m")
-        raise PatternError(f"{source}: brick {block.index} at world {_fmt(block.centre)} "
-                           f"is out of the arm's reach ({limits})")
+        limits = f"radius {band.min_radius_m}-{band.max_radius_m} m, height 0-{band.max_height_m} m"
+        raise PatternError(
+            f"{source}: brick {block.index} at world {_fmt(block.centre)} "
+            f"is out of the arm's reach ({limits})"
+        )
 
 
 def _check_overlaps(source: str, blocks: list[_Block]) -> None:
@@ -235,13 +245,17 @@ def _check_support(source: str, block: _Block, blocks: list[_Block]) -> None:
     brick = f"{source}: brick {block.index}"
     contacts = _contacts(block, blocks)
     if not contacts:
-        raise PatternError(f"{brick} has nothing under it (no brick top within "
-                           f"{SUPPORT_TOL_M * 1e3:.0f} mm of z = {block.bottom:.3f} m)")
+        raise PatternError(
+            f"{brick} has nothing under it (no brick top within "
+            f"{SUPPORT_TOL_M * 1e3:.0f} mm of z = {block.bottom:.3f} m)"
+        )
     later = [other.index for other, _ in contacts if other.index > block.index]
     if later:
         raise PatternError(f"{brick} rests on brick {later[0]}, which is built later")
     hull = unary_union([area for _, area in contacts]).convex_hull
     if hull.distance(Point(block.centre[:2])) > HULL_TOL_M:
         below = ", ".join(str(other.index) for other, _ in contacts)
-        raise PatternError(f"{brick} would topple: its centre {_fmt(block.centre[:2])} lies "
-                           f"outside its support on brick(s) {below}")
+        raise PatternError(
+            f"{brick} would topple: its centre {_fmt(block.centre[:2])} lies "
+            f"outside its support on brick(s) {below}"
+        )

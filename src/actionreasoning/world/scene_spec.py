@@ -41,7 +41,9 @@ class SceneSpec(BaseModel):
     build_azimuth_deg: float = 40.0
     pick_radius_m: tuple[float, float] = (0.44, 0.72)
     pick_azimuth_deg: tuple[float, float] = (-150.0, -15.0)
-    pick_min_spacing_m: float = Field(0.24, description="Minimum centre distance of spawned bricks.")
+    pick_min_spacing_m: float = Field(
+        0.24, description="Minimum centre distance of spawned bricks."
+    )
     reach: ReachBand = ReachBand()
 
     @property
@@ -56,5 +58,5 @@ class SceneSpec(BaseModel):
 
     @property
     def build_yaw_rad(self) -> float:
-        """Yaw of a row in the build area: rows run tangentially, bricks' short side faces the base."""
+        """Yaw of a build-area row: rows run tangentially, the bricks' short side faces the base."""
         return math.radians(self.build_azimuth_deg) + math.pi / 2.0
