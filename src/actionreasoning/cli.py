@@ -38,7 +38,7 @@ def _fail(error: ActionReasoningError) -> None:
     raise typer.Exit(code=2)
 
 
-def _check_method(method: Method, llm: str, workers: int) -> None:
+def _check_options(method: Method, llm: str, base_url: str | None, workers: int) -> None:
     if method not in AVAILABLE_METHODS:
         raise ConfigError(
             f"--method {method} is not available yet; available: "
@@ -46,6 +46,8 @@ def _check_method(method: Method, llm: str, workers: int) -> None:
         )
     if llm != "builtin":
         raise ConfigError(f"--llm {llm!r} is not available yet; only 'builtin' is")
+    if base_url is not None:
+        raise ConfigError("--base-url is for --llm openai:MODEL, which is not available yet")
     if workers != 1:
         raise ConfigError("--workers above 1 is not available yet")
 
@@ -122,7 +124,7 @@ def eval_command(
 ) -> None:
     """Run randomized trials of one method on one pattern and write results and summaries."""
     try:
-        _check_method(method, llm, workers)
+        _check_options(method, llm, base_url, workers)
         goal = load_pattern(pattern, SceneSpec())
         config = RunConfig(
             method=method,

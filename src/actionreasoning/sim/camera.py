@@ -6,6 +6,7 @@ alter a trial's outcome (tests check this).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,18 +29,23 @@ class CameraView:
 
 def overview(scene: Scene) -> CameraView:
     """The whole workspace: pick area, arm and build area."""
-    return CameraView(target_m=(0.3, -0.05, 0.05), distance_m=2.3, yaw_deg=-50.0, pitch_deg=-55.0)
+    return CameraView(target_m=(0.2, -0.1, 0.0), distance_m=1.9, yaw_deg=30.0, pitch_deg=-65.0)
+
+
+def closeup(target_m: Vec3) -> CameraView:
+    """A close look at a point on the ground, from outside the arm's reach, facing the arm."""
+    azimuth = math.degrees(math.atan2(target_m[1], target_m[0]))
+    return CameraView(
+        target_m=(target_m[0], target_m[1], 0.08),
+        distance_m=0.9,
+        yaw_deg=azimuth + 90.0,
+        pitch_deg=-30.0,
+    )
 
 
 def build_closeup(scene: Scene) -> CameraView:
     """The build area seen from outside, facing the arm."""
-    x, y, _ = scene.spec.build_center_m
-    return CameraView(
-        target_m=(x, y, 0.08),
-        distance_m=0.9,
-        yaw_deg=scene.spec.build_azimuth_deg + 90.0,
-        pitch_deg=-30.0,
-    )
+    return closeup(scene.spec.build_center_m)
 
 
 def render(scene: Scene, view: CameraView, width: int = 480, height: int = 360) -> np.ndarray:

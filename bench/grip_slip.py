@@ -1,0 +1,158 @@
+"""Measure whether a held brick slips in the gripper, per physics setting.
+
+    .venv/bin/python bench/grip_slip.py            # 3 seeds per setting
+    .venv/bin/python bench/grip_slip.py --quick    # 1 seed per setting
+
+For solver iterations {50, 150} at 1/240 s and grip force {60, 110, 150} N per finger, each
+seed spawns one 0.20 x 0.095 x 0.06 m, 1.5 kg brick, picks it as ``classical.py`` does
+(approach above, linear descent to the centre, CLOSE, linear lift to 0.30 m), then sweeps fast
+in joint space (240 ticks) to above the build area (0.44, 0.37, 0.30) and back. Slip is the
+change of the brick's pose in the tool-centre-point frame from just after closing: at the end
+(mean/max over seeds) and its peak sampled every 10 ticks during lift and sweep. Also printed:
+the peak TCP speed, the smallest per-finger normal force seen (Scene.finger_contacts), how many
+samples had a finger below 1 N, and how many bricks dropped (z < 0.1 m at the end).
+``--sweep-ticks N`` changes the sweep duration (default 240 ticks = 1 s each way).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from dataclasses import dataclass, field, replace
+from functools import partial
+
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+from scipy.spatial.transform import Rotation
+
+from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
+from actionreasoning.errors import UnreachableError
+from actionreasoning.eval.trial import READY_POSE, SPAWN_SETTLE_TICKS
+from actionreasoning.sim.kinematics import KinematicArm
+from actionreasoning.sim.scene import PhysicsConfig, Scene
+from actionreasoning.world.geometry import quat_yaw, top_down_quat
+from actionreasoning.world.layout import sample_pick_poses
+from actionreasoning.world.models import Pose
+from actionreasoning.world.scene_spec import SceneSpec
+
+ITERATIONS = (50, 150)
+FORCES_N = (60.0, 110.0, 150.0)
+FAR_XY = (0.44, 0.37)
+LIFT_Z, APPROACH_M, SWEEP_TICKS, SAMPLE_EVERY = 0.30, 0.12, 240, 10
+
+
+@dataclass
+class Probe:
+    """Brick pose in the TCP frame right after closing, and the worst seen since."""
+
+    scene: Scene
+    ref: tuple[np.ndarray, Rotation] = field(init=False)
+    peak: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])  # mm, deg, TCP m/s
+    min_force_n: float = math.inf
+    lost: int = 0  # samples with a finger below 1 N
+
+    def __post_init__(self) -> None:
+        self.ref = self.relative()
+
+    def relative(self) -> tuple[np.ndarray, Rotation]:
+        tcp_p, tcp_q = self.scene.tcp_pose()
+        brick_p, brick_q = self.scene.brick_pose(0)
+        inv = Rotation.from_quat(tcp_q).inv()
+        return inv.apply(np.subtract(brick_p, tcp_p)), inv * Rotation.from_quat(brick_q)
+
+    def slip(self) -> tuple[float, float]:
+        """Translation (mm) and rotation (deg) of the brick in the TCP frame since the grasp."""
+        pos, rot = self.relative()
+        mm = float(np.linalg.norm(pos - self.ref[0]) * 1000.0)
+        return mm, float(np.degrees((self.ref[1].inv() * rot).magnitude()))
+
+    def sample(self) -> None:
+        speed = float(np.linalg.norm(self.scene.tcp_velocity()))
+        self.peak = [max(a, b) for a, b in zip(self.peak, (*self.slip(), speed), strict=True)]
+        force = min(c.normal_n for c in self.scene.finger_contacts(0))
+        self.min_force_n, self.lost = min(self.min_force_n, force), self.lost + (force < 1.0)
+
+
+class ProbedScene(Scene):
+    """A scene that calls its probe (once set) every ``SAMPLE_EVERY`` ticks."""
+
+    probe: Probe | None = None
+
+    def step(self, ticks: int = 1) -> None:
+        for _ in range(ticks):
+            super().step(1)
+            if self.probe is not None and self.ticks % SAMPLE_EVERY == 0:
+                self.probe.sample()
+
+
+def run_once(arm: KinematicArm, physics: PhysicsConfig, seed: int, sweep: int) -> list[float]:
+    """End mm, end deg, peak mm, peak deg, peak TCP m/s, min finger N, lost, dropped."""
+    spec = SceneSpec()
+    poses = sample_pick_poses(np.random.default_rng(seed), 1, spec)
+    ready = arm.solve(READY_POSE.position_m, READY_POSE.quat_xyzw).joints_rad
+    scene = ProbedScene(spec, poses, ready, physics)
+    try:
+        scene.step(SPAWN_SETTLE_TICKS)
+        run = partial(WaypointController(scene, arm).execute, settle=False)  # as classical.py
+        (px, py, pz), quat = scene.brick_pose(0)
+        far = (*FAR_XY, LIFT_Z)
+
+        def wrist(yaw: float) -> float:  # like classical.py, at transfer height, both ends
+            return max(abs(arm.solve(xy, top_down_quat(yaw)).joints_rad[6])
+                       for xy in ((px, py, LIFT_Z), far))  # fmt: skip
+
+        yaw = min((quat_yaw(quat) + flip for flip in (0.0, math.pi)), key=wrist)
+
+        def at(x: float, y: float, z: float) -> Pose:
+            return Pose(position_m=(x, y, z), quat_xyzw=top_down_quat(yaw))
+
+        run(Waypoint(pose=at(px, py, pz + APPROACH_M), gripper=GripperCommand.OPEN, ticks=480))
+        run(Waypoint(pose=at(px, py, pz), path="linear", ticks=240))
+        run(Waypoint(pose=at(px, py, pz), gripper=GripperCommand.CLOSE, ticks=1))
+        scene.probe = probe = Probe(scene)
+        run(Waypoint(pose=at(px, py, LIFT_Z), path="linear", ticks=240))
+        run(Waypoint(pose=at(*far), ticks=sweep))
+        run(Waypoint(pose=at(px, py, LIFT_Z), ticks=sweep))
+        probe.sample()
+        dropped = float(scene.brick_pose(0)[0][2] < 0.1)
+        return [*probe.slip(), *probe.peak, probe.min_force_n, probe.lost, dropped]
+    finally:
+        scene.close()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="one seed per setting")
+    parser.add_argument("--sweep-ticks", type=int, default=SWEEP_TICKS, help="ticks per sweep")
+    args = parser.parse_args()
+    seeds = range(1 if args.quick else 3)
+    table = Table(title=f"Grip slip, dt 1/240 s, sweep {args.sweep_ticks} ticks, "
+                  f"{len(seeds)} seed(s) per setting")  # fmt: skip
+    for col in ("iters", "force N", "slip mm mean/max", "slip deg mean/max", "peak mm",
+                "peak deg", "peak TCP m/s", "min finger N", "contact lost", "dropped"):  # fmt: skip
+        table.add_column(col, justify="right")
+    arm, start = KinematicArm(), time.perf_counter()
+    for iterations in ITERATIONS:
+        for force in FORCES_N:
+            physics = replace(PhysicsConfig(), time_step_s=1.0 / 240.0,
+                              solver_iterations=iterations, grip_force_n=force)  # fmt: skip
+            try:
+                r = np.array([run_once(arm, physics, seed, args.sweep_ticks) for seed in seeds])
+            except UnreachableError as error:
+                table.add_row(str(iterations), f"{force:.0f}", f"unreachable: {error}")
+                continue
+            table.add_row(
+                str(iterations), f"{force:.0f}",
+                *(f"{r[:, i].mean():.2f} / {r[:, i].max():.2f}" for i in (0, 1)),
+                *(f"{r[:, i].max():.2f}" for i in (2, 3, 4)),
+                f"{r[:, 5].min():.1f}", f"{r[:, 6].sum():.0f}", f"{r[:, 7].sum():.0f}/{len(seeds)}",
+            )  # fmt: skip
+    arm.close()
+    Console(width=160).print(table)
+    print(f"wall time {time.perf_counter() - start:.1f} s")
+
+
+if __name__ == "__main__":
+    main()
