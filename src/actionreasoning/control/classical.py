@@ -19,13 +19,13 @@ from actionreasoning.world.models import GoalPattern, Pose
 
 @dataclass(frozen=True)
 class ClassicalScript:
-    """The fixed numbers of the script (metres and servo ticks)."""
+    """The fixed numbers of the script (metres and seconds)."""
 
     approach_height_m: float = 0.12
     transfer_height_m: float = 0.30
     release_height_m: float = 0.01
-    transfer_ticks: int = 480
-    vertical_ticks: int = 240
+    transfer_s: float = 2.0
+    vertical_s: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -70,6 +70,8 @@ class ClassicalController:
         s, run = self.script, self.controller.execute
         position, _ = self.controller.scene.brick_pose(brick)
         pick_yaw, place_yaw = self.grasp_yaws(brick, target)
+        transfer = self.controller.scene.ticks_for(s.transfer_s)
+        vertical = self.controller.scene.ticks_for(s.vertical_s)
         px, py, pz = position
         tx, ty, tz = target.position_m
 
@@ -82,12 +84,12 @@ class ClassicalController:
                 Waypoint(
                     pose=at(px, py, pz + s.approach_height_m, pick_yaw),
                     gripper=GripperCommand.OPEN,
-                    ticks=s.transfer_ticks,
+                    ticks=transfer,
                 ),
             ),
             (
                 "descent",
-                Waypoint(pose=at(px, py, pz, pick_yaw), path="linear", ticks=s.vertical_ticks),
+                Waypoint(pose=at(px, py, pz, pick_yaw), path="linear", ticks=vertical),
             ),
             (
                 "grasp",
@@ -98,19 +100,19 @@ class ClassicalController:
                 Waypoint(
                     pose=at(px, py, s.transfer_height_m, pick_yaw),
                     path="linear",
-                    ticks=s.vertical_ticks,
+                    ticks=vertical,
                 ),
             ),
             (
                 "transfer",
-                Waypoint(pose=at(tx, ty, s.transfer_height_m, place_yaw), ticks=s.transfer_ticks),
+                Waypoint(pose=at(tx, ty, s.transfer_height_m, place_yaw), ticks=transfer),
             ),
             (
                 "placement",
                 Waypoint(
                     pose=at(tx, ty, tz + s.release_height_m, place_yaw),
                     path="linear",
-                    ticks=s.vertical_ticks,
+                    ticks=vertical,
                 ),
             ),
             (
@@ -126,7 +128,7 @@ class ClassicalController:
                 Waypoint(
                     pose=at(tx, ty, s.transfer_height_m, place_yaw),
                     path="linear",
-                    ticks=s.vertical_ticks,
+                    ticks=vertical,
                 ),
             ),
         ]

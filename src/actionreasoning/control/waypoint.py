@@ -52,11 +52,11 @@ class ControllerLimits:
 
     max_joint_speed_radps: float = 1.2
     max_linear_speed_mps: float = 0.12
-    min_ticks: int = 48
-    settle_max_ticks: int = 480
+    min_duration_s: float = 0.2
+    settle_max_s: float = 2.0
     joint_tolerance_rad: float = 2e-3
     joint_speed_tolerance_radps: float = 0.02
-    gripper_ticks: int = 150
+    gripper_s: float = 0.625
 
 
 @dataclass(frozen=True)
@@ -140,7 +140,7 @@ class WaypointController:
             total = math.ceil(
                 float(np.max(np.abs(knots[-1] - knots[0]))) / lim.max_joint_speed_radps / dt
             )
-        total = max(total, lim.min_ticks, len(knots) - 1)
+        total = max(total, self.scene.ticks_for(lim.min_duration_s), len(knots) - 1)
         path = np.array(knots)
         along = np.linspace(0.0, 1.0, len(knots))
         for tick in range(1, total + 1):
@@ -152,7 +152,8 @@ class WaypointController:
 
     def _settle(self, target: np.ndarray) -> tuple[int, bool]:
         lim = self.limits
-        for tick in range(lim.settle_max_ticks):
+        limit = self.scene.ticks_for(lim.settle_max_s)
+        for tick in range(limit):
             joints, speeds = self.scene.arm_joints()
             if (
                 np.max(np.abs(joints - target)) < lim.joint_tolerance_rad
@@ -160,7 +161,7 @@ class WaypointController:
             ):
                 return tick, True
             self.scene.step()
-        return lim.settle_max_ticks, False
+        return limit, False
 
     def _actuate_gripper(self, command: GripperCommand) -> int:
         if command is GripperCommand.HOLD:
@@ -168,8 +169,9 @@ class WaypointController:
         self.scene.set_finger_target(
             FINGER_MAX_M if command is GripperCommand.OPEN else FINGER_MIN_M
         )
-        self.scene.step(self.limits.gripper_ticks)
-        return self.limits.gripper_ticks
+        ticks = self.scene.ticks_for(self.limits.gripper_s)
+        self.scene.step(ticks)
+        return ticks
 
 
 def _min_jerk(s: float) -> float:

@@ -22,8 +22,8 @@ from actionreasoning.world.scene_spec import SceneSpec
 
 #: Where the arm waits between bricks and at the end: above the middle of the workspace.
 READY_POSE = Pose(position_m=(0.45, -0.25, 0.40), quat_xyzw=top_down_quat(0.0))
-SPAWN_SETTLE_TICKS = 60
-FINAL_SETTLE_TICKS = 240
+SPAWN_SETTLE_S = 0.25
+FINAL_SETTLE_S = 1.0
 
 
 class Method(StrEnum):
@@ -81,7 +81,7 @@ def run_trial(
         spec.scene, poses, arm.solve(READY_POSE.position_m, READY_POSE.quat_xyzw).joints_rad
     )
     try:
-        scene.step(SPAWN_SETTLE_TICKS)
+        scene.step(scene.ticks_for(SPAWN_SETTLE_S))
         controller = WaypointController(scene, arm)
         failure = None
         try:
@@ -93,7 +93,7 @@ def run_trial(
             controller.execute(Waypoint(pose=READY_POSE, gripper=GripperCommand.OPEN))
         except UnreachableError as error:
             failure = Failure(reason="unreachable", detail=str(error))
-        scene.step(FINAL_SETTLE_TICKS)
+        scene.step(scene.ticks_for(FINAL_SETTLE_S))
         if on_stage is not None:
             on_stage(scene, StageEvent(brick=-1, stage="final"))
         return _measure(spec, seed, scene, rule, failure)

@@ -1,9 +1,12 @@
 """The PyBullet world: ground, arm with gripper, and bricks, in DIRECT (headless) mode.
 
-Physics settings are measured (DESIGN section 8, re-checked at our brick size by
-``bench/grip_slip.py``): at 1/240 s a held 1.5 kg brick needs about 150 solver iterations
-not to roll in the hand, and a 2 mm contact breaking threshold stops stale fingertip
-contacts from dragging a brick as the fingers open.
+Physics settings are measured with ``bench/grip_slip.py`` at our brick size (README,
+Benchmarks): at PyBullet's default 50 solver iterations a held 1.5 kg brick rolls in the
+hand; at 150 it holds its orientation to a few tenths of a degree but creeps along the
+pads under the loads of a fast transfer, about half as much at 1/480 s as at 1/240 s.
+Friction anchors on the pads stop the creep but keep released bricks stuck to the pads,
+so they are not used. A 2 mm contact breaking threshold stops stale fingertip contacts
+from dragging a brick as the fingers open.
 """
 
 from __future__ import annotations
@@ -42,7 +45,7 @@ BRICK_COLORS = (
 class PhysicsConfig:
     """Simulator settings; the defaults hold a 1.5 kg brick without slip."""
 
-    time_step_s: float = 1.0 / 240.0
+    time_step_s: float = 1.0 / 480.0
     solver_iterations: int = 150
     contact_breaking_threshold_m: float = 0.002
     finger_friction: float = 1.2
@@ -187,6 +190,10 @@ class Scene:
                 maxVelocity=cfg.finger_speed_mps,
                 physicsClientId=cid,
             )
+
+    def ticks_for(self, seconds: float) -> int:
+        """The number of time steps (at least one) that lasts ``seconds``."""
+        return max(1, round(seconds / self.physics.time_step_s))
 
     def step(self, ticks: int = 1) -> None:
         """Advance the simulation by ``ticks`` fixed time steps."""
