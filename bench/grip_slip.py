@@ -1,22 +1,27 @@
 """Measure whether a held brick slips in the gripper, per physics setting.
 
-    .venv/bin/python bench/grip_slip.py            # 3 seeds per setting
-    .venv/bin/python bench/grip_slip.py --quick    # 1 seed per setting
+    .venv/bin/python bench/grip_slip.py            # 12 settings, 3 seeds each
+    .venv/bin/python bench/grip_slip.py --quick    # 110 N only (4 settings), 1 seed each
 
-For solver iterations {50, 150} at 1/240 s and grip force {60, 110, 150} N per finger, each
-seed spawns one 0.20 x 0.095 x 0.06 m, 1.5 kg brick, picks it as ``classical.py`` does
-(approach above, linear descent to the centre, CLOSE, linear lift to 0.30 m), then sweeps fast
-in joint space (240 ticks) to above the build area (0.44, 0.37, 0.30) and back. Slip is the
-change of the brick's pose in the tool-centre-point frame from just after closing: at the end
-(mean/max over seeds) and its peak sampled every 10 ticks during lift and sweep. Also printed:
-the peak TCP speed, the smallest per-finger normal force seen (Scene.finger_contacts), how many
-samples had a finger below 1 N, and how many bricks dropped (z < 0.1 m at the end).
-``--sweep-ticks N`` changes the sweep duration (default 240 ticks = 1 s each way).
+Settings: time step {1/240, 1/480} s x solver iterations {50, 150} x grip force {60, 110, 150}
+N per finger, each ``dataclasses.replace(PhysicsConfig(), ...)`` (other fields at their
+defaults). Each seed spawns one 0.20 x 0.095 x 0.06 m, 1.5 kg brick, settles it for
+``SPAWN_SETTLE_S``, picks it as ``classical.py`` does (approach above in 2.0 s, linear descent
+to the centre in 1.0 s, CLOSE, linear lift to 0.30 m in 1.0 s), then sweeps in joint space to
+above the build area (0.44, 0.37, 0.30) and back, each sweep ``--sweep-s`` long (default 2.0 s,
+the classical transfer time). All durations are in seconds, converted to steps with
+``Scene.ticks_for``. Slip is the change of the brick's pose in the tool-centre-point frame from
+just after closing: at the end (mean/max over seeds) and its peak, sampled every ~10 ms of
+simulated time (``ticks_for(0.01)``: 2 steps at 1/240 s, 5 at 1/480 s) during lift and sweeps.
+Also printed: the peak TCP speed, the smallest per-finger normal force seen
+(Scene.finger_contacts), how many samples had a finger below 1 N, and how many bricks dropped
+(z < 0.1 m at the end).
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -29,7 +34,7 @@ from scipy.spatial.transform import Rotation
 
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
 from actionreasoning.errors import UnreachableError
-from actionreasoning.eval.trial import READY_POSE, SPAWN_SETTLE_TICKS
+from actionreasoning.eval.trial import READY_POSE, SPAWN_SETTLE_S
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.scene import PhysicsConfig, Scene
 from actionreasoning.world.geometry import quat_yaw, top_down_quat
@@ -37,10 +42,13 @@ from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import Pose
 from actionreasoning.world.scene_spec import SceneSpec
 
+TIME_STEPS = (240, 480)  # steps per second: dt = 1/240 s, 1/480 s
 ITERATIONS = (50, 150)
 FORCES_N = (60.0, 110.0, 150.0)
+QUICK_FORCE_N = 110.0
 FAR_XY = (0.44, 0.37)
-LIFT_Z, APPROACH_M, SWEEP_TICKS, SAMPLE_EVERY = 0.30, 0.12, 240, 10
+LIFT_Z, APPROACH_M = 0.30, 0.12
+APPROACH_S, DESCENT_S, LIFT_S, SWEEP_S, SAMPLE_S = 2.0, 1.0, 1.0, 2.0, 0.01
 
 
 @dataclass
@@ -76,25 +84,26 @@ class Probe:
 
 
 class ProbedScene(Scene):
-    """A scene that calls its probe (once set) every ``SAMPLE_EVERY`` ticks."""
+    """A scene that calls its probe (once set) every ``SAMPLE_S`` of simulated time."""
 
     probe: Probe | None = None
 
     def step(self, ticks: int = 1) -> None:
+        every = self.ticks_for(SAMPLE_S)
         for _ in range(ticks):
             super().step(1)
-            if self.probe is not None and self.ticks % SAMPLE_EVERY == 0:
+            if self.probe is not None and self.ticks % every == 0:
                 self.probe.sample()
 
 
-def run_once(arm: KinematicArm, physics: PhysicsConfig, seed: int, sweep: int) -> list[float]:
+def run_once(arm: KinematicArm, physics: PhysicsConfig, seed: int, sweep_s: float) -> list[float]:
     """End mm, end deg, peak mm, peak deg, peak TCP m/s, min finger N, lost, dropped."""
     spec = SceneSpec()
     poses = sample_pick_poses(np.random.default_rng(seed), 1, spec)
     ready = arm.solve(READY_POSE.position_m, READY_POSE.quat_xyzw).joints_rad
     scene = ProbedScene(spec, poses, ready, physics)
     try:
-        scene.step(SPAWN_SETTLE_TICKS)
+        scene.step(scene.ticks_for(SPAWN_SETTLE_S))
         run = partial(WaypointController(scene, arm).execute, settle=False)  # as classical.py
         (px, py, pz), quat = scene.brick_pose(0)
         far = (*FAR_XY, LIFT_Z)
@@ -108,13 +117,15 @@ def run_once(arm: KinematicArm, physics: PhysicsConfig, seed: int, sweep: int) -
         def at(x: float, y: float, z: float) -> Pose:
             return Pose(position_m=(x, y, z), quat_xyzw=top_down_quat(yaw))
 
-        run(Waypoint(pose=at(px, py, pz + APPROACH_M), gripper=GripperCommand.OPEN, ticks=480))
-        run(Waypoint(pose=at(px, py, pz), path="linear", ticks=240))
+        ticks = scene.ticks_for
+        above = at(px, py, pz + APPROACH_M)
+        run(Waypoint(pose=above, gripper=GripperCommand.OPEN, ticks=ticks(APPROACH_S)))
+        run(Waypoint(pose=at(px, py, pz), path="linear", ticks=ticks(DESCENT_S)))
         run(Waypoint(pose=at(px, py, pz), gripper=GripperCommand.CLOSE, ticks=1))
         scene.probe = probe = Probe(scene)
-        run(Waypoint(pose=at(px, py, LIFT_Z), path="linear", ticks=240))
-        run(Waypoint(pose=at(*far), ticks=sweep))
-        run(Waypoint(pose=at(px, py, LIFT_Z), ticks=sweep))
+        run(Waypoint(pose=at(px, py, LIFT_Z), path="linear", ticks=ticks(LIFT_S)))
+        run(Waypoint(pose=at(*far), ticks=ticks(sweep_s)))
+        run(Waypoint(pose=at(px, py, LIFT_Z), ticks=ticks(sweep_s)))
         probe.sample()
         dropped = float(scene.brick_pose(0)[0][2] < 0.1)
         return [*probe.slip(), *probe.peak, probe.min_force_n, probe.lost, dropped]
@@ -124,33 +135,34 @@ def run_once(arm: KinematicArm, physics: PhysicsConfig, seed: int, sweep: int) -
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="one seed per setting")
-    parser.add_argument("--sweep-ticks", type=int, default=SWEEP_TICKS, help="ticks per sweep")
+    parser.add_argument("--quick", action="store_true", help="110 N only, one seed per setting")
+    parser.add_argument("--sweep-s", type=float, default=SWEEP_S, help="seconds per sweep")
     args = parser.parse_args()
     seeds = range(1 if args.quick else 3)
-    table = Table(title=f"Grip slip, dt 1/240 s, sweep {args.sweep_ticks} ticks, "
+    forces = (QUICK_FORCE_N,) if args.quick else FORCES_N
+    table = Table(title=f"Grip slip, sweep {args.sweep_s:g} s each way, "
                   f"{len(seeds)} seed(s) per setting")  # fmt: skip
-    for col in ("iters", "force N", "slip mm mean/max", "slip deg mean/max", "peak mm",
+    for col in ("dt", "iters", "force N", "slip mm mean/max", "slip deg mean/max", "peak mm",
                 "peak deg", "peak TCP m/s", "min finger N", "contact lost", "dropped"):  # fmt: skip
         table.add_column(col, justify="right")
     arm, start = KinematicArm(), time.perf_counter()
-    for iterations in ITERATIONS:
-        for force in FORCES_N:
-            physics = replace(PhysicsConfig(), time_step_s=1.0 / 240.0,
-                              solver_iterations=iterations, grip_force_n=force)  # fmt: skip
-            try:
-                r = np.array([run_once(arm, physics, seed, args.sweep_ticks) for seed in seeds])
-            except UnreachableError as error:
-                table.add_row(str(iterations), f"{force:.0f}", f"unreachable: {error}")
-                continue
-            table.add_row(
-                str(iterations), f"{force:.0f}",
-                *(f"{r[:, i].mean():.2f} / {r[:, i].max():.2f}" for i in (0, 1)),
-                *(f"{r[:, i].max():.2f}" for i in (2, 3, 4)),
-                f"{r[:, 5].min():.1f}", f"{r[:, 6].sum():.0f}", f"{r[:, 7].sum():.0f}/{len(seeds)}",
-            )  # fmt: skip
+    for rate, iterations, force in itertools.product(TIME_STEPS, ITERATIONS, forces):
+        physics = replace(PhysicsConfig(), time_step_s=1.0 / rate,
+                          solver_iterations=iterations, grip_force_n=force)  # fmt: skip
+        setting = (f"1/{rate}", str(iterations), f"{force:.0f}")
+        try:
+            r = np.array([run_once(arm, physics, seed, args.sweep_s) for seed in seeds])
+        except UnreachableError as error:
+            table.add_row(*setting, f"unreachable: {error}")
+            continue
+        table.add_row(
+            *setting,
+            *(f"{r[:, i].mean():.2f} / {r[:, i].max():.2f}" for i in (0, 1)),
+            *(f"{r[:, i].max():.2f}" for i in (2, 3, 4)),
+            f"{r[:, 5].min():.1f}", f"{r[:, 6].sum():.0f}", f"{r[:, 7].sum():.0f}/{len(seeds)}",
+        )  # fmt: skip
     arm.close()
-    Console(width=160).print(table)
+    Console(width=170).print(table)
     print(f"wall time {time.perf_counter() - start:.1f} s")
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import shutil
 from pathlib import Path
 from typing import Annotated
 
@@ -125,11 +126,49 @@ def eval_command(
     """Run randomized trials of one method on one pattern and write results and summaries."""
     try:
         _check_options(method, llm, base_url, workers)
-        goal = load_pattern(pattern, SceneSpec())
+    except ActionReasoningError as error:
+        _fail(error)
+    _evaluate(method, pattern, trials, seed, out, llm=llm, snapshots=snapshots)
+
+
+DEMO_FILES = ("results.jsonl", "summary.json", "summary.md", "report.md")
+
+
+@app.command()
+def demo(
+    out: Annotated[Path, typer.Option(help="Output directory for the report.")] = Path("demo"),
+    pattern: PatternOption = "pyramid",
+    seed: Annotated[int, typer.Option(help="Seed of the demo trial.")] = 0,
+) -> None:
+    """Build a pattern once and write a report with pictures of every stage.
+
+    Running it again into the same directory replaces the previous demo's files.
+    """
+    if (out / "report.md").exists():
+        for name in DEMO_FILES:
+            (out / name).unlink(missing_ok=True)
+        shutil.rmtree(out / "snapshots", ignore_errors=True)
+    _evaluate(Method.CLASSICAL, pattern, 1, seed, out, llm="builtin", snapshots=True)
+    report = out / "report.md"
+    report.write_text(
+        (out / "summary.md").read_text()
+        + "\n## Stages\n\nStages left to right, bricks top to bottom.\n\n"
+        + "![stages](snapshots/trial_000/stages.png)\n\n## Result\n\n"
+        + "![build](snapshots/trial_000/final_build.png)\n"
+        + "![overview](snapshots/trial_000/final_overview.png)\n"
+    )
+    console.print(f"report: {report}", highlight=False)
+
+
+def _evaluate(
+    method: Method, pattern: str, trials: int, seed: int, out: Path, *, llm: str, snapshots: bool
+) -> RunSummary:
+    """Load the pattern, run the trials with progress, print the table; errors end the command."""
+    try:
         config = RunConfig(
             method=method,
             pattern_name=pattern,
-            goal=goal,
+            goal=load_pattern(pattern, SceneSpec()),
             trials=trials,
             seed=seed,
             out=out,
@@ -141,39 +180,7 @@ def eval_command(
         _fail(error)
     console.print(_summary_table(summary))
     console.print(f"wall time {summary.wall_time_s:.1f} s; results in {out}/", highlight=False)
-
-
-@app.command()
-def demo(
-    out: Annotated[Path, typer.Option(help="Output directory for the report.")] = Path("demo"),
-    pattern: PatternOption = "pyramid",
-    seed: Annotated[int, typer.Option(help="Seed of the demo trial.")] = 0,
-) -> None:
-    """Build a pattern once and write a report with pictures of every stage."""
-    try:
-        goal = load_pattern(pattern, SceneSpec())
-        config = RunConfig(
-            method=Method.CLASSICAL,
-            pattern_name=pattern,
-            goal=goal,
-            trials=1,
-            seed=seed,
-            out=out,
-            snapshots=True,
-        )
-        summary = _run_with_progress(config)
-    except ActionReasoningError as error:
-        _fail(error)
-    report = out / "report.md"
-    report.write_text(
-        (out / "summary.md").read_text()
-        + "\n## Stages\n\nStages left to right, bricks top to bottom.\n\n"
-        + "![stages](snapshots/trial_000/stages.png)\n\n## Result\n\n"
-        + "![build](snapshots/trial_000/final_build.png)\n"
-        + "![overview](snapshots/trial_000/final_overview.png)\n"
-    )
-    console.print(_summary_table(summary))
-    console.print(f"report: {report}", highlight=False)
+    return summary
 
 
 @app.command("pattern")

@@ -50,6 +50,7 @@ class PhysicsConfig:
     contact_breaking_threshold_m: float = 0.002
     finger_friction: float = 1.2
     spinning_friction: float = 0.001
+    finger_friction_anchor: bool = True
     grip_force_n: float = 110.0
     finger_speed_mps: float = 0.10
     arm_force_nm: float = 300.0
@@ -166,9 +167,31 @@ class Scene:
         self._apply_targets()
 
     def set_finger_target(self, half_width_m: float) -> None:
-        """Drive each finger pad to ``half_width_m`` from the centre, with the grip force limit."""
-        self.finger_target_m = float(np.clip(half_width_m, FINGER_MIN_M, FINGER_MAX_M))
+        """Drive each finger pad to ``half_width_m`` from the centre, with the grip force limit.
+
+        Closing turns friction anchors on for the pads; opening turns them off and drops the
+        pads' contacts for one time step, since an anchored contact point would otherwise
+        keep the released brick stuck to the pad.
+        """
+        target = float(np.clip(half_width_m, FINGER_MIN_M, FINGER_MAX_M))
+        if self.physics.finger_friction_anchor and target != self.finger_target_m:
+            self._set_friction_anchor(target < self.finger_target_m)
+        self.finger_target_m = target
         self._apply_targets()
+
+    def _set_friction_anchor(self, enabled: bool) -> None:
+        cid = self.client
+        for finger in (FINGER_LEFT, FINGER_RIGHT):
+            p.changeDynamics(self.robot, finger, frictionAnchor=int(enabled), physicsClientId=cid)
+        if enabled:
+            return
+        for brick in self.bricks:
+            for finger in (FINGER_LEFT, FINGER_RIGHT):
+                p.setCollisionFilterPair(self.robot, brick, finger, -1, 0, physicsClientId=cid)
+        self.step()
+        for brick in self.bricks:
+            for finger in (FINGER_LEFT, FINGER_RIGHT):
+                p.setCollisionFilterPair(self.robot, brick, finger, -1, 1, physicsClientId=cid)
 
     def _apply_targets(self) -> None:
         cfg, cid = self.physics, self.client
