@@ -1,21 +1,23 @@
 """Measure whether a held brick slips in the gripper, per physics setting.
 
-    .venv/bin/python bench/grip_slip.py            # 12 settings, 3 seeds each
-    .venv/bin/python bench/grip_slip.py --quick    # 110 N only (4 settings), 1 seed each
+    .venv/bin/python bench/grip_slip.py            # 10 settings, 3 seeds each
+    .venv/bin/python bench/grip_slip.py --quick    # 110 N, 150 iterations (4 settings), 1 seed
+    .venv/bin/python bench/grip_slip.py --sweep-s 1.0   # faster sweeps (harder on the grip)
 
-Settings: time step {1/240, 1/480} s x solver iterations {50, 150} x grip force {60, 110, 150}
-N per finger, each ``dataclasses.replace(PhysicsConfig(), ...)`` (other fields at their
-defaults). Each seed spawns one 0.20 x 0.095 x 0.06 m, 1.5 kg brick, settles it for
-``SPAWN_SETTLE_S``, picks it as ``classical.py`` does (approach above in 2.0 s, linear descent
-to the centre in 1.0 s, CLOSE, linear lift to 0.30 m in 1.0 s), then sweeps in joint space to
-above the build area (0.44, 0.37, 0.30) and back, each sweep ``--sweep-s`` long (default 2.0 s,
-the classical transfer time). All durations are in seconds, converted to steps with
-``Scene.ticks_for``. Slip is the change of the brick's pose in the tool-centre-point frame from
-just after closing: at the end (mean/max over seeds) and its peak, sampled every ~10 ms of
-simulated time (``ticks_for(0.01)``: 2 steps at 1/240 s, 5 at 1/480 s) during lift and sweeps.
-Also printed: the peak TCP speed, the smallest per-finger normal force seen
-(Scene.finger_contacts), how many samples had a finger below 1 N, and how many bricks dropped
-(z < 0.1 m at the end).
+Settings, each ``dataclasses.replace(PhysicsConfig(), ...)`` (other fields at their defaults):
+time step {1/240, 1/480} s x solver iterations {50, 150} x finger friction anchor {off, on}, all
+at 110 N per finger (8 settings); plus, at the defaults (1/480 s, 150 iterations, anchor on),
+grip force 60 N and 150 N (2 settings). Each seed spawns one 0.20 x 0.095 x 0.06 m, 1.5 kg
+brick, settles it for ``SPAWN_SETTLE_S``, picks it as ``classical.py`` does (approach above in
+2.0 s, linear descent to the centre in 1.0 s, CLOSE, linear lift to 0.30 m in 1.0 s), then
+sweeps in joint space to above the build area (0.44, 0.37, 0.30) and back, each sweep
+``--sweep-s`` long (default 2.0 s, the classical transfer time). All durations are in seconds,
+converted to steps with ``Scene.ticks_for``. Slip is the change of the brick's pose in the
+tool-centre-point frame from just after closing: at the end (mean/max over seeds) and its peak,
+sampled every ~10 ms of simulated time (``ticks_for(0.01)``: 2 steps at 1/240 s, 5 at 1/480 s)
+during lift and sweeps. Also printed: the peak TCP speed, the smallest per-finger normal force
+seen (Scene.finger_contacts), how many samples had a finger below 1 N, and how many bricks
+dropped (z < 0.1 m at the end).
 """
 
 from __future__ import annotations
@@ -44,8 +46,24 @@ from actionreasoning.world.scene_spec import SceneSpec
 
 TIME_STEPS = (240, 480)  # steps per second: dt = 1/240 s, 1/480 s
 ITERATIONS = (50, 150)
-FORCES_N = (60.0, 110.0, 150.0)
-QUICK_FORCE_N = 110.0
+ANCHORS = (False, True)
+BASE_FORCE_N = 110.0
+EXTRA_FORCES_N = (60.0, 150.0)  # at the PhysicsConfig defaults otherwise
+QUICK_ITERATIONS = 150
+COLUMNS = (
+    "dt",
+    "iters",
+    "anchor",
+    "force N",
+    "slip mm mean/max",
+    "slip deg mean/max",
+    "peak mm",
+    "peak deg",
+    "peak TCP m/s",
+    "min finger N",
+    "contact lost",
+    "dropped",
+)
 FAR_XY = (0.44, 0.37)
 LIFT_Z, APPROACH_M = 0.30, 0.12
 APPROACH_S, DESCENT_S, LIFT_S, SWEEP_S, SAMPLE_S = 2.0, 1.0, 1.0, 2.0, 0.01
@@ -133,23 +151,36 @@ def run_once(arm: KinematicArm, physics: PhysicsConfig, seed: int, sweep_s: floa
         scene.close()
 
 
+def settings(quick: bool) -> list[tuple[int, int, bool, float]]:
+    """(steps per second, solver iterations, friction anchor, grip force N) per table row."""
+    grid = [(rate, iterations, anchor, BASE_FORCE_N)
+            for rate, iterations, anchor in itertools.product(TIME_STEPS, ITERATIONS, ANCHORS)
+            if not quick or iterations == QUICK_ITERATIONS]  # fmt: skip
+    if quick:
+        return grid
+    base = PhysicsConfig()
+    rate, iterations = round(1.0 / base.time_step_s), base.solver_iterations
+    extra = [(rate, iterations, base.finger_friction_anchor, f) for f in EXTRA_FORCES_N]
+    return grid + extra
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="110 N only, one seed per setting")
+    parser.add_argument(
+        "--quick", action="store_true", help="110 N, 150 iterations only, one seed per setting"
+    )
     parser.add_argument("--sweep-s", type=float, default=SWEEP_S, help="seconds per sweep")
     args = parser.parse_args()
     seeds = range(1 if args.quick else 3)
-    forces = (QUICK_FORCE_N,) if args.quick else FORCES_N
     table = Table(title=f"Grip slip, sweep {args.sweep_s:g} s each way, "
                   f"{len(seeds)} seed(s) per setting")  # fmt: skip
-    for col in ("dt", "iters", "force N", "slip mm mean/max", "slip deg mean/max", "peak mm",
-                "peak deg", "peak TCP m/s", "min finger N", "contact lost", "dropped"):  # fmt: skip
+    for col in COLUMNS:
         table.add_column(col, justify="right")
     arm, start = KinematicArm(), time.perf_counter()
-    for rate, iterations, force in itertools.product(TIME_STEPS, ITERATIONS, forces):
-        physics = replace(PhysicsConfig(), time_step_s=1.0 / rate,
-                          solver_iterations=iterations, grip_force_n=force)  # fmt: skip
-        setting = (f"1/{rate}", str(iterations), f"{force:.0f}")
+    for rate, iterations, anchor, force in settings(args.quick):
+        physics = replace(PhysicsConfig(), time_step_s=1.0 / rate, solver_iterations=iterations,
+                          finger_friction_anchor=anchor, grip_force_n=force)  # fmt: skip
+        setting = (f"1/{rate}", str(iterations), "on" if anchor else "off", f"{force:.0f}")
         try:
             r = np.array([run_once(arm, physics, seed, args.sweep_s) for seed in seeds])
         except UnreachableError as error:

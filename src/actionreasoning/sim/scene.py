@@ -1,12 +1,12 @@
 """The PyBullet world: ground, arm with gripper, and bricks, in DIRECT (headless) mode.
 
 Physics settings are measured with ``bench/grip_slip.py`` at our brick size (README,
-Benchmarks): at PyBullet's default 50 solver iterations a held 1.5 kg brick rolls in the
-hand; at 150 it holds its orientation to a few tenths of a degree but creeps along the
-pads under the loads of a fast transfer, about half as much at 1/480 s as at 1/240 s.
-Friction anchors on the pads stop the creep but keep released bricks stuck to the pads,
-so they are not used. A 2 mm contact breaking threshold stops stale fingertip contacts
-from dragging a brick as the fingers open.
+Benchmarks). At PyBullet's default 50 solver iterations a held 1.5 kg brick rolls in the
+hand; at 150 it keeps its orientation but creeps along the pads in a fast transfer
+(about 5 mm at 1/240 s, 3 mm at 1/480 s). Friction anchors on the pads while the gripper
+holds, with a 1/480 s step, bring that to 0.02 mm; the anchors are dropped at release, or
+a released brick stays stuck to a pad. A 2 mm contact breaking threshold stops stale
+fingertip contacts from dragging a brick as the fingers open.
 """
 
 from __future__ import annotations
