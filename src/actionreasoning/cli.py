@@ -55,7 +55,9 @@ def _check_options(method: Method, llm: str, base_url: str | None, workers: int)
 
 def _summary_table(summary: RunSummary) -> Table:
     s = summary.successful
-    table = Table(title=f"{summary.method} on {summary.pattern} (over successful trials)")
+    table = Table(
+        title=f"{summary.method} on {summary.pattern}", caption="means ± std over successful trials"
+    )
     for column in ("Rot. Err (°)", "Ctr. Off. (cm)", "IoU (%)", "Success"):
         table.add_column(column, justify="right")
 
