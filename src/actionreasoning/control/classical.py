@@ -10,10 +10,11 @@ wrist joint small at both ends so the wrist never spins through its limit.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
-from actionreasoning.world.geometry import quat_yaw, top_down_quat
+from actionreasoning.world.geometry import Vec3, quat_yaw, top_down_quat
 from actionreasoning.world.models import GoalPattern, Pose
 
 
@@ -48,24 +49,20 @@ class ClassicalController:
         position, quat = self.controller.scene.brick_pose(brick)
         brick_yaw = quat_yaw(quat)
         turn = quat_yaw(target.quat_xyzw) - brick_yaw
-        best: tuple[float, float, float] | None = None
-        for flip in (0.0, math.pi):
-            pick_yaw = brick_yaw + flip
-            wrist = max(
-                abs(self._wrist(position, pick_yaw)),
-                abs(self._wrist(target.position_m, pick_yaw + turn)),
-            )
-            if best is None or wrist < best[0]:
-                best = (wrist, pick_yaw, pick_yaw + turn)
-        assert best is not None
-        return best[1], best[2]
+        pick_yaw = min(
+            (brick_yaw, brick_yaw + math.pi),
+            key=lambda yaw: max(
+                abs(self._wrist(position, yaw)), abs(self._wrist(target.position_m, yaw + turn))
+            ),
+        )
+        return pick_yaw, pick_yaw + turn
 
-    def _wrist(self, position, yaw: float) -> float:
+    def _wrist(self, position: Vec3, yaw: float) -> float:
         arm = self.controller.arm
         above = (position[0], position[1], self.script.transfer_height_m)
         return arm.solve(above, top_down_quat(yaw)).joints_rad[6]
 
-    def place_brick(self, brick: int, target: Pose):
+    def place_brick(self, brick: int, target: Pose) -> Iterator[str]:
         """Pick brick ``brick`` and put it on ``target``; yields each finished stage's name."""
         s, run = self.script, self.controller.execute
         position, _ = self.controller.scene.brick_pose(brick)
@@ -137,7 +134,11 @@ class ClassicalController:
             yield stage
 
 
-def run_classical(controller: WaypointController, goal: GoalPattern, on_stage=None) -> None:
+def run_classical(
+    controller: WaypointController,
+    goal: GoalPattern,
+    on_stage: Callable[[StageEvent], None] | None = None,
+) -> None:
     """Build ``goal`` with the classical script: brick k goes to target k."""
     script = ClassicalController(controller)
     for target in goal.targets:

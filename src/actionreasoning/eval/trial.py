@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from contextlib import ExitStack
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -15,7 +16,7 @@ from actionreasoning.eval.metrics import brick_metrics
 from actionreasoning.eval.results import BrickResult, Failure, TrialMetrics, TrialResult
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.scene import Scene
-from actionreasoning.world.geometry import top_down_quat
+from actionreasoning.world.geometry import Vec3, top_down_quat
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import GoalPattern, Pose
 from actionreasoning.world.scene_spec import SceneSpec
@@ -45,6 +46,20 @@ class SuccessRule:
     max_rotation_error_deg: float = 5.0
     max_speed_mps: float = 0.01
     max_angular_speed_radps: float = 0.05
+
+    def is_placed(self, brick: BrickResult) -> bool:
+        """Whether a brick ended within the offset and rotation limits of its target."""
+        return (
+            brick.center_offset_cm <= self.max_center_offset_cm
+            and brick.rotation_error_deg <= self.max_rotation_error_deg
+        )
+
+    def is_at_rest(self, linear_mps: Vec3, angular_radps: Vec3) -> bool:
+        """Whether a brick moving with these velocities counts as at rest."""
+        return (
+            float(np.linalg.norm(linear_mps)) <= self.max_speed_mps
+            and float(np.linalg.norm(angular_radps)) <= self.max_angular_speed_radps
+        )
 
 
 @dataclass(frozen=True)
@@ -76,11 +91,12 @@ def run_trial(
         raise ConfigError(f"method '{spec.method}' is not available yet (available: classical)")
     seed = trial_seed(spec.run_seed, spec.trial)
     poses = sample_pick_poses(np.random.default_rng(seed), len(spec.goal.targets), spec.scene)
-    arm = KinematicArm()
-    scene = Scene(
-        spec.scene, poses, arm.solve(READY_POSE.position_m, READY_POSE.quat_xyzw).joints_rad
-    )
-    try:
+    with ExitStack() as cleanup:
+        arm = KinematicArm()
+        cleanup.callback(arm.close)
+        ready = arm.solve(READY_POSE.position_m, READY_POSE.quat_xyzw).joints_rad
+        scene = Scene(spec.scene, poses, ready)
+        cleanup.callback(scene.close)
         scene.step(scene.ticks_for(SPAWN_SETTLE_S))
         controller = WaypointController(scene, arm)
         failure = None
@@ -97,9 +113,6 @@ def run_trial(
         if on_stage is not None:
             on_stage(scene, StageEvent(brick=-1, stage="final"))
         return _measure(spec, seed, scene, rule, failure)
-    finally:
-        scene.close()
-        arm.close()
 
 
 def _measure(
@@ -131,17 +144,8 @@ def _measure(
                 iou=m.iou,
             )
         )
-    within = [
-        b.center_offset_cm <= rule.max_center_offset_cm
-        and b.rotation_error_deg <= rule.max_rotation_error_deg
-        for b in bricks
-    ]
-    moving = [
-        b.id
-        for b in bricks
-        if np.linalg.norm(scene.brick_velocity(b.id)[0]) > rule.max_speed_mps
-        or np.linalg.norm(scene.brick_velocity(b.id)[1]) > rule.max_angular_speed_radps
-    ]
+    within = [rule.is_placed(b) for b in bricks]
+    moving = [b.id for b in bricks if not rule.is_at_rest(*scene.brick_velocity(b.id))]
     if failure is None and not all(within):
         worst = max(bricks, key=lambda b: b.center_offset_cm)
         failure = Failure(
