@@ -25,6 +25,9 @@ from actionreasoning.sim.scene import Scene
 from actionreasoning.world.models import Pose
 
 LINEAR_STEP_M = 0.01
+#: Peak over mean speed of the minimum-jerk profile: durations derived from speed limits
+#: use it so that the limits hold at the peak.
+MIN_JERK_PEAK = 1.875
 
 
 class GripperCommand(StrEnum):
@@ -48,7 +51,7 @@ class Waypoint(BaseModel):
 
 @dataclass(frozen=True)
 class ControllerLimits:
-    """Speeds and tolerances of the waypoint controller."""
+    """Peak speeds, durations and tolerances of the waypoint controller."""
 
     max_joint_speed_radps: float = 1.2
     max_linear_speed_mps: float = 0.12
@@ -129,17 +132,16 @@ class WaypointController:
         )
 
     def _move(self, knots: list[np.ndarray], waypoint: Waypoint) -> int:
-        lim, dt = self.limits, self.scene.physics.time_step_s
+        lim = self.limits
         if waypoint.ticks is not None:
             total = waypoint.ticks
         elif waypoint.path == "linear":
             start, _ = self.arm.forward(knots[0])
             distance = float(np.linalg.norm(np.subtract(waypoint.pose.position_m, start)))
-            total = math.ceil(distance / lim.max_linear_speed_mps / dt)
+            total = self.scene.ticks_for(MIN_JERK_PEAK * distance / lim.max_linear_speed_mps)
         else:
-            total = math.ceil(
-                float(np.max(np.abs(knots[-1] - knots[0]))) / lim.max_joint_speed_radps / dt
-            )
+            angle = float(np.max(np.abs(knots[-1] - knots[0])))
+            total = self.scene.ticks_for(MIN_JERK_PEAK * angle / lim.max_joint_speed_radps)
         total = max(total, self.scene.ticks_for(lim.min_duration_s), len(knots) - 1)
         path = np.array(knots)
         along = np.linspace(0.0, 1.0, len(knots))
