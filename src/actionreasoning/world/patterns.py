@@ -21,25 +21,25 @@ from __future__ import annotations
 import itertools
 import json
 import math
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
-from shapely import affinity
-from shapely.geometry import Point, Polygon, box
-from shapely.ops import unary_union
 
 from actionreasoning.errors import PatternError
-from actionreasoning.world.geometry import Vec3, yaw_quat
+from actionreasoning.world.geometry import yaw_quat
 from actionreasoning.world.models import GoalPattern, Pose, TargetBrick
 from actionreasoning.world.scene_spec import SceneSpec
+from actionreasoning.world.support import (
+    MIN_AREA_M2,
+    SUPPORT_TOL_M,
+    BrickBox,
+    carriers,
+    centre_is_held,
+)
 
 OVERLAP_TOL_M = 1e-3  # z-overlap allowed between bricks, and how far below ground a bottom goes
-SUPPORT_TOL_M = 2e-3  # how far a supporting top face may be from the bottom it carries
-MIN_AREA_M2 = 1e-6  # footprint intersections smaller than this are mere touching
-HULL_TOL_M = 1e-6  # a centre this close to its support hull still counts as supported
 
 #: Built-ins: bricks per layer (each layer a row centred over the one below) and the gap.
 _BUILTINS = {"pyramid": ((3, 2, 1), 0.05), "grid": ((3, 3), 0.02)}
@@ -72,32 +72,6 @@ class PatternFile(_FileModel):
     brick_size: tuple[Positive, Positive, Positive]
     origin: tuple[Finite, Finite, Finite] | None = None
     bricks: list[BrickEntry] = Field(min_length=1)
-
-
-@dataclass(frozen=True)
-class _Block:
-    """A brick placed in the world: index in build order, centre, yaw and size."""
-
-    index: int
-    centre: Vec3
-    yaw: float
-    size: Vec3
-
-    @property
-    def bottom(self) -> float:
-        return self.centre[2] - self.size[2] / 2.0
-
-    @property
-    def top(self) -> float:
-        return self.centre[2] + self.size[2] / 2.0
-
-    @property
-    def footprint(self) -> Polygon:
-        """The brick's rectangle on the ground plane."""
-        half_x, half_y = self.size[0] / 2.0, self.size[1] / 2.0
-        rect = box(-half_x, -half_y, half_x, half_y)
-        rect = affinity.rotate(rect, self.yaw, origin=(0.0, 0.0), use_radians=True)
-        return affinity.translate(rect, self.centre[0], self.centre[1])
 
 
 def builtin_pattern_names() -> tuple[str, ...]:
@@ -177,13 +151,13 @@ def _parse(data: dict[str, Any], source: str) -> PatternFile:
         raise PatternError(f"{source}: {message}") from exc
 
 
-def _place(pattern: PatternFile, spec: SceneSpec) -> list[_Block]:
+def _place(pattern: PatternFile, spec: SceneSpec) -> list[BrickBox]:
     """The pattern's bricks in the world frame (see the frame rule above)."""
     ox, oy, oz = pattern.origin or spec.build_center_m
     turn = spec.build_yaw_rad if pattern.origin is None else 0.0
     c, s = math.cos(turn), math.sin(turn)
     return [
-        _Block(
+        BrickBox(
             i,
             (ox + c * x - s * y, oy + s * x + c * y, oz + z),
             turn + math.radians(brick.yaw_deg),
@@ -194,7 +168,7 @@ def _place(pattern: PatternFile, spec: SceneSpec) -> list[_Block]:
     ]
 
 
-def _validate(source: str, blocks: list[_Block], spec: SceneSpec) -> None:
+def _validate(source: str, blocks: list[BrickBox], spec: SceneSpec) -> None:
     """Refuse physically impossible or unreachable patterns."""
     for block in blocks:
         _check_ground(source, block)
@@ -208,13 +182,13 @@ def _fmt(values: tuple[float, ...]) -> str:
     return "(" + ", ".join(f"{v:.3f}" for v in values) + ")"
 
 
-def _check_ground(source: str, block: _Block) -> None:
+def _check_ground(source: str, block: BrickBox) -> None:
     if block.bottom < -OVERLAP_TOL_M:
         where = f"bottom face at z = {block.bottom:.3f} m"
         raise PatternError(f"{source}: brick {block.index} is below the ground ({where})")
 
 
-def _check_reach(source: str, block: _Block, spec: SceneSpec) -> None:
+def _check_reach(source: str, block: BrickBox, spec: SceneSpec) -> None:
     band = spec.reach
     if not band.contains(*block.centre):
         limits = f"radius {band.min_radius_m}-{band.max_radius_m} m, height 0-{band.max_height_m} m"
@@ -224,26 +198,19 @@ def _check_reach(source: str, block: _Block, spec: SceneSpec) -> None:
         )
 
 
-def _check_overlaps(source: str, blocks: list[_Block]) -> None:
+def _check_overlaps(source: str, blocks: list[BrickBox]) -> None:
     for a, b in itertools.combinations(blocks, 2):
         z_overlap = min(a.top, b.top) - max(a.bottom, b.bottom)
         if z_overlap > OVERLAP_TOL_M and a.footprint.intersection(b.footprint).area > MIN_AREA_M2:
             raise PatternError(f"{source}: bricks {a.index} and {b.index} overlap")
 
 
-def _contacts(block: _Block, blocks: list[_Block]) -> list[tuple[_Block, Polygon]]:
-    """Bricks whose top face carries ``block``, each with its contact area."""
-    level = [o for o in blocks if o is not block and abs(o.top - block.bottom) <= SUPPORT_TOL_M]
-    areas = [(o, block.footprint.intersection(o.footprint)) for o in level]
-    return [(o, area) for o, area in areas if area.area > MIN_AREA_M2]
-
-
-def _check_support(source: str, block: _Block, blocks: list[_Block]) -> None:
+def _check_support(source: str, block: BrickBox, blocks: list[BrickBox]) -> None:
     """A raised brick must rest, centre inside its support, on bricks built before it."""
     if block.bottom <= OVERLAP_TOL_M:
         return
     brick = f"{source}: brick {block.index}"
-    contacts = _contacts(block, blocks)
+    contacts = carriers(block, blocks)
     if not contacts:
         raise PatternError(
             f"{brick} has nothing under it (no brick top within "
@@ -252,8 +219,7 @@ def _check_support(source: str, block: _Block, blocks: list[_Block]) -> None:
     later = [other.index for other, _ in contacts if other.index > block.index]
     if later:
         raise PatternError(f"{brick} rests on brick {later[0]}, which is built later")
-    hull = unary_union([area for _, area in contacts]).convex_hull
-    if hull.distance(Point(block.centre[:2])) > HULL_TOL_M:
+    if not centre_is_held(block, [area for _, area in contacts]):
         below = ", ".join(str(other.index) for other, _ in contacts)
         raise PatternError(
             f"{brick} would topple: its centre {_fmt(block.centre[:2])} lies "
