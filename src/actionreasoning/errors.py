@@ -19,3 +19,7 @@ class ConfigError(ActionReasoningError):
 
 class UnreachableError(ActionReasoningError):
     """The arm cannot reach a requested end-effector pose within tolerance."""
+
+
+class ToolError(ActionReasoningError):
+    """A tool was called with arguments that name nothing in the world (bad brick id, ...)."""

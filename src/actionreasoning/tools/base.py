@@ -1,0 +1,60 @@
+"""What a tool is: a name, a description, typed input and output models, and a function.
+
+Tools read the world only through a :class:`ToolContext` (the measured WorldState plus the
+arm's kinematic model), so a tool call by an LLM and one by Python code see the same thing.
+Every tool has a JSON schema for its arguments, given to LLMs as a function definition.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Generic, TypeVar
+
+from pydantic import BaseModel, ConfigDict
+
+from actionreasoning.sim.kinematics import KinematicArm
+from actionreasoning.world.models import WorldState
+
+In = TypeVar("In", bound=BaseModel)
+Out = TypeVar("Out", bound=BaseModel)
+
+
+class ToolModel(BaseModel):
+    """Base of every tool input and output: frozen, no unknown fields."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+@dataclass(frozen=True)
+class ToolContext:
+    """What a tool may look at: the measured world and the arm's kinematic model."""
+
+    state: WorldState
+    arm: KinematicArm
+
+
+@dataclass(frozen=True)
+class Tool(Generic[In, Out]):
+    """A callable piece of knowledge with typed, schema-described input and output."""
+
+    name: str
+    description: str
+    input_model: type[In]
+    output_model: type[Out]
+    function: Callable[[ToolContext, In], Out]
+
+    def __call__(self, context: ToolContext, arguments: In) -> Out:
+        """Run the tool on already validated arguments."""
+        return self.function(context, arguments)
+
+    def function_schema(self) -> dict[str, Any]:
+        """The tool as an OpenAI-style function definition (JSON schema of its arguments)."""
+        return {
+            "type": "function",
+            "function": {
+                "name": self.name,
+                "description": self.description,
+                "parameters": self.input_model.model_json_schema(),
+            },
+        }

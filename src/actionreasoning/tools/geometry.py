@@ -1,0 +1,188 @@
+"""Geometric tools over the measured WorldState: alignment, grasp candidates, support.
+
+Frames: world (origin at the arm's base on the ground, z up); angles in degrees in the
+outputs; lengths in metres.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydantic import Field
+from scipy.spatial.transform import Rotation
+
+from actionreasoning.errors import ToolError
+from actionreasoning.tools.base import Tool, ToolContext, ToolModel
+from actionreasoning.world.geometry import quat_yaw, top_down_quat, wrap_angle
+from actionreasoning.world.models import BrickState, Pose, TargetBrick, WorldState
+from actionreasoning.world.support import BrickBox, carriers, centre_is_held
+
+GROUND_TOL_M = 2e-3
+
+
+class BrickQuery(ToolModel):
+    """Which brick to look at."""
+
+    brick_id: int = Field(ge=0, description="Id of a brick in the world state.")
+
+
+class AlignmentQuery(ToolModel):
+    """A brick and the pattern target it is compared with."""
+
+    brick_id: int = Field(ge=0, description="Id of a brick in the world state.")
+    target_index: int = Field(ge=0, description="Index of a target in the goal pattern.")
+
+
+class AlignmentErrors(ToolModel):
+    """How far a brick is from its target (world frame)."""
+
+    e_xy_m: tuple[float, float] = Field(description="Target centre minus brick centre, x and y.")
+    e_xy_norm_m: float = Field(description="Planar distance between the centres.")
+    e_theta_deg: float = Field(description="Target yaw minus brick yaw, wrapped to [-180, 180).")
+    d_perp_m: float = Field(description="Brick bottom minus target bottom; > 0 above its seat.")
+    tilt_deg: float = Field(description="Angle between the brick's z axis and world up.")
+
+
+class GraspQuery(ToolModel):
+    """Options of a top-down grasp."""
+
+    brick_id: int = Field(ge=0, description="Id of a brick in the world state.")
+    approach_height_m: float = Field(
+        0.12, gt=0.0, le=0.3, description="Height of the approach pose above the grasp pose."
+    )
+    side_clearance_m: float = Field(
+        0.02, ge=0.0, le=0.03, description="Free space wanted on each side of the brick (delta)."
+    )
+
+
+class GraspCandidate(ToolModel):
+    """One top-down grasp across the brick's short side."""
+
+    gripper_yaw_deg: float
+    grasp_pose: Pose = Field(description="Tool centre point at the brick centre.")
+    approach_pose: Pose = Field(description="Straight above the grasp pose.")
+    opening_needed_m: float = Field(description="Brick width plus clearance on both sides.")
+
+
+class GraspCandidates(ToolModel):
+    """The two yaw choices of a grasp across the short side (they differ by 180 deg)."""
+
+    brick_id: int
+    grasp_axis_xy: tuple[float, float] = Field(
+        description="Unit vector the fingers close along (the brick's short side)."
+    )
+    candidates: tuple[GraspCandidate, GraspCandidate]
+
+
+class SupportReport(ToolModel):
+    """What a brick rests on."""
+
+    brick_id: int
+    on_ground: bool
+    carriers: tuple[int, ...] = Field(description="Ids of the bricks whose top face carries it.")
+    contact_area_m2: float
+    centre_supported: bool = Field(description="Centre over the hull of its contact areas.")
+    tilt_deg: float
+
+
+def _brick(state: WorldState, brick_id: int) -> BrickState:
+    try:
+        return state.brick(brick_id)
+    except KeyError:
+        ids = ", ".join(str(b.id) for b in state.bricks)
+        raise ToolError(f"no brick with id {brick_id} (ids: {ids})") from None
+
+
+def _target(state: WorldState, index: int) -> TargetBrick:
+    if not 0 <= index < len(state.goal.targets):
+        raise ToolError(f"no target {index} (the pattern has {len(state.goal.targets)})")
+    return state.goal.targets[index]
+
+
+def _tilt_deg(pose: Pose) -> float:
+    up = Rotation.from_quat(pose.quat_xyzw).apply([0.0, 0.0, 1.0])
+    return math.degrees(math.acos(float(np.clip(abs(up[2]), 0.0, 1.0))))
+
+
+def _box(brick: BrickState) -> BrickBox:
+    return BrickBox(brick.id, brick.pose.position_m, quat_yaw(brick.pose.quat_xyzw), brick.size_m)
+
+
+def alignment_errors(context: ToolContext, query: AlignmentQuery) -> AlignmentErrors:
+    """Planar offset, yaw error and height above the seat of a brick against a target."""
+    brick = _brick(context.state, query.brick_id)
+    target = _target(context.state, query.target_index)
+    (bx, by, bz), (tx, ty, tz) = brick.pose.position_m, target.pose.position_m
+    e_theta = wrap_angle(quat_yaw(target.pose.quat_xyzw) - quat_yaw(brick.pose.quat_xyzw))
+    return AlignmentErrors(
+        e_xy_m=(tx - bx, ty - by),
+        e_xy_norm_m=math.hypot(tx - bx, ty - by),
+        e_theta_deg=math.degrees(e_theta),
+        d_perp_m=(bz - brick.size_m[2] / 2.0) - (tz - target.size_m[2] / 2.0),
+        tilt_deg=_tilt_deg(brick.pose),
+    )
+
+
+def grasp_candidates(context: ToolContext, query: GraspQuery) -> GraspCandidates:
+    """Top-down grasps closing across the brick's short side, at its yaw and turned 180 deg."""
+    brick = _brick(context.state, query.brick_id)
+    yaw = quat_yaw(brick.pose.quat_xyzw)
+    x, y, z = brick.pose.position_m
+    candidates = tuple(
+        GraspCandidate(
+            gripper_yaw_deg=math.degrees(wrap_angle(yaw + flip)),
+            grasp_pose=Pose(position_m=(x, y, z), quat_xyzw=top_down_quat(yaw + flip)),
+            approach_pose=Pose(
+                position_m=(x, y, z + query.approach_height_m), quat_xyzw=top_down_quat(yaw + flip)
+            ),
+            opening_needed_m=brick.size_m[1] + 2.0 * query.side_clearance_m,
+        )
+        for flip in (0.0, math.pi)
+    )
+    return GraspCandidates(
+        brick_id=brick.id,
+        grasp_axis_xy=(-math.sin(yaw), math.cos(yaw)),
+        candidates=candidates,  # type: ignore[arg-type]
+    )
+
+
+def support_contact(context: ToolContext, query: BrickQuery) -> SupportReport:
+    """The ground or the bricks under a brick, their contact area, and if its centre is held."""
+    state = context.state
+    brick = _brick(state, query.brick_id)
+    box = _box(brick)
+    contacts = carriers(box, [_box(b) for b in state.bricks])
+    on_ground = abs(box.bottom) <= GROUND_TOL_M
+    areas = [area for _, area in contacts]
+    return SupportReport(
+        brick_id=brick.id,
+        on_ground=on_ground,
+        carriers=tuple(other.index for other, _ in contacts),
+        contact_area_m2=box.footprint.area if on_ground else float(sum(a.area for a in areas)),
+        centre_supported=on_ground or (bool(areas) and centre_is_held(box, areas)),
+        tilt_deg=_tilt_deg(brick.pose),
+    )
+
+
+ALIGNMENT = Tool(
+    name="alignment_errors",
+    description=alignment_errors.__doc__ or "",
+    input_model=AlignmentQuery,
+    output_model=AlignmentErrors,
+    function=alignment_errors,
+)
+GRASP_CANDIDATES = Tool(
+    name="grasp_candidates",
+    description=grasp_candidates.__doc__ or "",
+    input_model=GraspQuery,
+    output_model=GraspCandidates,
+    function=grasp_candidates,
+)
+SUPPORT = Tool(
+    name="support_contact",
+    description=support_contact.__doc__ or "",
+    input_model=BrickQuery,
+    output_model=SupportReport,
+    function=support_contact,
+)

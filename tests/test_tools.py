@@ -1,0 +1,144 @@
+"""The tool library: hand-built world states in, hand-computed answers out."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+
+import pytest
+from jsonschema import Draft202012Validator
+
+from actionreasoning.errors import ToolError
+from actionreasoning.sim.kinematics import KinematicArm
+from actionreasoning.tools.base import ToolContext
+from actionreasoning.tools.registry import TOOLS, call_tool
+from actionreasoning.world.geometry import top_down_quat, yaw_quat
+from actionreasoning.world.models import BrickState, Pose, RobotState, WorldState
+from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.scene_spec import SceneSpec
+
+SPEC = SceneSpec()
+GOAL = load_pattern("pyramid", SPEC)
+L, W, H = SPEC.brick_size_m
+
+
+def world(*poses: Pose) -> WorldState:
+    """A world with bricks at ``poses`` (ids in order) and the pyramid as goal."""
+    robot = RobotState(
+        ee_pose=Pose(position_m=(0.45, 0.0, 0.4), quat_xyzw=top_down_quat(0.0)),
+        joint_positions_rad=(0.0,) * 7,
+        gripper_width_m=0.16,
+        finger_depth_m=0.02,
+        finger_forces_n=(0.0, 0.0),
+    )
+    bricks = tuple(
+        BrickState(id=i, size_m=SPEC.brick_size_m, mass_kg=1.5, friction=0.8, pose=pose)
+        for i, pose in enumerate(poses)
+    )
+    return WorldState(time_s=0.0, robot=robot, bricks=bricks, goal=GOAL)
+
+
+@pytest.fixture(scope="module")
+def arm() -> Iterator[KinematicArm]:
+    arm = KinematicArm()
+    yield arm
+    arm.close()
+
+
+def run(arm: KinematicArm, state: WorldState, name: str, **arguments: object):
+    return call_tool(name, arguments, ToolContext(state=state, arm=arm))
+
+
+def test_every_tool_schema_is_valid_json_schema() -> None:
+    assert set(TOOLS) == {"alignment_errors", "grasp_candidates", "support_contact", "reachability"}
+    for tool in TOOLS.values():
+        schema = tool.function_schema()
+        assert schema["function"]["name"] == tool.name
+        assert schema["function"]["description"]
+        Draft202012Validator.check_schema(schema["function"]["parameters"])
+        Draft202012Validator.check_schema(tool.output_model.model_json_schema())
+
+
+def test_alignment_of_a_brick_on_its_target_is_zero(arm: KinematicArm) -> None:
+    state = world(GOAL.targets[3].pose)
+    errors = run(arm, state, "alignment_errors", brick_id=0, target_index=3)
+    assert errors.e_xy_norm_m == pytest.approx(0.0, abs=1e-12)
+    assert errors.e_theta_deg == pytest.approx(0.0, abs=1e-9)
+    assert errors.d_perp_m == pytest.approx(0.0, abs=1e-12)
+    assert errors.tilt_deg == pytest.approx(0.0, abs=1e-6)
+
+
+def test_alignment_of_a_shifted_turned_raised_brick(arm: KinematicArm) -> None:
+    target = GOAL.targets[0].pose
+    x, y, z = target.position_m
+    yaw = SPEC.build_yaw_rad
+    moved = Pose(position_m=(x - 0.01, y + 0.02, z + 0.005), quat_xyzw=yaw_quat(yaw - 0.1))
+    errors = run(arm, world(moved), "alignment_errors", brick_id=0, target_index=0)
+    assert errors.e_xy_m == pytest.approx((0.01, -0.02))
+    assert errors.e_xy_norm_m == pytest.approx(math.hypot(0.01, 0.02))
+    assert errors.e_theta_deg == pytest.approx(math.degrees(0.1))
+    assert errors.d_perp_m == pytest.approx(0.005)
+
+
+def test_grasp_candidates_close_across_the_short_side(arm: KinematicArm) -> None:
+    yaw = math.radians(30.0)
+    state = world(Pose(position_m=(0.1, -0.6, H / 2), quat_xyzw=yaw_quat(yaw)))
+    grasps = run(arm, state, "grasp_candidates", brick_id=0, approach_height_m=0.1)
+    assert grasps.grasp_axis_xy == pytest.approx((-math.sin(yaw), math.cos(yaw)))
+    first, second = grasps.candidates
+    assert first.gripper_yaw_deg == pytest.approx(30.0)
+    assert second.gripper_yaw_deg == pytest.approx(-150.0)
+    assert first.grasp_pose.position_m == pytest.approx((0.1, -0.6, H / 2))
+    assert first.approach_pose.position_m == pytest.approx((0.1, -0.6, H / 2 + 0.1))
+    assert first.opening_needed_m == pytest.approx(W + 0.04)
+
+
+def test_support_on_the_ground_and_on_two_bricks(arm: KinematicArm) -> None:
+    state = world(*(t.pose for t in GOAL.targets[:4]))
+    ground = run(arm, state, "support_contact", brick_id=0)
+    assert ground.on_ground and ground.carriers == () and ground.centre_supported
+    upper = run(arm, state, "support_contact", brick_id=3)
+    assert not upper.on_ground
+    assert upper.carriers == (0, 1)
+    assert upper.centre_supported
+    # Each lower brick carries (L - gap) / 2 of the upper brick's length.
+    assert upper.contact_area_m2 == pytest.approx(2 * (L - 0.05) / 2 * W, rel=1e-6)
+
+
+def test_support_finds_a_floating_and_an_overhanging_brick(arm: KinematicArm) -> None:
+    base = Pose(position_m=(0.0, -0.6, H / 2), quat_xyzw=yaw_quat(0.0))
+    floating = Pose(position_m=(0.3, -0.6, 1.5 * H), quat_xyzw=yaw_quat(0.0))
+    overhang = Pose(position_m=(0.16, -0.6, 1.5 * H), quat_xyzw=yaw_quat(0.0))
+    state = world(base, floating, overhang)
+    lost = run(arm, state, "support_contact", brick_id=1)
+    assert lost.carriers == () and not lost.on_ground and not lost.centre_supported
+    tipping = run(arm, state, "support_contact", brick_id=2)
+    assert tipping.carriers == (0,) and not tipping.centre_supported
+
+
+def test_reachability_inside_and_outside_the_band(arm: KinematicArm) -> None:
+    state = world()
+    near = Pose(position_m=(0.55, 0.2, 0.2), quat_xyzw=top_down_quat(0.3))
+    report = run(arm, state, "reachability", pose=near.model_dump())
+    assert report.reachable and report.position_error_m < 1e-4 and len(report.joints_rad) == 7
+    far = Pose(position_m=(1.2, 0.0, 0.2), quat_xyzw=top_down_quat(0.0))
+    report = run(arm, state, "reachability", pose=far.model_dump())
+    assert not report.reachable and report.position_error_m > 0.1
+
+
+@pytest.mark.parametrize(
+    ("name", "arguments", "message"),
+    [
+        ("support_contact", {"brick_id": 9}, "no brick with id 9"),
+        ("alignment_errors", {"brick_id": 0, "target_index": 6}, "no target 6"),
+        ("support_contact", {"brick_id": "zero"}, "support_contact: brick_id:"),
+        ("support_contact", {"brick_id": 0, "extra": 1}, "extra"),
+        ("__import__('os').system", {}, "unknown tool"),
+    ],
+)
+def test_bad_calls_are_typed_errors(
+    arm: KinematicArm, name: str, arguments: dict, message: str
+) -> None:
+    state = world(GOAL.targets[0].pose)
+    with pytest.raises(ToolError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        call_tool(name, arguments, ToolContext(state=state, arm=arm))
