@@ -9,6 +9,7 @@ import pytest
 from jsonschema import Draft202012Validator
 
 from actionreasoning.errors import ToolError
+from actionreasoning.sim.collision import CollisionChecker
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.tools.base import ToolContext
 from actionreasoning.tools.registry import TOOLS, call_tool
@@ -45,12 +46,28 @@ def arm() -> Iterator[KinematicArm]:
     arm.close()
 
 
+_CHECKERS: dict[int, CollisionChecker] = {}
+
+
+def context(arm: KinematicArm, state: WorldState) -> ToolContext:
+    """A tool context on ``arm``, with one collision checker per arm."""
+    if id(arm) not in _CHECKERS:
+        _CHECKERS[id(arm)] = CollisionChecker(arm)
+    return ToolContext(state=state, arm=arm, collisions=_CHECKERS[id(arm)])
+
+
 def run(arm: KinematicArm, state: WorldState, name: str, **arguments: object):
-    return call_tool(name, arguments, ToolContext(state=state, arm=arm))
+    return call_tool(name, arguments, context(arm, state))
 
 
 def test_every_tool_schema_is_valid_json_schema() -> None:
-    assert set(TOOLS) == {"alignment_errors", "grasp_candidates", "support_contact", "reachability"}
+    assert set(TOOLS) == {
+        "alignment_errors",
+        "grasp_candidates",
+        "support_contact",
+        "reachability",
+        "collision_check",
+    }
     for tool in TOOLS.values():
         schema = tool.function_schema()
         assert schema["function"]["name"] == tool.name
@@ -141,4 +158,44 @@ def test_bad_calls_are_typed_errors(
 ) -> None:
     state = world(GOAL.targets[0].pose)
     with pytest.raises(ToolError, match=message.replace("(", r"\(").replace(")", r"\)")):
-        call_tool(name, arguments, ToolContext(state=state, arm=arm))
+        call_tool(name, arguments, context(arm, state))
+
+
+def test_collision_check_of_a_descent_onto_a_brick(arm: KinematicArm) -> None:
+    brick = Pose(position_m=(0.5, 0.0, H / 2), quat_xyzw=yaw_quat(0.0))
+    state = world(brick, Pose(position_m=(0.5, 0.3, H / 2), quat_xyzw=yaw_quat(0.0)))
+    above = Pose(position_m=(0.5, 0.0, 0.2), quat_xyzw=top_down_quat(0.0))
+    grasp = Pose(position_m=(0.5, 0.0, H / 2), quat_xyzw=top_down_quat(0.0))
+    # Open, straight down onto brick 0 (ignored as the one being grasped): the fingertips
+    # end 1 cm above the ground.
+    path = run(
+        arm,
+        state,
+        "collision_check",
+        pose=grasp.model_dump(),
+        start_pose=above.model_dump(),
+        ignore_brick_id=0,
+    )
+    assert path.reachable and path.collision_free
+    assert path.poses_checked == 18
+    assert path.clearance_m == pytest.approx(0.01, abs=1e-4)
+    assert "ground" in path.closest
+    # The same descent with brick 0 counted as an obstacle: closed fingers go through it.
+    blocked = run(
+        arm,
+        state,
+        "collision_check",
+        pose=grasp.model_dump(),
+        start_pose=above.model_dump(),
+        gripper_opening_m=0.06,
+    )
+    assert not blocked.collision_free
+    assert blocked.clearance_m == pytest.approx(-(W / 2 - 0.03), abs=1e-3)
+    assert "brick 0" in blocked.closest
+
+
+def test_collision_check_reports_unreachable_poses(arm: KinematicArm) -> None:
+    far = Pose(position_m=(1.2, 0.0, 0.2), quat_xyzw=top_down_quat(0.0))
+    report = run(arm, world(), "collision_check", pose=far.model_dump())
+    assert not report.reachable and not report.collision_free
+    assert "no IK solution" in report.closest

@@ -16,7 +16,14 @@ import numpy as np
 import pybullet as p
 from scipy.spatial.transform import Rotation
 
-from actionreasoning.sim.robot_model import ARM_JOINTS, FINGER_MAX_M, TCP_LINK, load_robot
+from actionreasoning.sim.robot_model import (
+    ARM_JOINTS,
+    FINGER_LEFT,
+    FINGER_MAX_M,
+    FINGER_RIGHT,
+    TCP_LINK,
+    load_robot,
+)
 from actionreasoning.world.geometry import QuatXYZW, Vec3, quat_yaw, wrap_angle
 
 #: A comfortable top-down configuration; joints 1 and 7 are set from the target.
@@ -58,6 +65,24 @@ class KinematicArm:
             if p.getJointInfo(self._robot, j, physicsClientId=self._client)[2] != p.JOINT_FIXED
         ]
         self._n_movable = len(movable)
+
+    @property
+    def client(self) -> int:
+        """The PyBullet client of the kinematic copy (never stepped)."""
+        return self._client
+
+    @property
+    def robot(self) -> int:
+        """The arm's body id in :attr:`client`."""
+        return self._robot
+
+    def set_configuration(self, joints_rad: Sequence[float], finger_half_width_m: float) -> None:
+        """Put the kinematic copy in a configuration (arm joints and finger opening)."""
+        self._set(joints_rad)
+        for finger in (FINGER_LEFT, FINGER_RIGHT):
+            p.resetJointState(
+                self._robot, finger, finger_half_width_m, physicsClientId=self._client
+            )
 
     def close(self) -> None:
         """Disconnect the kinematic copy."""

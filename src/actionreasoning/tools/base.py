@@ -1,7 +1,8 @@
 """What a tool is: a name, a description, typed input and output models, and a function.
 
 Tools read the world only through a :class:`ToolContext` (the measured WorldState plus the
-arm's kinematic model), so a tool call by an LLM and one by Python code see the same thing.
+arm's kinematic model and collision checker), so a tool call by an LLM and one by Python
+code see the same thing.
 Every tool has a JSON schema for its arguments, given to LLMs as a function definition.
 """
 
@@ -13,6 +14,7 @@ from typing import Any, Generic, TypeVar
 
 from pydantic import BaseModel, ConfigDict
 
+from actionreasoning.sim.collision import CollisionChecker
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.world.models import WorldState
 
@@ -28,10 +30,12 @@ class ToolModel(BaseModel):
 
 @dataclass(frozen=True)
 class ToolContext:
-    """What a tool may look at: the measured world and the arm's kinematic model."""
+    """What a tool may look at: the measured world, the arm's kinematic model and its
+    collision checker (both on the kinematic copy, never on the simulation)."""
 
     state: WorldState
     arm: KinematicArm
+    collisions: CollisionChecker
 
 
 @dataclass(frozen=True)

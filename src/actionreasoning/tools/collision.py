@@ -1,0 +1,117 @@
+"""Collision tool: clearance of the arm at a pose, or along a straight tool path.
+
+Obstacles are the ground and every brick except the one being grasped; a brick the
+gripper holds (status ``grasped``) moves with the gripper and is checked too.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydantic import Field
+from scipy.spatial.transform import Rotation, Slerp
+
+from actionreasoning.sim.collision import Box, Clearance
+from actionreasoning.tools.base import Tool, ToolContext, ToolModel
+from actionreasoning.world.models import BrickState, Pose, WorldState
+
+PATH_STEP_M = 0.01
+
+
+class CollisionQuery(ToolModel):
+    """A tool pose, optionally the start of a straight path to it, and the gripper opening."""
+
+    pose: Pose = Field(description="Tool-centre-point pose to check (the path's end).")
+    start_pose: Pose | None = Field(
+        None, description="If given, check the straight path from here to `pose` (1 cm steps)."
+    )
+    gripper_opening_m: float = Field(0.16, ge=0.06, le=0.16, description="Gap between the pads.")
+    ignore_brick_id: int | None = Field(
+        None, ge=0, description="A brick not counted as an obstacle (the one being grasped)."
+    )
+
+
+class CollisionReport(ToolModel):
+    """The smallest clearance found (m; negative is penetration) and where."""
+
+    reachable: bool = Field(description="Every checked pose had an IK solution.")
+    collision_free: bool = Field(description="Reachable and clearance > 0 everywhere.")
+    clearance_m: float = Field(description="Smallest distance; capped at 0.25 m.")
+    closest: str = Field(description="The two things at that distance.")
+    poses_checked: int
+
+
+def _obstacles(state: WorldState, ignore: int | None) -> tuple[list[Box], BrickState | None]:
+    held = next((b for b in state.bricks if b.status == "grasped"), None)
+    boxes = [
+        Box(f"brick {b.id}", b.pose.position_m, b.pose.quat_xyzw, b.size_m)
+        for b in state.bricks
+        if b.id != ignore and b is not held
+    ]
+    return boxes, held
+
+
+def _path(query: CollisionQuery) -> list[Pose]:
+    if query.start_pose is None:
+        return [query.pose]
+    start = np.asarray(query.start_pose.position_m)
+    end = np.asarray(query.pose.position_m)
+    steps = max(1, math.ceil(float(np.linalg.norm(end - start)) / PATH_STEP_M))
+    slerp = Slerp(
+        [0.0, 1.0], Rotation.from_quat([query.start_pose.quat_xyzw, query.pose.quat_xyzw])
+    )
+    return [
+        Pose(position_m=tuple(start + s * (end - start)), quat_xyzw=tuple(slerp(s).as_quat()))
+        for s in np.linspace(0.0, 1.0, steps + 1)
+    ]
+
+
+def _held_box(state: WorldState, held: BrickState, tool_pose: Pose) -> Box:
+    """The held brick carried rigidly from its measured grip to ``tool_pose``."""
+    grip = Rotation.from_quat(state.robot.ee_pose.quat_xyzw)
+    offset = grip.inv().apply(np.subtract(held.pose.position_m, state.robot.ee_pose.position_m))
+    turn = grip.inv() * Rotation.from_quat(held.pose.quat_xyzw)
+    tool = Rotation.from_quat(tool_pose.quat_xyzw)
+    position = tuple(np.asarray(tool_pose.position_m) + tool.apply(offset))
+    return Box(f"brick {held.id}", position, tuple((tool * turn).as_quat()), held.size_m)
+
+
+def collision_check(context: ToolContext, query: CollisionQuery) -> CollisionReport:
+    """Clearance (m) of arm, gripper and held brick from the ground and the other bricks."""
+    obstacles, held = _obstacles(context.state, query.ignore_brick_id)
+    worst = Clearance(math.inf, "")
+    poses = _path(query)
+    seed = None
+    for pose in poses:
+        solution = context.arm.solve(pose.position_m, pose.quat_xyzw, seed)
+        if not solution.reached:
+            x, y, z = pose.position_m
+            return CollisionReport(
+                reachable=False,
+                collision_free=False,
+                clearance_m=worst.distance_m if worst.between else 0.0,
+                closest=f"no IK solution at ({x:.3f}, {y:.3f}, {z:.3f})",
+                poses_checked=len(poses),
+            )
+        seed = solution.joints_rad
+        carried = None if held is None else _held_box(context.state, held, pose)
+        opening = query.gripper_opening_m / 2.0
+        found = context.collisions.clearance(seed, opening, obstacles, carried)
+        worst = found if found.distance_m < worst.distance_m else worst
+    return CollisionReport(
+        reachable=True,
+        collision_free=worst.distance_m > 0.0,
+        clearance_m=worst.distance_m,
+        closest=worst.between,
+        poses_checked=len(poses),
+    )
+
+
+COLLISION = Tool(
+    name="collision_check",
+    description=collision_check.__doc__ or "",
+    input_model=CollisionQuery,
+    output_model=CollisionReport,
+    function=collision_check,
+)
