@@ -95,7 +95,7 @@ class Probe:
         return mm, float(np.degrees((self.ref[1].inv() * rot).magnitude()))
 
     def sample(self) -> None:
-        speed = float(np.linalg.norm(self.scene.tcp_velocity()))
+        speed = float(np.linalg.norm(self.scene.tcp_velocity()[0]))
         self.peak = [max(a, b) for a, b in zip(self.peak, (*self.slip(), speed), strict=True)]
         force = min(c.normal_n for c in self.scene.finger_contacts(0))
         self.min_force_n, self.lost = min(self.min_force_n, force), self.lost + (force < 1.0)

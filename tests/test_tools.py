@@ -8,9 +8,13 @@ from collections.abc import Iterator
 import pytest
 from jsonschema import Draft202012Validator
 
+from actionreasoning.control.classical import ClassicalController
+from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
 from actionreasoning.errors import ToolError
 from actionreasoning.sim.collision import CollisionChecker
 from actionreasoning.sim.kinematics import KinematicArm
+from actionreasoning.sim.perceive import perceive
+from actionreasoning.sim.scene import Scene
 from actionreasoning.tools.base import ToolContext
 from actionreasoning.tools.registry import TOOLS, call_tool
 from actionreasoning.world.geometry import top_down_quat, yaw_quat
@@ -67,6 +71,8 @@ def test_every_tool_schema_is_valid_json_schema() -> None:
         "support_contact",
         "reachability",
         "collision_check",
+        "finger_contacts",
+        "slip_estimate",
     }
     for tool in TOOLS.values():
         schema = tool.function_schema()
@@ -199,3 +205,59 @@ def test_collision_check_reports_unreachable_poses(arm: KinematicArm) -> None:
     report = run(arm, world(), "collision_check", pose=far.model_dump())
     assert not report.reachable and not report.collision_free
     assert "no IK solution" in report.closest
+
+
+def test_contact_and_slip_of_a_brick_held_in_the_real_gripper(
+    arm: KinematicArm, scene: Scene
+) -> None:
+    controller = WaypointController(scene, arm)
+    pick_yaw, _ = ClassicalController(controller).grasp_yaws(0, GOAL.targets[0].pose)
+    (x, y, z), _ = scene.brick_pose(0)
+    for waypoint in (
+        Waypoint(
+            pose=Pose(position_m=(x, y, z + 0.12), quat_xyzw=top_down_quat(pick_yaw)),
+            gripper=GripperCommand.OPEN,
+        ),
+        Waypoint(pose=Pose(position_m=(x, y, z), quat_xyzw=top_down_quat(pick_yaw)), path="linear"),
+        Waypoint(
+            pose=Pose(position_m=(x, y, z), quat_xyzw=top_down_quat(pick_yaw)),
+            gripper=GripperCommand.CLOSE,
+        ),
+        Waypoint(
+            pose=Pose(position_m=(x, y, 0.3), quat_xyzw=top_down_quat(pick_yaw)), path="linear"
+        ),
+    ):
+        controller.execute(waypoint)
+    state = perceive(scene, GOAL)
+    assert state.brick(0).status == "grasped"
+    forces = run(arm, state, "finger_contacts", brick_id=0)
+    assert forces.held
+    assert forces.normal_n == pytest.approx((110.0, 110.0), rel=0.15)
+    assert forces.friction_coefficient == pytest.approx(1.2 * 0.8)
+    assert forces.friction_margin_n > 50.0
+    slip = run(arm, state, "slip_estimate", brick_id=0)
+    assert slip.relative_speed_mps < 1e-3
+    assert max(abs(v) for v in slip.offset_in_gripper_m) < 2e-3  # centred between the pads
+    idle = run(arm, state, "finger_contacts", brick_id=1)
+    assert not idle.held and idle.normal_n == (0.0, 0.0)
+
+
+def test_slip_is_velocity_relative_to_the_moving_gripper(arm: KinematicArm) -> None:
+    state = world(Pose(position_m=(0.5, 0.1, 0.3), quat_xyzw=top_down_quat(0.0)))
+    robot = state.robot.model_copy(
+        update={
+            "ee_pose": Pose(position_m=(0.5, 0.0, 0.3), quat_xyzw=top_down_quat(0.0)),
+            "ee_angular_velocity_radps": (0.0, 0.0, 1.0),
+            "ee_linear_velocity_mps": (0.05, 0.0, 0.0),
+        }
+    )
+    carried = state.bricks[0].model_copy(
+        update={"linear_velocity_mps": (-0.05, 0.0, 0.0), "angular_velocity_radps": (0.0, 0.0, 1.0)}
+    )
+    moving = state.model_copy(update={"robot": robot, "bricks": (carried,)})
+    # omega x lever = (0, 0, 1) x (0, 0.1, 0) = (-0.1, 0, 0); plus the tool's (0.05, 0, 0).
+    assert run(arm, moving, "slip_estimate", brick_id=0).relative_speed_mps == pytest.approx(0.0)
+    sliding = moving.model_copy(
+        update={"bricks": (carried.model_copy(update={"linear_velocity_mps": (-0.03, 0.0, 0.0)}),)}
+    )
+    assert run(arm, sliding, "slip_estimate", brick_id=0).relative_speed_mps == pytest.approx(0.02)

@@ -30,16 +30,22 @@ def perceive(scene: Scene, goal: GoalPattern, progress: Progress = Progress()) -
     tcp_position, tcp_quat = scene.tcp_pose()
     contacts = [scene.finger_contacts(i) for i in range(len(scene.bricks))]
     held = [c[0].normal_n > GRASP_CONTACT_N and c[1].normal_n > GRASP_CONTACT_N for c in contacts]
-    finger_forces = (0.0, 0.0)
+    normal, tangential = (0.0, 0.0), (0.0, 0.0)
     if any(held):
         left_c, right_c = contacts[held.index(True)]
-        finger_forces = (left_c.normal_n, right_c.normal_n)
+        normal = (left_c.normal_n, right_c.normal_n)
+        tangential = (left_c.tangential_n, right_c.tangential_n)
+    linear, angular = scene.tcp_velocity()
     robot = RobotState(
         ee_pose=Pose(position_m=tcp_position, quat_xyzw=tcp_quat),
         joint_positions_rad=tuple(float(q) for q in joints),
         gripper_width_m=left + right,
         finger_depth_m=FINGER_PAD_BELOW_TCP_M,
-        finger_forces_n=finger_forces,
+        finger_forces_n=normal,
+        finger_tangential_n=tangential,
+        finger_friction=scene.physics.finger_friction,
+        ee_linear_velocity_mps=linear,
+        ee_angular_velocity_radps=angular,
     )
     bricks = []
     for i in range(len(scene.bricks)):

@@ -249,12 +249,12 @@ class Scene:
         )
         return tuple(state[4]), tuple(state[5])  # type: ignore[return-value]
 
-    def tcp_velocity(self) -> Vec3:
-        """Measured tool-centre-point linear velocity (m/s)."""
+    def tcp_velocity(self) -> tuple[Vec3, Vec3]:
+        """Measured tool-centre-point linear (m/s) and angular (rad/s) velocity."""
         state = p.getLinkState(
             self.robot, TCP_LINK, computeLinkVelocity=True, physicsClientId=self.client
         )
-        return tuple(state[6])  # type: ignore[return-value]
+        return tuple(state[6]), tuple(state[7])  # type: ignore[return-value]
 
     def brick_pose(self, brick: int) -> tuple[Vec3, QuatXYZW]:
         """Measured pose of brick ``brick``."""

@@ -86,7 +86,8 @@ class SupportReport(ToolModel):
     tilt_deg: float
 
 
-def _brick(state: WorldState, brick_id: int) -> BrickState:
+def brick_state(state: WorldState, brick_id: int) -> BrickState:
+    """The brick ``brick_id`` of ``state``, or a ToolError naming the ids there are."""
     try:
         return state.brick(brick_id)
     except KeyError:
@@ -111,7 +112,7 @@ def _box(brick: BrickState) -> BrickBox:
 
 def alignment_errors(context: ToolContext, query: AlignmentQuery) -> AlignmentErrors:
     """Planar offset, yaw error and height above the seat of a brick against a target."""
-    brick = _brick(context.state, query.brick_id)
+    brick = brick_state(context.state, query.brick_id)
     target = _target(context.state, query.target_index)
     (bx, by, bz), (tx, ty, tz) = brick.pose.position_m, target.pose.position_m
     e_theta = wrap_angle(quat_yaw(target.pose.quat_xyzw) - quat_yaw(brick.pose.quat_xyzw))
@@ -126,7 +127,7 @@ def alignment_errors(context: ToolContext, query: AlignmentQuery) -> AlignmentEr
 
 def grasp_candidates(context: ToolContext, query: GraspQuery) -> GraspCandidates:
     """Top-down grasps closing across the brick's short side, at its yaw and turned 180 deg."""
-    brick = _brick(context.state, query.brick_id)
+    brick = brick_state(context.state, query.brick_id)
     yaw = quat_yaw(brick.pose.quat_xyzw)
     x, y, z = brick.pose.position_m
     candidates = tuple(
@@ -150,7 +151,7 @@ def grasp_candidates(context: ToolContext, query: GraspQuery) -> GraspCandidates
 def support_contact(context: ToolContext, query: BrickQuery) -> SupportReport:
     """The ground or the bricks under a brick, their contact area, and if its centre is held."""
     state = context.state
-    brick = _brick(state, query.brick_id)
+    brick = brick_state(state, query.brick_id)
     box = _box(brick)
     contacts = carriers(box, [_box(b) for b in state.bricks])
     on_ground = abs(box.bottom) <= GROUND_TOL_M

@@ -10,11 +10,21 @@ from pydantic import ValidationError
 from actionreasoning.errors import ToolError
 from actionreasoning.tools.base import Tool, ToolContext, ToolModel
 from actionreasoning.tools.collision import COLLISION
+from actionreasoning.tools.contact import FINGER_CONTACTS, SLIP
 from actionreasoning.tools.geometry import ALIGNMENT, GRASP_CANDIDATES, SUPPORT
 from actionreasoning.tools.reach import REACHABILITY
 
 TOOLS: Mapping[str, Tool] = {
-    tool.name: tool for tool in (ALIGNMENT, GRASP_CANDIDATES, SUPPORT, REACHABILITY, COLLISION)
+    tool.name: tool
+    for tool in (
+        ALIGNMENT,
+        GRASP_CANDIDATES,
+        SUPPORT,
+        REACHABILITY,
+        COLLISION,
+        FINGER_CONTACTS,
+        SLIP,
+    )
 }
 
 

@@ -36,8 +36,14 @@ class RobotState(_Model):
     gripper_width_m: float = Field(description="Gap between the finger pads.")
     finger_depth_m: float = Field(description="Finger pad length below the tool centre point.")
     finger_forces_n: tuple[float, float] = Field(
-        description="Normal contact force on the left and right finger pads."
+        description="Normal contact force of the held brick on the left and right finger pads."
     )
+    finger_tangential_n: tuple[float, float] = Field(
+        (0.0, 0.0), description="Friction (tangential) force on each pad from the held brick."
+    )
+    finger_friction: float = Field(1.2, description="Friction coefficient of the finger pads.")
+    ee_linear_velocity_mps: Vec3 = (0.0, 0.0, 0.0)
+    ee_angular_velocity_radps: Vec3 = (0.0, 0.0, 0.0)
 
 
 class BrickState(_Model):

@@ -1,0 +1,93 @@
+"""Contact tools over the measured grip: finger forces and slip of the held brick.
+
+Forces are what the simulator measured on the finger pads (N); velocities are world-frame.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydantic import Field
+from scipy.spatial.transform import Rotation
+
+from actionreasoning.tools.base import Tool, ToolContext, ToolModel
+from actionreasoning.tools.geometry import BrickQuery, brick_state
+
+
+class ContactForces(ToolModel):
+    """Per-pad contact between the gripper and a brick (zeros if it is not held)."""
+
+    brick_id: int
+    held: bool = Field(description="Both pads press on this brick.")
+    normal_n: tuple[float, float] = Field(description="Normal force on the left and right pad.")
+    tangential_n: tuple[float, float] = Field(description="Friction force on each pad.")
+    friction_coefficient: float = Field(description="Pad friction x brick friction.")
+    friction_margin_n: float = Field(
+        description="Smallest (mu * normal - tangential) over the pads; < 0 means sliding."
+    )
+
+
+class SlipEstimate(ToolModel):
+    """Motion of a brick relative to the gripper."""
+
+    brick_id: int
+    relative_speed_mps: float = Field(
+        description="Brick centre velocity minus the gripper's velocity at that point."
+    )
+    relative_angular_speed_radps: float
+    offset_in_gripper_m: tuple[float, float, float] = Field(
+        description="Brick centre in the tool frame (x along the pads, y across, z down)."
+    )
+
+
+def finger_contacts(context: ToolContext, query: BrickQuery) -> ContactForces:
+    """Normal and tangential force on each finger pad from a brick, and the friction margin."""
+    state = context.state
+    brick = brick_state(state, query.brick_id)
+    robot = state.robot
+    held = brick.status == "grasped"
+    normal = robot.finger_forces_n if held else (0.0, 0.0)
+    tangential = robot.finger_tangential_n if held else (0.0, 0.0)
+    mu = robot.finger_friction * brick.friction
+    return ContactForces(
+        brick_id=brick.id,
+        held=held,
+        normal_n=normal,
+        tangential_n=tangential,
+        friction_coefficient=mu,
+        friction_margin_n=min(mu * n - t for n, t in zip(normal, tangential, strict=True)),
+    )
+
+
+def slip_estimate(context: ToolContext, query: BrickQuery) -> SlipEstimate:
+    """How fast a brick moves relative to the gripper, and where it sits in the tool frame."""
+    state = context.state
+    brick = brick_state(state, query.brick_id)
+    tool = state.robot.ee_pose
+    lever = np.subtract(brick.pose.position_m, tool.position_m)
+    omega = np.asarray(state.robot.ee_angular_velocity_radps)
+    carried = np.asarray(state.robot.ee_linear_velocity_mps) + np.cross(omega, lever)
+    relative = np.asarray(brick.linear_velocity_mps) - carried
+    spin = np.asarray(brick.angular_velocity_radps) - omega
+    offset = Rotation.from_quat(tool.quat_xyzw).inv().apply(lever)
+    return SlipEstimate(
+        brick_id=brick.id,
+        relative_speed_mps=float(np.linalg.norm(relative)),
+        relative_angular_speed_radps=float(np.linalg.norm(spin)),
+        offset_in_gripper_m=tuple(float(v) for v in offset),  # type: ignore[arg-type]
+    )
+
+
+FINGER_CONTACTS = Tool(
+    name="finger_contacts",
+    description=finger_contacts.__doc__ or "",
+    input_model=BrickQuery,
+    output_model=ContactForces,
+    function=finger_contacts,
+)
+SLIP = Tool(
+    name="slip_estimate",
+    description=slip_estimate.__doc__ or "",
+    input_model=BrickQuery,
+    output_model=SlipEstimate,
+    function=slip_estimate,
+)
