@@ -1,0 +1,1 @@
+"""The six gated agents: specs, prompts, gates and the orchestrator (no PyBullet here)."""

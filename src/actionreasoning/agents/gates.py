@@ -1,0 +1,123 @@
+"""The gates sigma_1..sigma_6 of the paper, judged on measured tool outputs only.
+
+A gate never reads what a reasoner claims: its inputs are tool reports computed from the
+simulator (collision queries, pad forces, velocities, poses). Each returns a
+:class:`GateVerdict` with the measured values and, when it fails, feedback that names
+every failed check with its value and threshold, for the agent's next attempt.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from actionreasoning.tools.collision import CollisionReport
+from actionreasoning.tools.contact import ContactForces, SlipEstimate
+from actionreasoning.tools.geometry import AlignmentErrors
+from actionreasoning.world.tolerances import Tolerances
+
+
+@dataclass(frozen=True)
+class Check:
+    """One inequality of a gate: a measured value against a threshold."""
+
+    name: str
+    value: float
+    threshold: float
+    at_most: bool  # True: value <= threshold passes; False: value >= threshold passes
+
+    @property
+    def passed(self) -> bool:
+        return self.value <= self.threshold if self.at_most else self.value >= self.threshold
+
+    def describe(self) -> str:
+        relation = "<=" if self.at_most else ">="
+        return f"{self.name} = {self.value:.4g}, needs {relation} {self.threshold:.4g}"
+
+
+@dataclass(frozen=True)
+class GateVerdict:
+    """The acceptance flag sigma_i with what was measured."""
+
+    gate: str
+    checks: tuple[Check, ...]
+
+    @property
+    def passed(self) -> bool:
+        return all(check.passed for check in self.checks)
+
+    @property
+    def measured(self) -> dict[str, float]:
+        return {check.name: check.value for check in self.checks}
+
+    @property
+    def feedback(self) -> str:
+        """Empty when passed; else every failed check, for the agent to correct."""
+        failed = [check.describe() for check in self.checks if not check.passed]
+        return f"{self.gate} failed: " + "; ".join(failed) if failed else ""
+
+
+def _path_checks(report: CollisionReport, min_clearance_m: float) -> tuple[Check, ...]:
+    return (
+        Check("reachable", float(report.reachable), 1.0, at_most=False),
+        Check("clearance_m", report.clearance_m, min_clearance_m, at_most=False),
+    )
+
+
+def sigma1_pre_grasp(path: CollisionReport, tol: Tolerances) -> GateVerdict:
+    """Path to the approach pose collision-free with clearance c >= c_min."""
+    return GateVerdict("sigma1_pre_grasp", _path_checks(path, tol.c_min_m))
+
+
+def sigma2_descent(
+    opening_m: float, brick_width_m: float, pads: ContactForces, tol: Tolerances
+) -> GateVerdict:
+    """Opening w >= w_brick + delta, and no pad touching a side wall of the brick."""
+    return GateVerdict(
+        "sigma2_descent",
+        (
+            Check("opening_m", opening_m, brick_width_m + tol.delta_m, at_most=False),
+            Check("sidewall_force_n", max(pads.normal_n), tol.sidewall_contact_n, at_most=True),
+        ),
+    )
+
+
+def sigma3_grasp(
+    pads: ContactForces, position_error_m: float, orientation_error_deg: float, tol: Tolerances
+) -> GateVerdict:
+    """Normal force f_n >= f_min on both pads, and grasp pose error <= eps_g."""
+    return GateVerdict(
+        "sigma3_grasp",
+        (
+            Check("normal_force_n", min(pads.normal_n), tol.f_min_n, at_most=False),
+            Check("pose_error_m", position_error_m, tol.eps_g_m, at_most=True),
+            Check("pose_error_deg", orientation_error_deg, tol.eps_g_deg, at_most=True),
+        ),
+    )
+
+
+def sigma4_lift(slip: SlipEstimate, pads: ContactForces, tol: Tolerances) -> GateVerdict:
+    """Brick speed relative to the gripper <= v_th, and friction f_t <= mu f_n on both pads."""
+    return GateVerdict(
+        "sigma4_lift",
+        (
+            Check("relative_speed_mps", slip.relative_speed_mps, tol.v_th_mps, at_most=True),
+            Check("friction_margin_n", pads.friction_margin_n, 0.0, at_most=False),
+        ),
+    )
+
+
+def sigma5_placement(alignment: AlignmentErrors, tol: Tolerances) -> GateVerdict:
+    """d_perp <= eps_perp, |e_xy| <= eps_xy and |e_theta| <= eps_theta."""
+    return GateVerdict(
+        "sigma5_placement",
+        (
+            Check("d_perp_m", abs(alignment.d_perp_m), tol.eps_perp_m, at_most=True),
+            Check("e_xy_m", alignment.e_xy_norm_m, tol.eps_xy_m, at_most=True),
+            Check("e_theta_deg", abs(alignment.e_theta_deg), tol.eps_theta_deg, at_most=True),
+        ),
+    )
+
+
+def sigma6_return(path: CollisionReport) -> GateVerdict:
+    """Path from the slot to the ready pose collision-free (no penetration)."""
+    return GateVerdict("sigma6_return", _path_checks(path, 0.0))

@@ -1,0 +1,103 @@
+"""Every gate passes and fails on measurements built for the purpose."""
+
+from __future__ import annotations
+
+import pytest
+
+from actionreasoning.agents.gates import (
+    sigma1_pre_grasp,
+    sigma2_descent,
+    sigma3_grasp,
+    sigma4_lift,
+    sigma5_placement,
+    sigma6_return,
+)
+from actionreasoning.tools.collision import CollisionReport
+from actionreasoning.tools.contact import ContactForces, SlipEstimate
+from actionreasoning.tools.geometry import AlignmentErrors
+from actionreasoning.world.tolerances import Tolerances
+
+TOL = Tolerances()
+W = 0.095
+
+
+def path(clearance_m: float, reachable: bool = True) -> CollisionReport:
+    return CollisionReport(
+        reachable=reachable,
+        collision_free=reachable and clearance_m > 0,
+        clearance_m=clearance_m,
+        closest="gripper_finger_left vs brick 2",
+        poses_checked=10,
+    )
+
+
+def pads(left: float, right: float, tangential: float = 0.0) -> ContactForces:
+    mu = 0.96
+    return ContactForces(
+        brick_id=0,
+        held=left > 1 and right > 1,
+        normal_n=(left, right),
+        tangential_n=(tangential, tangential),
+        friction_coefficient=mu,
+        friction_margin_n=min(mu * left - tangential, mu * right - tangential),
+    )
+
+
+def slip(speed: float) -> SlipEstimate:
+    return SlipEstimate(
+        brick_id=0,
+        relative_speed_mps=speed,
+        relative_angular_speed_radps=0.0,
+        offset_in_gripper_m=(0.0, 0.0, 0.0),
+    )
+
+
+def aligned(e_xy: float = 0.0, e_theta: float = 0.0, d_perp: float = 0.0) -> AlignmentErrors:
+    return AlignmentErrors(
+        e_xy_m=(e_xy, 0.0), e_xy_norm_m=e_xy, e_theta_deg=e_theta, d_perp_m=d_perp, tilt_deg=0.0
+    )
+
+
+CASES = {
+    "sigma1 clear": (sigma1_pre_grasp(path(0.05), TOL), True, ""),
+    "sigma1 too close": (sigma1_pre_grasp(path(0.01), TOL), False, "clearance_m = 0.01"),
+    "sigma1 unreachable": (sigma1_pre_grasp(path(0.3, reachable=False), TOL), False, "reachable"),
+    "sigma2 open": (sigma2_descent(0.16, W, pads(0, 0), TOL), True, ""),
+    "sigma2 narrow": (sigma2_descent(0.11, W, pads(0, 0), TOL), False, "opening_m = 0.11"),
+    "sigma2 sidewall": (sigma2_descent(0.16, W, pads(3.0, 0), TOL), False, "sidewall_force_n"),
+    "sigma3 firm": (sigma3_grasp(pads(110, 108), 0.001, 0.2, TOL), True, ""),
+    "sigma3 weak pad": (sigma3_grasp(pads(110, 20), 0.001, 0.2, TOL), False, "normal_force_n"),
+    "sigma3 off pose": (sigma3_grasp(pads(110, 110), 0.01, 0.2, TOL), False, "pose_error_m"),
+    "sigma4 held": (sigma4_lift(slip(0.001), pads(110, 110, 10), TOL), True, ""),
+    "sigma4 slipping": (sigma4_lift(slip(0.02), pads(110, 110, 10), TOL), False, "relative_speed"),
+    "sigma4 friction": (sigma4_lift(slip(0.0), pads(20, 20, 30), TOL), False, "friction_margin"),
+    "sigma5 aligned": (sigma5_placement(aligned(0.001, 0.2, 0.001), TOL), True, ""),
+    "sigma5 offset": (sigma5_placement(aligned(e_xy=0.004), TOL), False, "e_xy_m = 0.004"),
+    "sigma5 turned": (sigma5_placement(aligned(e_theta=-1.0), TOL), False, "e_theta_deg = 1"),
+    "sigma5 hovering": (sigma5_placement(aligned(d_perp=0.01), TOL), False, "d_perp_m = 0.01"),
+    "sigma6 clear": (sigma6_return(path(0.002)), True, ""),
+    "sigma6 collides": (sigma6_return(path(-0.004)), False, "clearance_m = -0.004"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_gate(case: str) -> None:
+    verdict, passes, mentioned = CASES[case]
+    assert verdict.passed is passes
+    assert (verdict.feedback == "") is passes
+    assert mentioned in verdict.feedback
+    assert set(verdict.measured) == {check.name for check in verdict.checks}
+
+
+def test_failed_feedback_names_value_and_threshold() -> None:
+    verdict = sigma5_placement(aligned(e_xy=0.004, e_theta=2.0), TOL)
+    assert verdict.feedback == (
+        "sigma5_placement failed: e_xy_m = 0.004, needs <= 0.002; e_theta_deg = 2, needs <= 0.5"
+    )
+
+
+def test_tolerances_refuse_nonsense() -> None:
+    with pytest.raises(ValueError, match="greater than 0"):
+        Tolerances(f_min_n=-1.0)
+    with pytest.raises(ValueError, match="Extra inputs"):
+        Tolerances(f_mn_n=5.0)
