@@ -12,14 +12,20 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
+from actionreasoning.agents.memory import TaskMemory
+from actionreasoning.agents.prompt import render_prompt
+from actionreasoning.agents.spec import agent_specs
 from actionreasoning.errors import ActionReasoningError, ConfigError
 from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.run import RunConfig, run_eval
 from actionreasoning.eval.summary import RunSummary
-from actionreasoning.eval.trial import AVAILABLE_METHODS, Method
+from actionreasoning.eval.trial import AVAILABLE_METHODS, Method, TrialSpec, trial_world
+from actionreasoning.sim.perceive import perceive
 from actionreasoning.world.geometry import quat_yaw
+from actionreasoning.world.models import Progress as BuildProgress
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
+from actionreasoning.world.tolerances import Tolerances
 
 app = typer.Typer(
     help="LLM action reasoning for robot brick stacking: simulate, evaluate, report.",
@@ -183,6 +189,24 @@ def _evaluate(
     console.print(_summary_table(summary))
     console.print(f"wall time {summary.wall_time_s:.1f} s; results in {out}/", highlight=False)
     return summary
+
+
+@app.command("prompt")
+def prompt_command(
+    agent: Annotated[int, typer.Option(min=1, max=6, help="Agent number, 1 (pre-grasp) to 6.")],
+    pattern: PatternOption = "pyramid",
+    seed: Annotated[int, typer.Option(help="Run seed; the scene is that of trial 0.")] = 0,
+) -> None:
+    """Print the prompt agent N would be sent at its first step, to read and tune it."""
+    try:
+        goal = load_pattern(pattern, SceneSpec())
+    except ActionReasoningError as error:
+        _fail(error)
+    spec = agent_specs()[agent - 1]
+    trial = TrialSpec(method=Method.AGENTS, pattern_name=pattern, goal=goal, run_seed=seed, trial=0)
+    with trial_world(trial) as (scene, _, _):
+        state = perceive(scene, goal, BuildProgress(step=spec.key))
+    print(render_prompt(spec, state, TaskMemory(step=spec.key), Tolerances()), end="")
 
 
 @app.command("pattern")

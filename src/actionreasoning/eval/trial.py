@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from contextlib import ExitStack
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -83,12 +83,9 @@ def trial_seed(run_seed: int, trial: int) -> int:
 StageHook = Callable[[Scene, StageEvent], None]
 
 
-def run_trial(
-    spec: TrialSpec, rule: SuccessRule = SuccessRule(), on_stage: StageHook | None = None
-) -> TrialResult:
-    """Run one trial start to finish; failures become a ``failure`` record, never a crash."""
-    if spec.method not in AVAILABLE_METHODS:
-        raise ConfigError(f"method '{spec.method}' is not available yet (available: classical)")
+@contextmanager
+def trial_world(spec: TrialSpec) -> Iterator[tuple[Scene, KinematicArm, int]]:
+    """The trial's scene after the spawn settle, the arm model and the trial seed."""
     seed = trial_seed(spec.run_seed, spec.trial)
     poses = sample_pick_poses(np.random.default_rng(seed), len(spec.goal.targets), spec.scene)
     with ExitStack() as cleanup:
@@ -98,6 +95,16 @@ def run_trial(
         scene = Scene(spec.scene, poses, ready)
         cleanup.callback(scene.close)
         scene.step(scene.ticks_for(SPAWN_SETTLE_S))
+        yield scene, arm, seed
+
+
+def run_trial(
+    spec: TrialSpec, rule: SuccessRule = SuccessRule(), on_stage: StageHook | None = None
+) -> TrialResult:
+    """Run one trial start to finish; failures become a ``failure`` record, never a crash."""
+    if spec.method not in AVAILABLE_METHODS:
+        raise ConfigError(f"method '{spec.method}' is not available yet (available: classical)")
+    with trial_world(spec) as (scene, arm, seed):
         controller = WaypointController(scene, arm)
         failure = None
         try:

@@ -1,0 +1,82 @@
+"""Output schemas Omega_i: what each agent must answer, as pydantic models.
+
+Every answer is data (JSON), validated before anything runs: a waypoint is a position and
+a unit quaternion (x, y, z, w) in the world frame, a gripper command and how to move;
+tool calls name whitelisted tools with their arguments. Never code.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from actionreasoning.world.geometry import QuatXYZW, Vec3
+
+
+class _Output(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+
+
+class ToolCall(_Output):
+    """A request to run one tool of the agent's knowledge base."""
+
+    name: str = Field(max_length=64)
+    arguments: dict[str, Any] = Field(default_factory=dict)
+
+
+class WaypointProposal(_Output):
+    """A tool-centre-point target and how to get there."""
+
+    position_m: Vec3
+    quat_xyzw: QuatXYZW
+    path: Literal["joint", "linear"] = "joint"
+
+
+class AgentAnswer(_Output):
+    """Fields every agent answers with."""
+
+    tool_calls: list[ToolCall] = Field(
+        default_factory=list, max_length=8, description="Tools to run before deciding."
+    )
+    rationale: str = Field("", max_length=600, description="One or two sentences of reasoning.")
+
+
+class PreGraspAnswer(AgentAnswer):
+    """Agent 1: which brick goes to which target next, and the approach pose above it."""
+
+    brick_id: int | None = Field(None, ge=0)
+    target_index: int | None = Field(None, ge=0)
+    waypoint: WaypointProposal | None = None
+
+
+class DescentAnswer(AgentAnswer):
+    """Agent 2: the gripper opening and the grasp pose to descend to."""
+
+    gripper_opening_m: float | None = Field(None, ge=0.06, le=0.16)
+    waypoint: WaypointProposal | None = None
+
+
+class GraspAnswer(AgentAnswer):
+    """Agent 3: close the gripper at the current pose (or not yet)."""
+
+    close: bool = False
+
+
+class LiftAnswer(AgentAnswer):
+    """Agent 4: the safe-lift pose straight above the grasp."""
+
+    waypoint: WaypointProposal | None = None
+
+
+class PlacementAnswer(AgentAnswer):
+    """Agent 5: the slot pose to set the brick down at."""
+
+    waypoint: WaypointProposal | None = None
+
+
+class ReleaseAnswer(AgentAnswer):
+    """Agent 6: the opening to release with and the ready pose to return to."""
+
+    gripper_opening_m: float | None = Field(None, ge=0.06, le=0.16)
+    waypoint: WaypointProposal | None = None

@@ -1,0 +1,108 @@
+"""Agents as data and their prompts: every agent renders, a missing variable fails loudly."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+
+import pytest
+from jinja2 import UndefinedError
+from jsonschema import Draft202012Validator
+
+from actionreasoning.agents.memory import PlacedBrick, TaskMemory
+from actionreasoning.agents.prompt import _ENVIRONMENT, render_prompt
+from actionreasoning.agents.spec import agent_specs
+from actionreasoning.tools.registry import TOOLS
+from actionreasoning.world.geometry import top_down_quat
+from actionreasoning.world.models import BrickState, Pose, RobotState, WorldState
+from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.scene_spec import SceneSpec
+from actionreasoning.world.tolerances import Tolerances
+
+SPEC = SceneSpec()
+GOAL = load_pattern("grid", SPEC)
+STATE = WorldState(
+    time_s=1.5,
+    robot=RobotState(
+        ee_pose=Pose(position_m=(0.45, -0.25, 0.4), quat_xyzw=top_down_quat(0.0)),
+        joint_positions_rad=(0.1,) * 7,
+        gripper_width_m=0.16,
+        finger_depth_m=0.02,
+        finger_forces_n=(0.0, 0.0),
+    ),
+    bricks=tuple(
+        BrickState(id=i, size_m=SPEC.brick_size_m, mass_kg=1.5, friction=0.8, pose=t.pose)
+        for i, t in enumerate(GOAL.targets)
+    ),
+    goal=GOAL,
+)
+MEMORY = TaskMemory(placed=(PlacedBrick(brick_id=0, target_index=0),), current_brick=1)
+
+
+def test_there_are_six_agents_with_known_tools_and_valid_output_schemas() -> None:
+    specs = agent_specs()
+    assert [s.key for s in specs] == [
+        "pre_grasp",
+        "descent",
+        "grasp",
+        "lift",
+        "placement",
+        "release",
+    ]
+    for spec in specs:
+        assert spec.tools and set(spec.tools) <= set(TOOLS)
+        assert len(spec.thinking) >= 3
+        Draft202012Validator.check_schema(spec.output_model.model_json_schema())
+
+
+@pytest.mark.parametrize("number", range(1, 7))
+def test_every_agent_renders_its_six_parts(number: int) -> None:
+    spec = agent_specs()[number - 1]
+    prompt = render_prompt(spec, STATE, MEMORY, Tolerances())
+    assert prompt.startswith(f"# Agent {number} of 6: {spec.name}")
+    for heading in (
+        "## Role",
+        "## Current environment state S_t",
+        "## Task memory M_t",
+        "## Knowledge base",
+        "## Thinking chain",
+        "## Output format",
+    ):
+        assert heading in prompt
+    for tool in spec.tools:
+        assert f"### {tool}" in prompt
+    blocks = re.findall(r"```json\n(.*?)\n```", prompt, flags=re.S)
+    state, memory, schema = (json.loads(block) for block in blocks)
+    assert len(state["bricks"]) == 6 and state["goal"]["name"] == "grid"
+    assert memory["placed"] == [{"brick_id": 0, "target_index": 0}]
+    assert schema == json.loads(json.dumps(spec.output_model.model_json_schema()))
+    assert "c_min_m = 0.02" in prompt
+
+
+def test_a_missing_template_variable_fails_loudly() -> None:
+    template = _ENVIRONMENT.get_template("agent.md.j2")
+    with pytest.raises(UndefinedError, match="role"):
+        template.render(
+            number=1,
+            name="x",
+            state_json="{}",
+            memory_json="{}",
+            tolerances={},
+            tools=[],
+            thinking=[],
+            output_schema_json="{}",
+        )
+
+
+def test_prompt_command_prints_what_agent_one_is_sent() -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "actionreasoning", "prompt", "--agent", "1", "--seed", "0"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("# Agent 1 of 6: Pre-grasp positioning")
+    assert "### grasp_candidates" in result.stdout
