@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import pytest
+from conftest import pick_up
+from pydantic import ValidationError
 
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
 from actionreasoning.errors import UnreachableError
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.scene import Scene
-from actionreasoning.world.geometry import top_down_quat
+from actionreasoning.world.geometry import quat_yaw, top_down_quat
 from actionreasoning.world.models import Pose
 
 
@@ -55,3 +57,34 @@ def test_an_unreachable_waypoint_is_refused(
     with pytest.raises(UnreachableError, match="out of reach"):
         controller.execute(Waypoint(pose=Pose(position_m=position, quat_xyzw=top_down_quat(0.0))))
     assert scene.ticks == ticks  # nothing was executed
+
+
+def test_the_gripper_opens_to_a_requested_width(scene: Scene, arm: KinematicArm) -> None:
+    controller = WaypointController(scene, arm)
+    here = Pose(position_m=(0.5, 0.3, 0.3), quat_xyzw=top_down_quat(0.0))
+    controller.execute(Waypoint(pose=here, gripper=GripperCommand.CLOSE))
+    controller.execute(Waypoint(pose=here, gripper=GripperCommand.OPEN, gripper_opening_m=0.12))
+    assert sum(scene.finger_positions()) == pytest.approx(0.12, abs=2e-3)
+
+
+def test_inconsistent_waypoints_are_refused() -> None:
+    here = Pose(position_m=(0.5, 0.3, 0.3), quat_xyzw=top_down_quat(0.0))
+    with pytest.raises(ValidationError, match="goes with the gripper command 'open'"):
+        Waypoint(pose=here, gripper=GripperCommand.CLOSE, gripper_opening_m=0.1)
+    with pytest.raises(ValidationError, match="needs a linear path"):
+        Waypoint(pose=here, stop_on_contact=0)
+    with pytest.raises(ValidationError, match=r"less than or equal to 0\.16"):
+        Waypoint(pose=here, gripper=GripperCommand.OPEN, gripper_opening_m=0.5)
+
+
+def test_a_guarded_set_down_stops_when_the_brick_touches(scene: Scene, arm: KinematicArm) -> None:
+    controller = WaypointController(scene, arm)
+    (x, y, _), quat = scene.brick_pose(0)
+    pick_up(controller, 0, quat_yaw(quat), lift_to_m=0.15)
+    below_ground = Pose(position_m=(x, y, -0.02), quat_xyzw=top_down_quat(quat_yaw(quat)))
+    report = controller.execute(Waypoint(pose=below_ground, path="linear", stop_on_contact=0))
+    assert report.stopped_on_contact
+    (_, _, z), _ = scene.brick_pose(0)
+    assert z == pytest.approx(0.03, abs=2e-3)  # resting on the ground, still held
+    assert scene.tcp_pose()[0][2] == pytest.approx(0.03, abs=3e-3)
+    assert scene.support_force(0) > 2.0

@@ -6,10 +6,11 @@ import math
 from collections.abc import Iterator
 
 import pytest
+from conftest import pick_up
 from jsonschema import Draft202012Validator
 
 from actionreasoning.control.classical import ClassicalController
-from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
+from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.errors import ToolError
 from actionreasoning.sim.collision import CollisionChecker
 from actionreasoning.sim.kinematics import KinematicArm
@@ -212,22 +213,7 @@ def test_contact_and_slip_of_a_brick_held_in_the_real_gripper(
 ) -> None:
     controller = WaypointController(scene, arm)
     pick_yaw, _ = ClassicalController(controller).grasp_yaws(0, GOAL.targets[0].pose)
-    (x, y, z), _ = scene.brick_pose(0)
-    for waypoint in (
-        Waypoint(
-            pose=Pose(position_m=(x, y, z + 0.12), quat_xyzw=top_down_quat(pick_yaw)),
-            gripper=GripperCommand.OPEN,
-        ),
-        Waypoint(pose=Pose(position_m=(x, y, z), quat_xyzw=top_down_quat(pick_yaw)), path="linear"),
-        Waypoint(
-            pose=Pose(position_m=(x, y, z), quat_xyzw=top_down_quat(pick_yaw)),
-            gripper=GripperCommand.CLOSE,
-        ),
-        Waypoint(
-            pose=Pose(position_m=(x, y, 0.3), quat_xyzw=top_down_quat(pick_yaw)), path="linear"
-        ),
-    ):
-        controller.execute(waypoint)
+    pick_up(controller, 0, pick_yaw, lift_to_m=0.3)
     state = perceive(scene, GOAL)
     assert state.brick(0).status == "grasped"
     forces = run(arm, state, "finger_contacts", brick_id=0)

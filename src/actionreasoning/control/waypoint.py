@@ -15,7 +15,7 @@ from enum import StrEnum
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy.spatial.transform import Rotation, Slerp
 
 from actionreasoning.errors import UnreachableError
@@ -47,6 +47,23 @@ class Waypoint(BaseModel):
     gripper: GripperCommand = GripperCommand.HOLD
     path: Literal["joint", "linear"] = "joint"
     ticks: int | None = Field(None, ge=1, description="K_t; derived from the speed limits if None.")
+    gripper_opening_m: float | None = Field(
+        None, ge=2 * FINGER_MIN_M, le=2 * FINGER_MAX_M, description="Gap to open to (OPEN only)."
+    )
+    stop_on_contact: int | None = Field(
+        None,
+        ge=0,
+        description="Brick id: a linear move stops as soon as this brick presses on anything "
+        "but the fingers (a guarded set-down).",
+    )
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Waypoint:
+        if self.gripper_opening_m is not None and self.gripper is not GripperCommand.OPEN:
+            raise ValueError("gripper_opening_m goes with the gripper command 'open'")
+        if self.stop_on_contact is not None and self.path != "linear":
+            raise ValueError("stop_on_contact needs a linear path")
+        return self
 
 
 @dataclass(frozen=True)
@@ -59,6 +76,7 @@ class ControllerLimits:
     settle_max_s: float = 2.0
     joint_tolerance_rad: float = 2e-3
     joint_speed_tolerance_radps: float = 0.02
+    contact_force_n: float = 2.0
     gripper_s: float = 0.625
 
 
@@ -68,6 +86,7 @@ class ExecutionReport:
 
     ticks: int
     converged: bool
+    stopped_on_contact: bool
     position_error_m: float
     orientation_error_deg: float
 
@@ -116,22 +135,24 @@ class WaypointController:
     def execute(self, waypoint: Waypoint, settle: bool = True) -> ExecutionReport:
         """Move to the waypoint, apply its gripper command, and report the measured result."""
         knots = self.plan(waypoint)
-        ticks = self._move(knots, waypoint)
+        ticks, stopped = self._move(knots, waypoint)
         converged = True
         if settle:
-            extra, converged = self._settle(knots[-1])
+            extra, converged = self._settle(self.scene.arm_targets)
             ticks += extra
-        ticks += self._actuate_gripper(waypoint.gripper)
+        ticks += self._actuate_gripper(waypoint.gripper, waypoint.gripper_opening_m)
         position, quat = self.scene.tcp_pose()
         relative = Rotation.from_quat(quat).inv() * Rotation.from_quat(waypoint.pose.quat_xyzw)
         return ExecutionReport(
             ticks=ticks,
             converged=converged,
+            stopped_on_contact=stopped,
             position_error_m=float(np.linalg.norm(np.subtract(position, waypoint.pose.position_m))),
             orientation_error_deg=float(np.degrees(relative.magnitude())),
         )
 
-    def _move(self, knots: list[np.ndarray], waypoint: Waypoint) -> int:
+    def _move(self, knots: list[np.ndarray], waypoint: Waypoint) -> tuple[int, bool]:
+        """Interpolate through the knots; a guarded move stops where its brick touches down."""
         lim = self.limits
         if waypoint.ticks is not None:
             total = waypoint.ticks
@@ -150,7 +171,12 @@ class WaypointController:
             target = np.array([np.interp(s, along, path[:, j]) for j in range(path.shape[1])])
             self.scene.set_arm_targets(target)
             self.scene.step()
-        return total
+            if waypoint.stop_on_contact is not None and (
+                self.scene.support_force(waypoint.stop_on_contact) > self.limits.contact_force_n
+            ):
+                self.scene.set_arm_targets(self.scene.arm_joints()[0])
+                return tick, True
+        return total, False
 
     def _settle(self, target: np.ndarray) -> tuple[int, bool]:
         lim = self.limits
@@ -165,12 +191,14 @@ class WaypointController:
             self.scene.step()
         return limit, False
 
-    def _actuate_gripper(self, command: GripperCommand) -> int:
+    def _actuate_gripper(self, command: GripperCommand, opening_m: float | None) -> int:
         if command is GripperCommand.HOLD:
             return 0
-        self.scene.set_finger_target(
-            FINGER_MAX_M if command is GripperCommand.OPEN else FINGER_MIN_M
-        )
+        if command is GripperCommand.CLOSE:
+            half_width = FINGER_MIN_M
+        else:
+            half_width = FINGER_MAX_M if opening_m is None else opening_m / 2.0
+        self.scene.set_finger_target(half_width)
         ticks = self.scene.ticks_for(self.limits.gripper_s)
         self.scene.step(ticks)
         return ticks

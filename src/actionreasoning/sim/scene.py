@@ -274,6 +274,12 @@ class Scene:
             self._contact(self.bricks[brick], finger) for finger in (FINGER_LEFT, FINGER_RIGHT)
         )
 
+    def support_force(self, brick: int) -> float:
+        """Total normal force (N) on a brick from everything but the robot: what carries it."""
+        body = self.bricks[brick]
+        points = p.getContactPoints(bodyA=body, physicsClientId=self.client)
+        return float(sum(pt[9] for pt in points if pt[2] != self.robot))
+
     def _contact(self, body: int, finger: int) -> FingerContact:
         points = p.getContactPoints(
             bodyA=self.robot, bodyB=body, linkIndexA=finger, physicsClientId=self.client
