@@ -160,7 +160,7 @@ def settings(quick: bool) -> list[tuple[int, int, bool, float]]:
         return grid
     base = PhysicsConfig()
     rate, iterations = round(1.0 / base.time_step_s), base.solver_iterations
-    extra = [(rate, iterations, base.finger_friction_anchor, f) for f in EXTRA_FORCES_N]
+    extra = [(rate, iterations, base.friction_anchors, f) for f in EXTRA_FORCES_N]
     return grid + extra
 
 
@@ -179,7 +179,7 @@ def main() -> None:
     arm, start = KinematicArm(), time.perf_counter()
     for rate, iterations, anchor, force in settings(args.quick):
         physics = replace(PhysicsConfig(), time_step_s=1.0 / rate, solver_iterations=iterations,
-                          finger_friction_anchor=anchor, grip_force_n=force)  # fmt: skip
+                          friction_anchors=anchor, grip_force_n=force)  # fmt: skip
         setting = (f"1/{rate}", str(iterations), "on" if anchor else "off", f"{force:.0f}")
         try:
             r = np.array([run_once(arm, physics, seed, args.sweep_s) for seed in seeds])

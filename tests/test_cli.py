@@ -63,8 +63,8 @@ def test_bad_pattern_files_are_refused_in_one_line(tmp_path: Path, name: str) ->
 
 
 def test_unavailable_method_is_refused(tmp_path: Path) -> None:
-    result = cli("eval", "--method", "agents", "--trials", "1", "--out", str(tmp_path / "o"))
-    assert_clean_error(result, "agents", "not available yet")
+    result = cli("eval", "--method", "single-agent", "--trials", "1", "--out", str(tmp_path / "o"))
+    assert_clean_error(result, "single-agent", "not available yet")
 
 
 def test_pattern_command_validates_example_files() -> None:

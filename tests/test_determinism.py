@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -11,12 +12,24 @@ from actionreasoning.eval.trial import Method, trial_seed
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
 
+SMALL = {
+    "name": "small",
+    "brick_size": [0.2, 0.095, 0.06],
+    "bricks": [
+        {"position": [-0.125, 0.0, 0.03], "yaw_deg": 0},
+        {"position": [0.125, 0.0, 0.03], "yaw_deg": 0},
+        {"position": [0.0, 0.0, 0.09], "yaw_deg": 0},
+    ],
+}
 
-def run(out: Path, snapshots: bool) -> str:
-    goal = load_pattern("pyramid", SceneSpec())
+
+def run(out: Path, method: Method, snapshots: bool) -> str:
+    pattern = out.parent / "small.json"
+    pattern.write_text(json.dumps(SMALL))
+    goal = load_pattern(pattern, SceneSpec())
     config = RunConfig(
-        method=Method.CLASSICAL,
-        pattern_name="pyramid",
+        method=method,
+        pattern_name=str(pattern),
         goal=goal,
         trials=1,
         seed=11,
@@ -33,11 +46,15 @@ def test_trial_seeds_depend_only_on_run_seed_and_index() -> None:
 
 
 @pytest.mark.slow
-def test_same_seed_same_results_with_and_without_snapshots(tmp_path: Path) -> None:
-    first = run(tmp_path / "a", snapshots=False)
-    second = run(tmp_path / "b", snapshots=False)
-    observed = run(tmp_path / "c", snapshots=True)
+@pytest.mark.parametrize(("method", "stages"), [(Method.CLASSICAL, 8), (Method.AGENTS, 6)])
+def test_same_seed_same_results_with_and_without_snapshots(
+    tmp_path: Path, method: Method, stages: int
+) -> None:
+    first = run(tmp_path / "a", method, snapshots=False)
+    second = run(tmp_path / "b", method, snapshots=False)
+    observed = run(tmp_path / "c", method, snapshots=True)
     assert first == second
     assert first == observed
+    assert json.loads(first)["success"]
     pictures = sorted((tmp_path / "c" / "snapshots" / "trial_000").glob("*.png"))
-    assert len(pictures) == 6 * 8 + 3  # 8 stages of 6 bricks, two final views, the sheet
+    assert len(pictures) == 3 * stages + 3  # every stage of 3 bricks, two final views, the sheet

@@ -118,7 +118,7 @@ def _run_with_progress(config: RunConfig) -> RunSummary:
 @app.command("eval")
 def eval_command(
     out: Annotated[Path, typer.Option(help="Output directory (created; must not hold results).")],
-    method: Annotated[Method, typer.Option(help="Reasoning method.")] = Method.CLASSICAL,
+    method: Annotated[Method, typer.Option(help="Reasoning method.")] = Method.AGENTS,
     pattern: PatternOption = "pyramid",
     trials: Annotated[int, typer.Option(min=1, help="Number of trials.")] = 10,
     seed: Annotated[int, typer.Option(help="Run seed; trial k uses a seed from (seed, k).")] = 0,
@@ -148,7 +148,7 @@ def demo(
     pattern: PatternOption = "pyramid",
     seed: Annotated[int, typer.Option(help="Seed of the demo trial.")] = 0,
 ) -> None:
-    """Build a pattern once and write a report with pictures of every stage.
+    """Build a pattern once with the six agents and write a report with pictures of every stage.
 
     Running it again into the same directory replaces the previous demo's files.
     """
@@ -156,7 +156,7 @@ def demo(
         for name in DEMO_FILES:
             (out / name).unlink(missing_ok=True)
         shutil.rmtree(out / "snapshots", ignore_errors=True)
-    _evaluate(Method.CLASSICAL, pattern, 1, seed, out, llm="builtin", snapshots=True)
+    _evaluate(Method.AGENTS, pattern, 1, seed, out, llm="builtin", snapshots=True)
     report = out / "report.md"
     report.write_text(
         (out / "summary.md").read_text()

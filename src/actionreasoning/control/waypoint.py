@@ -70,8 +70,8 @@ class Waypoint(BaseModel):
 class ControllerLimits:
     """Peak speeds, durations and tolerances of the waypoint controller."""
 
-    max_joint_speed_radps: float = 1.2
-    max_linear_speed_mps: float = 0.12
+    max_joint_speed_radps: float = 2.5
+    max_linear_speed_mps: float = 0.15
     min_duration_s: float = 0.2
     settle_max_s: float = 2.0
     joint_tolerance_rad: float = 2e-3
@@ -190,6 +190,10 @@ class WaypointController:
                 return tick, True
             self.scene.step()
         return limit, False
+
+    def grip(self, command: GripperCommand, opening_m: float | None = None) -> int:
+        """Apply a gripper command where the arm is and wait for the fingers; returns ticks."""
+        return self._actuate_gripper(command, opening_m)
 
     def _actuate_gripper(self, command: GripperCommand, opening_m: float | None) -> int:
         if command is GripperCommand.HOLD:

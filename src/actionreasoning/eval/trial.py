@@ -9,11 +9,14 @@ from enum import StrEnum
 
 import numpy as np
 
+from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.control.classical import StageEvent, run_classical
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
 from actionreasoning.errors import ConfigError, UnreachableError
 from actionreasoning.eval.metrics import brick_metrics
-from actionreasoning.eval.results import BrickResult, Failure, TrialMetrics, TrialResult
+from actionreasoning.eval.results import BrickResult, Failure, LLMUsage, TrialMetrics, TrialResult
+from actionreasoning.eval.sim_world import SimWorld
+from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.geometry import Vec3, top_down_quat
@@ -35,7 +38,7 @@ class Method(StrEnum):
     CLASSICAL = "classical"
 
 
-AVAILABLE_METHODS = (Method.CLASSICAL,)
+AVAILABLE_METHODS = (Method.AGENTS, Method.CLASSICAL)
 
 
 @dataclass(frozen=True)
@@ -103,31 +106,74 @@ def run_trial(
 ) -> TrialResult:
     """Run one trial start to finish; failures become a ``failure`` record, never a crash."""
     if spec.method not in AVAILABLE_METHODS:
-        raise ConfigError(f"method '{spec.method}' is not available yet (available: classical)")
+        available = ", ".join(str(m) for m in AVAILABLE_METHODS)
+        raise ConfigError(f"method '{spec.method}' is not available yet (available: {available})")
     with trial_world(spec) as (scene, arm, seed):
         controller = WaypointController(scene, arm)
-        failure = None
-        try:
-            run_classical(
-                controller,
-                spec.goal,
-                None if on_stage is None else (lambda event: on_stage(scene, event)),
-            )
-            controller.execute(Waypoint(pose=READY_POSE, gripper=GripperCommand.OPEN))
-        except UnreachableError as error:
-            failure = Failure(reason="unreachable", detail=str(error))
+
+        def stage(brick: int, name: str) -> None:
+            if on_stage is not None:
+                on_stage(scene, StageEvent(brick=brick, stage=name))
+
+        if spec.method is Method.CLASSICAL:
+            outcome = _run_classical(controller, spec.goal, stage)
+        else:
+            outcome = _run_agents(controller, spec.goal, stage)
         scene.step(scene.ticks_for(FINAL_SETTLE_S))
-        if on_stage is not None:
-            on_stage(scene, StageEvent(brick=-1, stage="final"))
-        return _measure(spec, seed, scene, rule, failure)
+        stage(-1, "final")
+        return _measure(spec, seed, scene, rule, outcome)
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    """What a method did: which brick went to which target, its failure and LLM usage."""
+
+    placements: dict[int, int]
+    failure: Failure | None
+    usage: LLMUsage = LLMUsage()
+
+
+def _run_classical(
+    controller: WaypointController, goal: GoalPattern, stage: Callable[[int, str], None]
+) -> _Outcome:
+    failure = None
+    try:
+        run_classical(controller, goal, lambda event: stage(event.brick, event.stage))
+        controller.execute(Waypoint(pose=READY_POSE, gripper=GripperCommand.OPEN))
+    except UnreachableError as error:
+        failure = Failure(reason="unreachable", detail=str(error))
+    return _Outcome(placements={t.index: t.index for t in goal.targets}, failure=failure)
+
+
+def _run_agents(
+    controller: WaypointController, goal: GoalPattern, stage: Callable[[int, str], None]
+) -> _Outcome:
+    world = SimWorld(controller, goal)
+    build = Orchestrator(world, BuiltinReasoner(READY_POSE), on_stage=stage).build(goal)
+    failure = None
+    if build.failure is not None:
+        f = build.failure
+        failure = Failure(reason=f.reason, agent=f.agent, detail=f.detail)
+    u = build.usage
+    usage = LLMUsage(
+        calls=u.calls,
+        prompt_tokens=u.prompt_tokens,
+        completion_tokens=u.completion_tokens,
+        latency_s=u.latency_s,
+    )
+    return _Outcome(placements=build.placements, failure=failure, usage=usage)
 
 
 def _measure(
-    spec: TrialSpec, seed: int, scene: Scene, rule: SuccessRule, failure: Failure | None
+    spec: TrialSpec, seed: int, scene: Scene, rule: SuccessRule, outcome: _Outcome
 ) -> TrialResult:
+    failure = outcome.failure
+    unplaced = iter(sorted(set(range(len(scene.bricks))) - set(outcome.placements.values())))
     bricks = []
     for target in spec.goal.targets:
-        brick = target.index
+        # A target left unbuilt is scored against a brick that was not placed anywhere.
+        brick = outcome.placements.get(target.index)
+        brick = next(unplaced) if brick is None else brick
         position, quat = scene.brick_pose(brick)
         m = brick_metrics(
             position,
@@ -182,5 +228,6 @@ def _measure(
             iou=float(np.mean([b.iou for b in bricks])),
         ),
         failure=failure,
+        llm_usage=outcome.usage,
         sim_steps=scene.ticks,
     )

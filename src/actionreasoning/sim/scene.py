@@ -3,10 +3,11 @@
 Physics settings are measured with ``bench/grip_slip.py`` at our brick size (README,
 Benchmarks). At PyBullet's default 50 solver iterations a held 1.5 kg brick rolls in the
 hand; at 150 it keeps its orientation but creeps along the pads in a fast transfer
-(about 5 mm at 1/240 s, 3 mm at 1/480 s). Friction anchors on the pads while the gripper
-holds, with a 1/480 s step, bring that to 0.02 mm; the anchors are dropped at release, or
-a released brick stays stuck to a pad. A 2 mm contact breaking threshold stops stale
-fingertip contacts from dragging a brick as the fingers open.
+(about 5 mm at 1/240 s, 3 mm at 1/480 s), and a brick resting on the ground drifts about
+0.02 mm/s. Friction anchors on the bricks, with a 1/480 s step, stop both (0.02 mm in the
+hand, 0.001 mm in 10 s at rest); the pads' contacts are dropped for one step when the
+gripper opens, or a released brick stays stuck to a pad. A 2 mm contact breaking
+threshold stops stale fingertip contacts from dragging a brick as the fingers open.
 """
 
 from __future__ import annotations
@@ -50,7 +51,7 @@ class PhysicsConfig:
     contact_breaking_threshold_m: float = 0.002
     finger_friction: float = 1.2
     spinning_friction: float = 0.001
-    finger_friction_anchor: bool = True
+    friction_anchors: bool = True
     grip_force_n: float = 110.0
     finger_speed_mps: float = 0.10
     arm_force_nm: float = 300.0
@@ -156,6 +157,7 @@ class Scene:
             lateralFriction=spec.brick_friction,
             spinningFriction=self.physics.spinning_friction,
             rollingFriction=0.0,
+            frictionAnchor=int(self.physics.friction_anchors),
             physicsClientId=cid,
         )
         return body
@@ -169,29 +171,23 @@ class Scene:
     def set_finger_target(self, half_width_m: float) -> None:
         """Drive each finger pad to ``half_width_m`` from the centre, with the grip force limit.
 
-        Closing turns friction anchors on for the pads; opening turns them off and drops the
-        pads' contacts for one time step, since an anchored contact point would otherwise
-        keep the released brick stuck to the pad.
+        Opening drops the pads' contacts for one time step first: an anchored contact point
+        would otherwise keep the released brick stuck to a pad.
         """
         target = float(np.clip(half_width_m, FINGER_MIN_M, FINGER_MAX_M))
-        if self.physics.finger_friction_anchor and target != self.finger_target_m:
-            self._set_friction_anchor(target < self.finger_target_m)
+        if self.physics.friction_anchors and target > self.finger_target_m:
+            self._drop_pad_contacts()
         self.finger_target_m = target
         self._apply_targets()
 
-    def _set_friction_anchor(self, enabled: bool) -> None:
+    def _drop_pad_contacts(self) -> None:
         cid = self.client
-        for finger in (FINGER_LEFT, FINGER_RIGHT):
-            p.changeDynamics(self.robot, finger, frictionAnchor=int(enabled), physicsClientId=cid)
-        if enabled:
-            return
-        for brick in self.bricks:
-            for finger in (FINGER_LEFT, FINGER_RIGHT):
-                p.setCollisionFilterPair(self.robot, brick, finger, -1, 0, physicsClientId=cid)
+        pairs = [(brick, finger) for brick in self.bricks for finger in (FINGER_LEFT, FINGER_RIGHT)]
+        for brick, finger in pairs:
+            p.setCollisionFilterPair(self.robot, brick, finger, -1, 0, physicsClientId=cid)
         self.step()
-        for brick in self.bricks:
-            for finger in (FINGER_LEFT, FINGER_RIGHT):
-                p.setCollisionFilterPair(self.robot, brick, finger, -1, 1, physicsClientId=cid)
+        for brick, finger in pairs:
+            p.setCollisionFilterPair(self.robot, brick, finger, -1, 1, physicsClientId=cid)
 
     def _apply_targets(self) -> None:
         cfg, cid = self.physics, self.client

@@ -7,16 +7,19 @@ gripper holds (status ``grasped``) moves with the gripper and is checked too.
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 import numpy as np
 from pydantic import Field
 from scipy.spatial.transform import Rotation, Slerp
 
+from actionreasoning.errors import UnreachableError
 from actionreasoning.sim.collision import Box, Clearance
 from actionreasoning.tools.base import Tool, ToolContext, ToolModel
 from actionreasoning.world.models import BrickState, Pose, WorldState
 
 PATH_STEP_M = 0.01
+JOINT_STEP_RAD = 0.05
 
 
 class CollisionQuery(ToolModel):
@@ -26,9 +29,17 @@ class CollisionQuery(ToolModel):
     start_pose: Pose | None = Field(
         None, description="If given, check the straight path from here to `pose` (1 cm steps)."
     )
+    path: Literal["linear", "joint"] = Field(
+        "linear",
+        description="linear: the tool moves on a straight line from start_pose; joint: the arm "
+        "moves in joint space from where it is now (start_pose unused), as a joint waypoint does.",
+    )
     gripper_opening_m: float = Field(0.16, ge=0.06, le=0.16, description="Gap between the pads.")
     ignore_brick_id: int | None = Field(
-        None, ge=0, description="A brick not counted as an obstacle (the one being grasped)."
+        None,
+        ge=0,
+        description="A brick left out of the check, neither obstacle nor carried (the one "
+        "being grasped or released).",
     )
 
 
@@ -43,7 +54,7 @@ class CollisionReport(ToolModel):
 
 
 def _obstacles(state: WorldState, ignore: int | None) -> tuple[list[Box], BrickState | None]:
-    held = next((b for b in state.bricks if b.status == "grasped"), None)
+    held = next((b for b in state.bricks if b.status == "grasped" and b.id != ignore), None)
     boxes = [
         Box(f"brick {b.id}", b.pose.position_m, b.pose.quat_xyzw, b.size_m)
         for b in state.bricks
@@ -81,31 +92,52 @@ def collision_check(context: ToolContext, query: CollisionQuery) -> CollisionRep
     """Clearance (m) of arm, gripper and held brick from the ground and the other bricks."""
     obstacles, held = _obstacles(context.state, query.ignore_brick_id)
     worst = Clearance(math.inf, "")
-    poses = _path(query)
-    seed = None
-    for pose in poses:
-        solution = context.arm.solve(pose.position_m, pose.quat_xyzw, seed)
-        if not solution.reached:
-            x, y, z = pose.position_m
-            return CollisionReport(
-                reachable=False,
-                collision_free=False,
-                clearance_m=worst.distance_m if worst.between else 0.0,
-                closest=f"no IK solution at ({x:.3f}, {y:.3f}, {z:.3f})",
-                poses_checked=len(poses),
-            )
-        seed = solution.joints_rad
-        carried = None if held is None else _held_box(context.state, held, pose)
-        opening = query.gripper_opening_m / 2.0
-        found = context.collisions.clearance(seed, opening, obstacles, carried)
+    try:
+        configurations = _configurations(context, query)
+    except UnreachableError as error:
+        return CollisionReport(
+            reachable=False,
+            collision_free=False,
+            clearance_m=0.0,
+            closest=str(error),
+            poses_checked=0,
+        )
+    opening = query.gripper_opening_m / 2.0
+    for joints in configurations:
+        carried = None
+        if held is not None:
+            position, quat = context.arm.forward(joints)
+            carried = _held_box(context.state, held, Pose(position_m=position, quat_xyzw=quat))
+        found = context.collisions.clearance(joints, opening, obstacles, carried)
         worst = found if found.distance_m < worst.distance_m else worst
     return CollisionReport(
         reachable=True,
         collision_free=worst.distance_m > 0.0,
         clearance_m=worst.distance_m,
         closest=worst.between,
-        poses_checked=len(poses),
+        poses_checked=len(configurations),
     )
+
+
+def _configurations(context: ToolContext, query: CollisionQuery) -> list[tuple[float, ...]]:
+    """Arm joint angles along the motion the query describes (UnreachableError if IK fails)."""
+    if query.path == "joint":
+        start = np.asarray(context.state.robot.joint_positions_rad)
+        end = np.asarray(_solve(context, query.pose, None))
+        steps = max(1, math.ceil(float(np.max(np.abs(end - start))) / JOINT_STEP_RAD))
+        return [tuple(start + s * (end - start)) for s in np.linspace(0.0, 1.0, steps + 1)]
+    configurations: list[tuple[float, ...]] = []
+    for pose in _path(query):
+        configurations.append(_solve(context, pose, configurations[-1] if configurations else None))
+    return configurations
+
+
+def _solve(context: ToolContext, pose: Pose, seed: tuple[float, ...] | None) -> tuple[float, ...]:
+    solution = context.arm.solve(pose.position_m, pose.quat_xyzw, seed)
+    if not solution.reached:
+        x, y, z = pose.position_m
+        raise UnreachableError(f"no IK solution at ({x:.3f}, {y:.3f}, {z:.3f})")
+    return solution.joints_rad
 
 
 COLLISION = Tool(

@@ -1,0 +1,410 @@
+"""The gated orchestrator: six agents per brick, each output verified and gated.
+
+Per brick: Ag1 pre-grasp -> Ag2 descent & opening -> Ag3 grasp -> Ag4 safe lift ->
+Ag5 placement -> Ag6 release & return. An answer is first verified (complete, known ids,
+a target whose support is built, a reachable collision-free path); only then does the
+world move, and the gate sigma_i judges what was measured afterwards. A failed check goes
+back to the same agent as feedback, within a retry budget; sigma_4 = 0 starts the brick
+again at Ag1 (re-grasp); sigma_5 = 0 in contact raises the brick by delta_h and asks Ag5
+again. A spent budget ends the trial with a typed failure.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from functools import partial
+from typing import Any
+
+from actionreasoning.agents import gates
+from actionreasoning.agents.memory import PlacedBrick, TaskMemory
+from actionreasoning.agents.outputs import AgentAnswer, WaypointProposal
+from actionreasoning.agents.prompt import render_prompt
+from actionreasoning.agents.reasoner import AgentRequest, Reasoner, Usage
+from actionreasoning.agents.spec import AgentSpec, agent_specs
+from actionreasoning.agents.world import World
+from actionreasoning.errors import ActionReasoningError, ToolError, UnreachableError
+from actionreasoning.tools.base import ToolContext, ToolModel
+from actionreasoning.tools.registry import call_tool
+from actionreasoning.world.geometry import quat_yaw
+from actionreasoning.world.models import GoalPattern, Progress, WorldState
+from actionreasoning.world.support import BrickBox, carriers
+from actionreasoning.world.tolerances import Tolerances
+
+QUAT_NORM_TOLERANCE = 1e-3
+SET_DOWN_OVERSHOOT_M = 0.005
+SEAT_CLEARANCE_M = 0.003
+RETREAT_M = 0.08
+
+
+@dataclass(frozen=True)
+class Budgets:
+    """Retry budgets of a trial."""
+
+    attempts_per_agent: int = 3
+    regrasps: int = 2
+    placement_attempts: int = 4
+
+
+@dataclass(frozen=True)
+class Failure:
+    """Why a trial stopped: a stable reason code, the agent, details."""
+
+    reason: str
+    agent: str | None
+    detail: str
+
+
+class TrialStopped(ActionReasoningError):
+    """Raised inside the orchestrator when a budget is spent; carries the failure."""
+
+    def __init__(self, failure: Failure) -> None:
+        super().__init__(f"{failure.reason} ({failure.agent}): {failure.detail}")
+        self.failure = failure
+
+
+class _Refused(Exception):
+    """An answer refused by verification or a gate; the message is the agent's feedback."""
+
+
+@dataclass
+class BuildResult:
+    """What the orchestrator did: target -> brick, LLM usage, and a failure if any."""
+
+    placements: dict[int, int] = field(default_factory=dict)
+    usage: Usage = Usage()
+    decisions: int = 0
+    failure: Failure | None = None
+
+
+def target_supports(goal: GoalPattern) -> dict[int, tuple[int, ...]]:
+    """For each target, the targets it rests on."""
+    boxes = [
+        BrickBox(t.index, t.pose.position_m, quat_yaw(t.pose.quat_xyzw), t.size_m)
+        for t in goal.targets
+    ]
+    return {box.index: tuple(o.index for o, _ in carriers(box, boxes)) for box in boxes}
+
+
+StageHook = Callable[[int, str], None]
+
+
+class Orchestrator:
+    """Runs the six agents over a goal, brick by brick, against a :class:`World`."""
+
+    def __init__(
+        self,
+        world: World,
+        reasoner: Reasoner,
+        tolerances: Tolerances = Tolerances(),
+        budgets: Budgets = Budgets(),
+        on_stage: StageHook | None = None,
+    ) -> None:
+        self.world = world
+        self.reasoner = reasoner
+        self.tol = tolerances
+        self.budgets = budgets
+        self.on_stage = on_stage
+        self.specs = {spec.key: spec for spec in agent_specs()}
+        self.result = BuildResult()
+        self.memory = TaskMemory()
+
+    # --- the pipeline -------------------------------------------------------------------
+    def build(self, goal: GoalPattern) -> BuildResult:
+        """Build every target of ``goal``; failures end up in ``result.failure``."""
+        supports = target_supports(goal)
+        try:
+            while len(self.memory.placed) < len(goal.targets):
+                self._place_one(supports)
+        except TrialStopped as stop:
+            self.result.failure = stop.failure
+        except UnreachableError as error:
+            self.result.failure = Failure("unreachable", self.memory.step, str(error))
+        return self.result
+
+    def _place_one(self, supports: Mapping[int, tuple[int, ...]]) -> None:
+        for _ in range(self.budgets.regrasps + 1):
+            self.memory = self.memory.model_copy(
+                update={"retries": {}, "flags": {}, "last_feedback": ""}
+            )
+            brick, target = self._stage("pre_grasp", partial(self._pre_grasp, supports=supports))
+            grasp_pose = self._stage("descent", partial(self._descent, brick=brick))
+            self._stage("grasp", partial(self._grasp, brick=brick, pose=grasp_pose))
+            if self._stage("lift", partial(self._lift, brick=brick)):
+                break
+        else:
+            raise TrialStopped(Failure("grasp_slip", "lift", "re-grasp budget spent"))
+        self._placement(brick, target)
+        self._stage("release", partial(self._release, brick=brick))
+        placed = (*self.memory.placed, PlacedBrick(brick_id=brick, target_index=target))
+        self.memory = self.memory.model_copy(
+            update={"placed": placed, "current_brick": None, "current_target": None}
+        )
+        self.result.placements[target] = brick
+
+    def _stage(self, key: str, act: Callable[[AgentAnswer, WorldState], Any]) -> Any:
+        """Ask agent ``key`` until ``act`` accepts its answer, within the retry budget."""
+        self.memory = self.memory.model_copy(update={"step": key, "last_feedback": ""})
+        for attempt in range(1, self.budgets.attempts_per_agent + 1):
+            answer, state = self._ask(self.specs[key])
+            try:
+                outcome = act(answer, state)
+            except _Refused as refusal:
+                self._remember(key, attempt, str(refusal))
+                continue
+            except UnreachableError as error:
+                self._remember(key, attempt, f"unreachable: {error}")
+                continue
+            flags = {**self.memory.flags, key: True}
+            self.memory = self.memory.model_copy(update={"flags": flags, "last_feedback": ""})
+            if self.on_stage is not None and self.memory.current_brick is not None:
+                self.on_stage(self.memory.current_brick, key)
+            return outcome
+        raise TrialStopped(Failure("budget_exhausted", key, self.memory.last_feedback))
+
+    def _remember(self, key: str, attempt: int, feedback: str) -> None:
+        retries = {**self.memory.retries, key: attempt}
+        self.memory = self.memory.model_copy(update={"retries": retries, "last_feedback": feedback})
+
+    def _ask(self, spec: AgentSpec) -> tuple[AgentAnswer, WorldState]:
+        progress = Progress(
+            placed_ids=tuple(p.brick_id for p in self.memory.placed),
+            current_brick=self.memory.current_brick,
+            step=spec.key,
+        )
+        state = self.world.observe(progress)
+        context = self.world.tools(state)
+        reply = self.reasoner.decide(
+            AgentRequest(
+                spec=spec,
+                prompt=render_prompt(spec, state, self.memory, self.tol),
+                state=state,
+                memory=self.memory,
+                tolerances=self.tol,
+                call_tool=lambda name, args: self._tool(spec, context, name, args),
+            )
+        )
+        self.result.decisions += 1
+        u, r = self.result.usage, reply.usage
+        self.result.usage = Usage(
+            calls=u.calls + r.calls,
+            prompt_tokens=u.prompt_tokens + r.prompt_tokens,
+            completion_tokens=u.completion_tokens + r.completion_tokens,
+            latency_s=u.latency_s + r.latency_s,
+        )
+        if not isinstance(reply.answer, spec.output_model):
+            raise TrialStopped(Failure("invalid_output", spec.key, "answer of the wrong schema"))
+        return reply.answer, state
+
+    @staticmethod
+    def _tool(
+        spec: AgentSpec, context: ToolContext, name: str, arguments: Mapping[str, Any]
+    ) -> ToolModel:
+        if name not in spec.tools:
+            raise ToolError(f"tool {name[:60]!r} is not in the knowledge base of {spec.key}")
+        return call_tool(name, arguments, context)
+
+    def _check_tool(self, state: WorldState, name: str, **arguments: Any) -> Any:
+        """A measurement for verification and gates (not an agent's tool call)."""
+        return call_tool(name, arguments, self.world.tools(state))
+
+    # --- the agents' acts ---------------------------------------------------------------
+    def _pre_grasp(
+        self, answer: Any, state: WorldState, supports: Mapping[int, tuple[int, ...]]
+    ) -> tuple[int, int]:
+        if answer.brick_id is None or answer.target_index is None or answer.waypoint is None:
+            raise _Refused("the answer needs brick_id, target_index and waypoint")
+        built = {p.target_index for p in self.memory.placed}
+        used = {p.brick_id for p in self.memory.placed}
+        target, brick = answer.target_index, answer.brick_id
+        if target >= len(state.goal.targets) or target in built:
+            raise _Refused(f"target {target} does not exist or is already built")
+        missing = [t for t in supports[target] if t not in built]
+        if missing:
+            raise _Refused(f"target {target} rests on targets {missing}, not built yet")
+        if brick in used or brick not in {b.id for b in state.bricks}:
+            raise _Refused(f"brick {brick} does not exist or is already placed")
+        if state.brick(brick).status != "in_pick_area":
+            raise _Refused(f"brick {brick} is {state.brick(brick).status}, not in the pick area")
+        waypoint = _checked(answer.waypoint, path="joint")
+        path = self._check_tool(
+            state,
+            "collision_check",
+            pose=_pose(waypoint),
+            path="joint",
+            gripper_opening_m=state.robot.gripper_width_m,
+            ignore_brick_id=brick,
+        )
+        _gate(gates.sigma1_pre_grasp(path, self.tol))
+        self.memory = self.memory.model_copy(
+            update={"current_brick": brick, "current_target": target}
+        )
+        self.world.move(waypoint)
+        return brick, target
+
+    def _descent(self, answer: Any, state: WorldState, brick: int) -> WaypointProposal:
+        if answer.gripper_opening_m is None or answer.waypoint is None:
+            raise _Refused("the answer needs gripper_opening_m and waypoint")
+        waypoint = _checked(answer.waypoint, path="linear")
+        width = state.brick(brick).size_m[1]
+        if answer.gripper_opening_m < width + self.tol.delta_m:
+            raise _Refused(
+                f"opening {answer.gripper_opening_m:.3f} m < brick width {width:.3f} + delta"
+            )
+        path = self._check_tool(
+            state,
+            "collision_check",
+            pose=_pose(waypoint),
+            start_pose=state.robot.ee_pose.model_dump(),
+            gripper_opening_m=answer.gripper_opening_m,
+            ignore_brick_id=brick,
+        )
+        if not path.collision_free:
+            raise _Refused(f"descent path collides: {path.closest} ({path.clearance_m:.3f} m)")
+        self.world.grip(answer.gripper_opening_m)
+        self.world.move(waypoint)
+        after = self.world.observe(Progress(current_brick=brick, step="descent"))
+        pads = self._check_tool(after, "finger_contacts", brick_id=brick)
+        _gate(gates.sigma2_descent(after.robot.gripper_width_m, width, pads, self.tol))
+        return waypoint
+
+    def _grasp(self, answer: Any, state: WorldState, brick: int, pose: WaypointProposal) -> None:
+        if not answer.close:
+            raise _Refused("the gripper is at the grasp pose: answer close = true")
+        self.world.grip(None)
+        after = self.world.observe(Progress(current_brick=brick, step="grasp"))
+        pads = self._check_tool(after, "finger_contacts", brick_id=brick)
+        slip = self._check_tool(after, "slip_estimate", brick_id=brick)
+        offset = math.hypot(*slip.offset_in_gripper_m)
+        turn = math.degrees(
+            abs(
+                _wrap_half_turn(
+                    quat_yaw(after.robot.ee_pose.quat_xyzw)
+                    - quat_yaw(after.brick(brick).pose.quat_xyzw)
+                )
+            )
+        )
+        verdict = gates.sigma3_grasp(pads, offset, turn, self.tol)
+        if not verdict.passed:
+            self.world.grip(0.16)
+            raise _Refused(verdict.feedback)
+
+    def _lift(self, answer: Any, state: WorldState, brick: int) -> bool:
+        if answer.waypoint is None:
+            raise _Refused("the answer needs a waypoint")
+        waypoint = _checked(answer.waypoint, path="linear")
+        start = state.robot.ee_pose
+        self.world.move(waypoint)
+        after = self.world.observe(Progress(current_brick=brick, step="lift"))
+        slip = self._check_tool(after, "slip_estimate", brick_id=brick)
+        pads = self._check_tool(after, "finger_contacts", brick_id=brick)
+        verdict = gates.sigma4_lift(slip, pads, self.tol)
+        if verdict.passed:
+            return True
+        # sigma_4 = 0: put the brick back down, let go, and start again at Ag1.
+        down = WaypointProposal(
+            position_m=start.position_m, quat_xyzw=start.quat_xyzw, path="linear"
+        )
+        self.world.move(down, stop_on_contact=brick)
+        self.world.grip(0.16)
+        self.world.move(waypoint)
+        self.memory = self.memory.model_copy(update={"last_feedback": verdict.feedback})
+        return False
+
+    def _placement(self, brick: int, target: int) -> None:
+        for _ in range(self.budgets.placement_attempts):
+            slot = self._stage("placement", partial(self._carry_to_slot, brick=brick))
+            state = self.world.observe(Progress(current_brick=brick, step="placement"))
+            errors = self._check_tool(
+                state, "alignment_errors", brick_id=brick, target_index=target
+            )
+            verdict = gates.sigma5_placement(errors, self.tol)
+            if verdict.passed:
+                return
+            # Misaligned in contact: raise by delta_h and ask Ag5 again.
+            x, y, z = state.robot.ee_pose.position_m
+            up = WaypointProposal(
+                position_m=(x, y, z + self.tol.delta_h_m), quat_xyzw=slot.quat_xyzw, path="linear"
+            )
+            self.world.move(up)
+            self.memory = self.memory.model_copy(update={"last_feedback": verdict.feedback})
+        raise TrialStopped(Failure("placement_misaligned", "placement", self.memory.last_feedback))
+
+    def _carry_to_slot(self, answer: Any, state: WorldState, brick: int) -> WaypointProposal:
+        if answer.waypoint is None:
+            raise _Refused("the answer needs a waypoint")
+        slot = _checked(answer.waypoint)
+        x, y, z = slot.position_m
+        here_z = state.robot.ee_pose.position_m[2]
+        above = WaypointProposal(position_m=(x, y, max(here_z, z)), quat_xyzw=slot.quat_xyzw)
+        # The set-down ends in contact by design: check the way down to just above the seat.
+        near = WaypointProposal(position_m=(x, y, z + SEAT_CLEARANCE_M), quat_xyzw=slot.quat_xyzw)
+        opening = state.robot.gripper_width_m
+        transfer = self._check_tool(
+            state, "collision_check", pose=_pose(above), path="joint", gripper_opening_m=opening
+        )
+        descent = self._check_tool(
+            state,
+            "collision_check",
+            pose=_pose(near),
+            start_pose=_pose(above),
+            gripper_opening_m=opening,
+        )
+        for path in (transfer, descent):
+            if not path.collision_free:
+                raise _Refused(f"path to the slot collides: {path.closest}")
+        self.world.move(above)
+        down = WaypointProposal(
+            position_m=(x, y, z - SET_DOWN_OVERSHOOT_M), quat_xyzw=slot.quat_xyzw, path="linear"
+        )
+        self.world.move(down, stop_on_contact=brick)
+        return slot
+
+    def _release(self, answer: Any, state: WorldState, brick: int) -> None:
+        if answer.gripper_opening_m is None or answer.waypoint is None:
+            raise _Refused("the answer needs gripper_opening_m and waypoint")
+        ready = _checked(answer.waypoint)
+        x, y, z = state.robot.ee_pose.position_m
+        retreat = WaypointProposal(
+            position_m=(x, y, z + RETREAT_M), quat_xyzw=state.robot.ee_pose.quat_xyzw, path="linear"
+        )
+        path = self._check_tool(
+            state,
+            "collision_check",
+            pose=_pose(retreat),
+            start_pose=state.robot.ee_pose.model_dump(),
+            gripper_opening_m=answer.gripper_opening_m,
+            ignore_brick_id=brick,
+        )
+        _gate(gates.sigma6_return(path))
+        self.world.grip(answer.gripper_opening_m)
+        self.world.move(retreat)
+        self.world.move(ready)
+
+
+def _gate(verdict: gates.GateVerdict) -> None:
+    if not verdict.passed:
+        raise _Refused(verdict.feedback)
+
+
+def _pose(waypoint: WaypointProposal) -> dict[str, Any]:
+    return {"position_m": list(waypoint.position_m), "quat_xyzw": list(waypoint.quat_xyzw)}
+
+
+def _checked(waypoint: WaypointProposal, path: str | None = None) -> WaypointProposal:
+    """A waypoint with a unit quaternion (normalised within tolerance, else refused)."""
+    norm = math.sqrt(sum(q * q for q in waypoint.quat_xyzw))
+    if abs(norm - 1.0) > QUAT_NORM_TOLERANCE:
+        raise _Refused(f"quaternion norm {norm:.4f} is not 1")
+    quat = tuple(q / norm for q in waypoint.quat_xyzw)
+    return WaypointProposal(
+        position_m=waypoint.position_m,
+        quat_xyzw=quat,
+        path=path or waypoint.path,  # type: ignore[arg-type]
+    )
+
+
+def _wrap_half_turn(angle_rad: float) -> float:
+    """An angle modulo pi, into [-pi/2, pi/2): a gripper turned 180 deg grips the same."""
+    return (angle_rad + math.pi / 2.0) % math.pi - math.pi / 2.0

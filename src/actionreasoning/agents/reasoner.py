@@ -1,0 +1,60 @@
+"""The one-method reasoner interface: an agent's request in, a validated answer and usage out."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from actionreasoning.agents.memory import TaskMemory
+from actionreasoning.agents.outputs import AgentAnswer
+from actionreasoning.agents.spec import AgentSpec
+from actionreasoning.tools.base import ToolModel
+from actionreasoning.world.models import WorldState
+from actionreasoning.world.tolerances import Tolerances
+
+ToolRunner = Callable[[str, Mapping[str, Any]], ToolModel]
+
+
+@dataclass(frozen=True)
+class Usage:
+    """LLM cost of one decision (zeros for reasoners without a model)."""
+
+    calls: int = 0
+    prompt_tokens: int = 0
+    completion_tokens: int = 0
+    latency_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class AgentRequest:
+    """What an agent is asked: its rendered prompt and the same context in structured form.
+
+    ``call_tool`` runs a whitelisted tool of the agent's knowledge base on the current
+    world; it is the only way a reasoner learns more than the prompt says.
+    """
+
+    spec: AgentSpec
+    prompt: str
+    state: WorldState
+    memory: TaskMemory
+    tolerances: Tolerances
+    call_tool: ToolRunner
+
+
+@dataclass(frozen=True)
+class AgentReply:
+    """A validated answer (an instance of the agent's output model) and what it cost."""
+
+    answer: AgentAnswer
+    usage: Usage = Usage()
+
+
+class Reasoner(Protocol):
+    """Anything that answers agents: the built-in policy, an LLM backend, a replay."""
+
+    name: str
+
+    def decide(self, request: AgentRequest) -> AgentReply:
+        """Answer one agent request."""
+        ...

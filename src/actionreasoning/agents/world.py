@@ -1,0 +1,43 @@
+"""What the orchestrator needs from the world, as a protocol: observe, run tools, move, grip.
+
+The simulator side implements it (``eval/sim_world.py``); the agents never touch PyBullet.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+from actionreasoning.agents.outputs import WaypointProposal
+from actionreasoning.tools.base import ToolContext
+from actionreasoning.world.models import Progress, WorldState
+
+
+@dataclass(frozen=True)
+class Motion:
+    """What a move did, as measured."""
+
+    converged: bool
+    stopped_on_contact: bool
+    position_error_m: float
+    orientation_error_deg: float
+
+
+class World(Protocol):
+    """The orchestrator's view of the robot and the scene."""
+
+    def observe(self, progress: Progress) -> WorldState:
+        """Measure the world now."""
+        ...
+
+    def tools(self, state: WorldState) -> ToolContext:
+        """The tool context for a measured state."""
+        ...
+
+    def move(self, waypoint: WaypointProposal, stop_on_contact: int | None = None) -> Motion:
+        """Move the tool to a gated waypoint (raises UnreachableError if IK misses it)."""
+        ...
+
+    def grip(self, opening_m: float | None) -> None:
+        """Close the gripper (None) or open it to ``opening_m``."""
+        ...

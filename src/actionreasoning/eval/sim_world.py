@@ -1,0 +1,51 @@
+"""The simulator behind the orchestrator's World protocol."""
+
+from __future__ import annotations
+
+from actionreasoning.agents.outputs import WaypointProposal
+from actionreasoning.agents.world import Motion
+from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
+from actionreasoning.sim.collision import CollisionChecker
+from actionreasoning.sim.perceive import perceive
+from actionreasoning.tools.base import ToolContext
+from actionreasoning.world.models import GoalPattern, Pose, Progress, WorldState
+
+
+class SimWorld:
+    """Observe, run tools, move and grip in a PyBullet scene."""
+
+    def __init__(self, controller: WaypointController, goal: GoalPattern) -> None:
+        self.controller = controller
+        self.goal = goal
+        self.collisions = CollisionChecker(controller.arm)
+
+    def observe(self, progress: Progress) -> WorldState:
+        """Measure the world now."""
+        return perceive(self.controller.scene, self.goal, progress)
+
+    def tools(self, state: WorldState) -> ToolContext:
+        """Tools on the kinematic copy of the arm, for a measured state."""
+        return ToolContext(state=state, arm=self.controller.arm, collisions=self.collisions)
+
+    def move(self, waypoint: WaypointProposal, stop_on_contact: int | None = None) -> Motion:
+        """Execute a gated waypoint and report what was measured."""
+        report = self.controller.execute(
+            Waypoint(
+                pose=Pose(position_m=waypoint.position_m, quat_xyzw=waypoint.quat_xyzw),
+                path=waypoint.path,
+                stop_on_contact=stop_on_contact,
+            )
+        )
+        return Motion(
+            converged=report.converged,
+            stopped_on_contact=report.stopped_on_contact,
+            position_error_m=report.position_error_m,
+            orientation_error_deg=report.orientation_error_deg,
+        )
+
+    def grip(self, opening_m: float | None) -> None:
+        """Close the gripper (None) or open it to ``opening_m``."""
+        if opening_m is None:
+            self.controller.grip(GripperCommand.CLOSE)
+        else:
+            self.controller.grip(GripperCommand.OPEN, opening_m)

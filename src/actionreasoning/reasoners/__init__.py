@@ -1,0 +1,1 @@
+"""Reasoning backends behind the one-method :class:`~actionreasoning.agents.reasoner.Reasoner`."""
