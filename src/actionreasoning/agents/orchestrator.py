@@ -68,6 +68,10 @@ class _Refused(Exception):
     """An answer refused by verification or a gate; the message is the agent's feedback."""
 
 
+class _Regrasp(Exception):
+    """sigma_4 = 0: the brick was put back; start again at Ag1 with this feedback."""
+
+
 @dataclass
 class BuildResult:
     """What the orchestrator did: target -> brick, LLM usage, and a failure if any."""
@@ -124,15 +128,19 @@ class Orchestrator:
         return self.result
 
     def _place_one(self, supports: Mapping[int, tuple[int, ...]]) -> None:
+        feedback = ""
         for _ in range(self.budgets.regrasps + 1):
             self.memory = self.memory.model_copy(
-                update={"retries": {}, "flags": {}, "last_feedback": ""}
+                update={"retries": {}, "flags": {}, "last_feedback": feedback}
             )
             brick, target = self._stage("pre_grasp", partial(self._pre_grasp, supports=supports))
             grasp_pose = self._stage("descent", partial(self._descent, brick=brick))
             self._stage("grasp", partial(self._grasp, brick=brick, pose=grasp_pose))
-            if self._stage("lift", partial(self._lift, brick=brick)):
+            try:
+                self._stage("lift", partial(self._lift, brick=brick))
                 break
+            except _Regrasp as regrasp:
+                feedback = str(regrasp)
         else:
             raise TrialStopped(Failure("grasp_slip", "lift", "re-grasp budget spent"))
         self._placement(brick, target)
@@ -145,7 +153,7 @@ class Orchestrator:
 
     def _stage(self, key: str, act: Callable[[AgentAnswer, WorldState], Any]) -> Any:
         """Ask agent ``key`` until ``act`` accepts its answer, within the retry budget."""
-        self.memory = self.memory.model_copy(update={"step": key, "last_feedback": ""})
+        self.memory = self.memory.model_copy(update={"step": key})
         for attempt in range(1, self.budgets.attempts_per_agent + 1):
             answer, state = self._ask(self.specs[key])
             try:
@@ -290,7 +298,7 @@ class Orchestrator:
             self.world.grip(0.16)
             raise _Refused(verdict.feedback)
 
-    def _lift(self, answer: Any, state: WorldState, brick: int) -> bool:
+    def _lift(self, answer: Any, state: WorldState, brick: int) -> None:
         if answer.waypoint is None:
             raise _Refused("the answer needs a waypoint")
         waypoint = _checked(answer.waypoint, path="linear")
@@ -301,7 +309,7 @@ class Orchestrator:
         pads = self._check_tool(after, "finger_contacts", brick_id=brick)
         verdict = gates.sigma4_lift(slip, pads, self.tol)
         if verdict.passed:
-            return True
+            return
         # sigma_4 = 0: put the brick back down, let go, and start again at Ag1.
         down = WaypointProposal(
             position_m=start.position_m, quat_xyzw=start.quat_xyzw, path="linear"
@@ -309,8 +317,7 @@ class Orchestrator:
         self.world.move(down, stop_on_contact=brick)
         self.world.grip(0.16)
         self.world.move(waypoint)
-        self.memory = self.memory.model_copy(update={"last_feedback": verdict.feedback})
-        return False
+        raise _Regrasp(verdict.feedback)
 
     def _placement(self, brick: int, target: int) -> None:
         for _ in range(self.budgets.placement_attempts):
