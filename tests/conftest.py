@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,6 +17,25 @@ from actionreasoning.world.geometry import top_down_quat
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import Pose
 from actionreasoning.world.scene_spec import SceneSpec
+
+#: Three bricks: two side by side and one on top; a short end-to-end build.
+SMALL_PATTERN = {
+    "name": "small",
+    "brick_size": [0.2, 0.095, 0.06],
+    "bricks": [
+        {"position": [-0.125, 0.0, 0.03], "yaw_deg": 0},
+        {"position": [0.125, 0.0, 0.03], "yaw_deg": 0},
+        {"position": [0.0, 0.0, 0.09], "yaw_deg": 0},
+    ],
+}
+
+
+@pytest.fixture
+def small_pattern(tmp_path: Path) -> Path:
+    """The small pattern written to a JSON file."""
+    path = tmp_path / "small.json"
+    path.write_text(json.dumps(SMALL_PATTERN))
+    return path
 
 
 @pytest.fixture

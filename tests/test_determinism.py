@@ -12,20 +12,8 @@ from actionreasoning.eval.trial import Method, trial_seed
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
 
-SMALL = {
-    "name": "small",
-    "brick_size": [0.2, 0.095, 0.06],
-    "bricks": [
-        {"position": [-0.125, 0.0, 0.03], "yaw_deg": 0},
-        {"position": [0.125, 0.0, 0.03], "yaw_deg": 0},
-        {"position": [0.0, 0.0, 0.09], "yaw_deg": 0},
-    ],
-}
 
-
-def run(out: Path, method: Method, snapshots: bool) -> str:
-    pattern = out.parent / "small.json"
-    pattern.write_text(json.dumps(SMALL))
+def run(out: Path, pattern: Path, method: Method, snapshots: bool) -> str:
     goal = load_pattern(pattern, SceneSpec())
     config = RunConfig(
         method=method,
@@ -48,11 +36,11 @@ def test_trial_seeds_depend_only_on_run_seed_and_index() -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize(("method", "stages"), [(Method.CLASSICAL, 8), (Method.AGENTS, 6)])
 def test_same_seed_same_results_with_and_without_snapshots(
-    tmp_path: Path, method: Method, stages: int
+    tmp_path: Path, small_pattern: Path, method: Method, stages: int
 ) -> None:
-    first = run(tmp_path / "a", method, snapshots=False)
-    second = run(tmp_path / "b", method, snapshots=False)
-    observed = run(tmp_path / "c", method, snapshots=True)
+    first = run(tmp_path / "a", small_pattern, method, snapshots=False)
+    second = run(tmp_path / "b", small_pattern, method, snapshots=False)
+    observed = run(tmp_path / "c", small_pattern, method, snapshots=True)
     assert first == second
     assert first == observed
     assert json.loads(first)["success"]

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,22 +18,10 @@ from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
 
-SMALL = {
-    "name": "small",
-    "brick_size": [0.2, 0.095, 0.06],
-    "bricks": [
-        {"position": [-0.125, 0.0, 0.03], "yaw_deg": 0},
-        {"position": [0.125, 0.0, 0.03], "yaw_deg": 0},
-        {"position": [0.0, 0.0, 0.09], "yaw_deg": 0},
-    ],
-}
-
 
 @pytest.fixture
-def small_goal(tmp_path: Path):
-    path = tmp_path / "small.json"
-    path.write_text(json.dumps(SMALL))
-    return load_pattern(path, SceneSpec())
+def small_goal(small_pattern: Path):
+    return load_pattern(small_pattern, SceneSpec())
 
 
 @dataclass

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, TypeVar, get_type_hints
 
 from pydantic import BaseModel, ConfigDict
 
@@ -62,3 +62,17 @@ class Tool(Generic[In, Out]):
                 "parameters": self.input_model.model_json_schema(),
             },
         }
+
+
+def tool(name: str, function: Callable[[ToolContext, Any], Any]) -> Tool:
+    """A tool from a typed function ``(context, arguments) -> output``: its input and output
+    models come from the type hints, its description from the docstring."""
+    hints = get_type_hints(function)
+    arguments = [hint for key, hint in hints.items() if key != "return"][1]
+    return Tool(
+        name=name,
+        description=function.__doc__ or "",
+        input_model=arguments,
+        output_model=hints["return"],
+        function=function,
+    )

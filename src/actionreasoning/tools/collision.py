@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from actionreasoning.errors import UnreachableError
 from actionreasoning.sim.collision import Box, Clearance
-from actionreasoning.tools.base import Tool, ToolContext, ToolModel
+from actionreasoning.tools.base import ToolContext, ToolModel, tool
 from actionreasoning.world.models import BrickState, Pose, WorldState
 
 PATH_STEP_M = 0.01
@@ -140,10 +140,4 @@ def _solve(context: ToolContext, pose: Pose, seed: tuple[float, ...] | None) -> 
     return solution.joints_rad
 
 
-COLLISION = Tool(
-    name="collision_check",
-    description=collision_check.__doc__ or "",
-    input_model=CollisionQuery,
-    output_model=CollisionReport,
-    function=collision_check,
-)
+COLLISION = tool("collision_check", collision_check)

@@ -9,7 +9,7 @@ import numpy as np
 from pydantic import Field
 from scipy.spatial.transform import Rotation
 
-from actionreasoning.tools.base import Tool, ToolContext, ToolModel
+from actionreasoning.tools.base import ToolContext, ToolModel, tool
 from actionreasoning.tools.geometry import BrickQuery, brick_state
 
 
@@ -77,17 +77,5 @@ def slip_estimate(context: ToolContext, query: BrickQuery) -> SlipEstimate:
     )
 
 
-FINGER_CONTACTS = Tool(
-    name="finger_contacts",
-    description=finger_contacts.__doc__ or "",
-    input_model=BrickQuery,
-    output_model=ContactForces,
-    function=finger_contacts,
-)
-SLIP = Tool(
-    name="slip_estimate",
-    description=slip_estimate.__doc__ or "",
-    input_model=BrickQuery,
-    output_model=SlipEstimate,
-    function=slip_estimate,
-)
+FINGER_CONTACTS = tool("finger_contacts", finger_contacts)
+SLIP = tool("slip_estimate", slip_estimate)

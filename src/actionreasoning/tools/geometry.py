@@ -13,7 +13,7 @@ from pydantic import Field
 from scipy.spatial.transform import Rotation
 
 from actionreasoning.errors import ToolError
-from actionreasoning.tools.base import Tool, ToolContext, ToolModel
+from actionreasoning.tools.base import ToolContext, ToolModel, tool
 from actionreasoning.world.geometry import quat_yaw, top_down_quat, wrap_angle
 from actionreasoning.world.models import BrickState, Pose, TargetBrick, WorldState
 from actionreasoning.world.support import BrickBox, carriers, centre_is_held
@@ -166,24 +166,6 @@ def support_contact(context: ToolContext, query: BrickQuery) -> SupportReport:
     )
 
 
-ALIGNMENT = Tool(
-    name="alignment_errors",
-    description=alignment_errors.__doc__ or "",
-    input_model=AlignmentQuery,
-    output_model=AlignmentErrors,
-    function=alignment_errors,
-)
-GRASP_CANDIDATES = Tool(
-    name="grasp_candidates",
-    description=grasp_candidates.__doc__ or "",
-    input_model=GraspQuery,
-    output_model=GraspCandidates,
-    function=grasp_candidates,
-)
-SUPPORT = Tool(
-    name="support_contact",
-    description=support_contact.__doc__ or "",
-    input_model=BrickQuery,
-    output_model=SupportReport,
-    function=support_contact,
-)
+ALIGNMENT = tool("alignment_errors", alignment_errors)
+GRASP_CANDIDATES = tool("grasp_candidates", grasp_candidates)
+SUPPORT = tool("support_contact", support_contact)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pydantic import Field
 
-from actionreasoning.tools.base import Tool, ToolContext, ToolModel
+from actionreasoning.tools.base import ToolContext, ToolModel, tool
 from actionreasoning.world.models import Pose
 
 
@@ -36,10 +36,4 @@ def reachability(context: ToolContext, query: ReachQuery) -> ReachReport:
     )
 
 
-REACHABILITY = Tool(
-    name="reachability",
-    description=reachability.__doc__ or "",
-    input_model=ReachQuery,
-    output_model=ReachReport,
-    function=reachability,
-)
+REACHABILITY = tool("reachability", reachability)
