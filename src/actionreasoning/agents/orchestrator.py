@@ -21,10 +21,11 @@ from actionreasoning.agents import gates
 from actionreasoning.agents.memory import PlacedBrick, TaskMemory
 from actionreasoning.agents.outputs import AgentAnswer, WaypointProposal
 from actionreasoning.agents.prompt import render_prompt
-from actionreasoning.agents.reasoner import AgentRequest, Reasoner, Usage
+from actionreasoning.agents.reasoner import AgentRequest, Reasoner
 from actionreasoning.agents.spec import AgentSpec, agent_specs
 from actionreasoning.agents.world import World
 from actionreasoning.errors import ActionReasoningError, ToolError, UnreachableError
+from actionreasoning.records import Failure, LLMUsage
 from actionreasoning.tools.base import ToolContext, ToolModel
 from actionreasoning.tools.registry import call_tool
 from actionreasoning.world.geometry import quat_yaw
@@ -47,21 +48,12 @@ class Budgets:
     placement_attempts: int = 4
 
 
-@dataclass(frozen=True)
-class Failure:
-    """Why a trial stopped: a stable reason code, the agent, details."""
-
-    reason: str
-    agent: str | None
-    detail: str
-
-
 class TrialStopped(ActionReasoningError):
     """Raised inside the orchestrator when a budget is spent; carries the failure."""
 
-    def __init__(self, failure: Failure) -> None:
-        super().__init__(f"{failure.reason} ({failure.agent}): {failure.detail}")
-        self.failure = failure
+    def __init__(self, reason: str, agent: str | None, detail: str) -> None:
+        super().__init__(f"{reason} ({agent}): {detail}")
+        self.failure = Failure(reason=reason, agent=agent, detail=detail)
 
 
 class _Refused(Exception):
@@ -77,7 +69,7 @@ class BuildResult:
     """What the orchestrator did: target -> brick, LLM usage, and a failure if any."""
 
     placements: dict[int, int] = field(default_factory=dict)
-    usage: Usage = Usage()
+    usage: LLMUsage = LLMUsage()
     decisions: int = 0
     failure: Failure | None = None
 
@@ -124,7 +116,9 @@ class Orchestrator:
         except TrialStopped as stop:
             self.result.failure = stop.failure
         except UnreachableError as error:
-            self.result.failure = Failure("unreachable", self.memory.step, str(error))
+            self.result.failure = Failure(
+                reason="unreachable", agent=self.memory.step, detail=str(error)
+            )
         return self.result
 
     def _place_one(self, supports: Mapping[int, tuple[int, ...]]) -> None:
@@ -142,7 +136,7 @@ class Orchestrator:
             except _Regrasp as regrasp:
                 feedback = str(regrasp)
         else:
-            raise TrialStopped(Failure("grasp_slip", "lift", "re-grasp budget spent"))
+            raise TrialStopped("grasp_slip", "lift", "re-grasp budget spent")
         self._placement(brick, target)
         self._stage("release", partial(self._release, brick=brick))
         placed = (*self.memory.placed, PlacedBrick(brick_id=brick, target_index=target))
@@ -169,7 +163,7 @@ class Orchestrator:
             if self.on_stage is not None and self.memory.current_brick is not None:
                 self.on_stage(self.memory.current_brick, key)
             return outcome
-        raise TrialStopped(Failure("budget_exhausted", key, self.memory.last_feedback))
+        raise TrialStopped("budget_exhausted", key, self.memory.last_feedback)
 
     def _remember(self, key: str, attempt: int, feedback: str) -> None:
         retries = {**self.memory.retries, key: attempt}
@@ -194,15 +188,9 @@ class Orchestrator:
             )
         )
         self.result.decisions += 1
-        u, r = self.result.usage, reply.usage
-        self.result.usage = Usage(
-            calls=u.calls + r.calls,
-            prompt_tokens=u.prompt_tokens + r.prompt_tokens,
-            completion_tokens=u.completion_tokens + r.completion_tokens,
-            latency_s=u.latency_s + r.latency_s,
-        )
+        self.result.usage += reply.usage
         if not isinstance(reply.answer, spec.output_model):
-            raise TrialStopped(Failure("invalid_output", spec.key, "answer of the wrong schema"))
+            raise TrialStopped("invalid_output", spec.key, "answer of the wrong schema")
         return reply.answer, state
 
     @staticmethod
@@ -336,7 +324,7 @@ class Orchestrator:
             )
             self.world.move(up)
             self.memory = self.memory.model_copy(update={"last_feedback": verdict.feedback})
-        raise TrialStopped(Failure("placement_misaligned", "placement", self.memory.last_feedback))
+        raise TrialStopped("placement_misaligned", "placement", self.memory.last_feedback)
 
     def _carry_to_slot(self, answer: Any, state: WorldState, brick: int) -> WaypointProposal:
         if answer.waypoint is None:

@@ -9,21 +9,12 @@ from typing import Any, Protocol
 from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.outputs import AgentAnswer
 from actionreasoning.agents.spec import AgentSpec
+from actionreasoning.records import LLMUsage
 from actionreasoning.tools.base import ToolModel
 from actionreasoning.world.models import WorldState
 from actionreasoning.world.tolerances import Tolerances
 
 ToolRunner = Callable[[str, Mapping[str, Any]], ToolModel]
-
-
-@dataclass(frozen=True)
-class Usage:
-    """LLM cost of one decision (zeros for reasoners without a model)."""
-
-    calls: int = 0
-    prompt_tokens: int = 0
-    completion_tokens: int = 0
-    latency_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -47,7 +38,7 @@ class AgentReply:
     """A validated answer (an instance of the agent's output model) and what it cost."""
 
     answer: AgentAnswer
-    usage: Usage = Usage()
+    usage: LLMUsage = LLMUsage()
 
 
 class Reasoner(Protocol):

@@ -8,7 +8,10 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict
 
+from actionreasoning.records import Failure, LLMUsage
 from actionreasoning.world.geometry import QuatXYZW, Vec3
+
+__all__ = ["BrickResult", "Failure", "LLMUsage", "TrialMetrics", "TrialResult"]
 
 
 class _Record(BaseModel):
@@ -37,23 +40,6 @@ class TrialMetrics(_Record):
     rotation_error_deg: float
     symmetric_rotation_error_deg: float
     iou: float
-
-
-class Failure(_Record):
-    """Why a trial failed: a short stable ``reason`` code, the agent if any, and details."""
-
-    reason: str
-    agent: str | None = None
-    detail: str
-
-
-class LLMUsage(_Record):
-    """LLM cost of a trial (zeros where no LLM ran)."""
-
-    calls: int = 0
-    prompt_tokens: int = 0
-    completion_tokens: int = 0
-    latency_s: float = 0.0
 
 
 class TrialResult(_Record):

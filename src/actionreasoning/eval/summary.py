@@ -89,12 +89,7 @@ def summarize(
         all_trials={m: _stats(results, m) for m in METRICS},
         failures=dict(sorted(failures.items())),
         failure_examples=examples,
-        llm_usage=LLMUsage(
-            calls=sum(r.llm_usage.calls for r in results),
-            prompt_tokens=sum(r.llm_usage.prompt_tokens for r in results),
-            completion_tokens=sum(r.llm_usage.completion_tokens for r in results),
-            latency_s=sum(r.llm_usage.latency_s for r in results),
-        ),
+        llm_usage=sum((r.llm_usage for r in results), LLMUsage()),
         wall_time_s=wall_time_s,
     )
 

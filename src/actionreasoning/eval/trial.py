@@ -150,18 +150,7 @@ def _run_agents(
 ) -> _Outcome:
     world = SimWorld(controller, goal)
     build = Orchestrator(world, BuiltinReasoner(READY_POSE), on_stage=stage).build(goal)
-    failure = None
-    if build.failure is not None:
-        f = build.failure
-        failure = Failure(reason=f.reason, agent=f.agent, detail=f.detail)
-    u = build.usage
-    usage = LLMUsage(
-        calls=u.calls,
-        prompt_tokens=u.prompt_tokens,
-        completion_tokens=u.completion_tokens,
-        latency_s=u.latency_s,
-    )
-    return _Outcome(placements=build.placements, failure=failure, usage=usage)
+    return _Outcome(placements=build.placements, failure=build.failure, usage=build.usage)
 
 
 def _measure(

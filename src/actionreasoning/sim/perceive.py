@@ -4,11 +4,9 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-from scipy.spatial.transform import Rotation
-
 from actionreasoning.sim.robot_model import FINGER_PAD_BELOW_TCP_M
 from actionreasoning.sim.scene import Scene
+from actionreasoning.world.geometry import tilt_deg
 from actionreasoning.world.models import (
     BrickState,
     BrickStatus,
@@ -74,8 +72,7 @@ def _status(
 ) -> BrickStatus:
     if held:
         return "grasped"
-    up = Rotation.from_quat(quat).apply([0.0, 0.0, 1.0])
-    if math.degrees(math.acos(float(np.clip(abs(up[2]), 0.0, 1.0)))) > TOPPLED_TILT_DEG:
+    if tilt_deg(quat) > TOPPLED_TILT_DEG:
         return "toppled"
     if brick in progress.placed_ids:
         return "placed"

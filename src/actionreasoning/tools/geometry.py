@@ -8,13 +8,11 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from pydantic import Field
-from scipy.spatial.transform import Rotation
 
 from actionreasoning.errors import ToolError
 from actionreasoning.tools.base import ToolContext, ToolModel, tool
-from actionreasoning.world.geometry import quat_yaw, top_down_quat, wrap_angle
+from actionreasoning.world.geometry import quat_yaw, tilt_deg, top_down_quat, wrap_angle
 from actionreasoning.world.models import BrickState, Pose, TargetBrick, WorldState
 from actionreasoning.world.support import BrickBox, carriers, centre_is_held
 
@@ -101,11 +99,6 @@ def _target(state: WorldState, index: int) -> TargetBrick:
     return state.goal.targets[index]
 
 
-def _tilt_deg(pose: Pose) -> float:
-    up = Rotation.from_quat(pose.quat_xyzw).apply([0.0, 0.0, 1.0])
-    return math.degrees(math.acos(float(np.clip(abs(up[2]), 0.0, 1.0))))
-
-
 def _box(brick: BrickState) -> BrickBox:
     return BrickBox(brick.id, brick.pose.position_m, quat_yaw(brick.pose.quat_xyzw), brick.size_m)
 
@@ -121,7 +114,7 @@ def alignment_errors(context: ToolContext, query: AlignmentQuery) -> AlignmentEr
         e_xy_norm_m=math.hypot(tx - bx, ty - by),
         e_theta_deg=math.degrees(e_theta),
         d_perp_m=(bz - brick.size_m[2] / 2.0) - (tz - target.size_m[2] / 2.0),
-        tilt_deg=_tilt_deg(brick.pose),
+        tilt_deg=tilt_deg(brick.pose.quat_xyzw),
     )
 
 
@@ -162,7 +155,7 @@ def support_contact(context: ToolContext, query: BrickQuery) -> SupportReport:
         carriers=tuple(other.index for other, _ in contacts),
         contact_area_m2=box.footprint.area if on_ground else float(sum(a.area for a in areas)),
         centre_supported=on_ground or (bool(areas) and centre_is_held(box, areas)),
-        tilt_deg=_tilt_deg(brick.pose),
+        tilt_deg=tilt_deg(brick.pose.quat_xyzw),
     )
 
 

@@ -30,6 +30,12 @@ def top_down_quat(yaw_rad: float) -> QuatXYZW:
     return tuple((Rotation.from_euler("z", yaw_rad) * TOP_DOWN).as_quat())  # type: ignore[return-value]
 
 
+def tilt_deg(quat_xyzw: QuatXYZW) -> float:
+    """Angle (deg) between a body's z axis and world up, either way up (0 to 90)."""
+    up = Rotation.from_quat(quat_xyzw).apply([0.0, 0.0, 1.0])
+    return math.degrees(math.acos(float(np.clip(abs(up[2]), 0.0, 1.0))))
+
+
 def wrap_angle(angle_rad: float) -> float:
     """Wrap an angle into [-pi, pi)."""
     return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
