@@ -62,9 +62,11 @@ def test_bad_pattern_files_are_refused_in_one_line(tmp_path: Path, name: str) ->
     assert not (tmp_path / "o" / "results.jsonl").exists()
 
 
-def test_unavailable_method_is_refused(tmp_path: Path) -> None:
-    result = cli("eval", "--method", "single-agent", "--trials", "1", "--out", str(tmp_path / "o"))
-    assert_clean_error(result, "single-agent", "not available yet")
+def test_transcripts_of_the_classical_method_are_refused(tmp_path: Path) -> None:
+    out = tmp_path / "o"
+    result = cli("eval", "--method", "classical", "--transcripts", "--out", str(out))
+    assert_clean_error(result, "--transcripts", "classical")
+    assert not out.exists()
 
 
 def test_pattern_command_validates_example_files() -> None:

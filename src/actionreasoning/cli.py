@@ -19,7 +19,7 @@ from actionreasoning.errors import ActionReasoningError, ConfigError
 from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.run import RunConfig, run_eval
 from actionreasoning.eval.summary import RunSummary
-from actionreasoning.eval.trial import AVAILABLE_METHODS, Method, TrialSpec, trial_world
+from actionreasoning.eval.trial import Method, TrialSpec, trial_world
 from actionreasoning.sim.perceive import perceive
 from actionreasoning.world.geometry import quat_yaw
 from actionreasoning.world.models import Progress as BuildProgress
@@ -45,12 +45,11 @@ def _fail(error: ActionReasoningError) -> None:
     raise typer.Exit(code=2)
 
 
-def _check_options(method: Method, llm: str, base_url: str | None, workers: int) -> None:
-    if method not in AVAILABLE_METHODS:
-        raise ConfigError(
-            f"--method {method} is not available yet; available: "
-            + ", ".join(str(m) for m in AVAILABLE_METHODS)
-        )
+def _check_options(
+    method: Method, llm: str, base_url: str | None, workers: int, transcripts: bool
+) -> None:
+    if transcripts and method is Method.CLASSICAL:
+        raise ConfigError("--transcripts records agent calls; --method classical makes none")
     if llm != "builtin":
         raise ConfigError(f"--llm {llm!r} is not available yet; only 'builtin' is")
     if base_url is not None:
@@ -130,13 +129,22 @@ def eval_command(
     snapshots: Annotated[
         bool, typer.Option(help="Write per-stage PNG snapshots of every trial.")
     ] = False,
+    transcripts: Annotated[
+        bool,
+        typer.Option(
+            help="Write every agent call of trial k (prompt size, answer, tool calls, gate "
+            "verdicts with measured values, retries) to transcripts/trial_k.jsonl."
+        ),
+    ] = False,
 ) -> None:
     """Run randomized trials of one method on one pattern and write results and summaries."""
     try:
-        _check_options(method, llm, base_url, workers)
+        _check_options(method, llm, base_url, workers, transcripts)
     except ActionReasoningError as error:
         _fail(error)
-    _evaluate(method, pattern, trials, seed, out, llm=llm, snapshots=snapshots)
+    _evaluate(
+        method, pattern, trials, seed, out, llm=llm, snapshots=snapshots, transcripts=transcripts
+    )
 
 
 DEMO_FILES = ("results.jsonl", "summary.json", "summary.md", "report.md")
@@ -169,7 +177,15 @@ def demo(
 
 
 def _evaluate(
-    method: Method, pattern: str, trials: int, seed: int, out: Path, *, llm: str, snapshots: bool
+    method: Method,
+    pattern: str,
+    trials: int,
+    seed: int,
+    out: Path,
+    *,
+    llm: str,
+    snapshots: bool,
+    transcripts: bool = False,
 ) -> RunSummary:
     """Load the pattern, run the trials with progress, print the table; errors end the command."""
     try:
@@ -182,6 +198,7 @@ def _evaluate(
             out=out,
             llm=llm,
             snapshots=snapshots,
+            transcripts=transcripts,
         )
         summary = _run_with_progress(config)
     except ActionReasoningError as error:

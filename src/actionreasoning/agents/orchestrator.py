@@ -13,27 +13,25 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import partial
 from typing import Any
 
 from actionreasoning.agents import gates
+from actionreasoning.agents.calls import AgentCaller, BuildResult, StageHook, TrialStopped
 from actionreasoning.agents.memory import PlacedBrick, TaskMemory
-from actionreasoning.agents.outputs import AgentAnswer, WaypointProposal
-from actionreasoning.agents.prompt import render_prompt
-from actionreasoning.agents.reasoner import AgentRequest, Reasoner
-from actionreasoning.agents.spec import AgentSpec, agent_specs
+from actionreasoning.agents.outputs import AgentAnswer, WaypointProposal, unit_waypoint
+from actionreasoning.agents.reasoner import Reasoner
+from actionreasoning.agents.spec import agent_specs
+from actionreasoning.agents.transcript import Outcome
 from actionreasoning.agents.world import World
-from actionreasoning.errors import ActionReasoningError, ToolError, UnreachableError
-from actionreasoning.records import Failure, LLMUsage
-from actionreasoning.tools.base import ToolContext, ToolModel
-from actionreasoning.tools.registry import call_tool
+from actionreasoning.errors import UnreachableError
+from actionreasoning.records import Failure
 from actionreasoning.world.geometry import quat_yaw
 from actionreasoning.world.models import GoalPattern, Progress, WorldState
 from actionreasoning.world.support import BrickBox, carriers
 from actionreasoning.world.tolerances import Tolerances
 
-QUAT_NORM_TOLERANCE = 1e-3
 SET_DOWN_OVERSHOOT_M = 0.005
 SEAT_CLEARANCE_M = 0.003
 RETREAT_M = 0.08
@@ -48,30 +46,12 @@ class Budgets:
     placement_attempts: int = 4
 
 
-class TrialStopped(ActionReasoningError):
-    """Raised inside the orchestrator when a budget is spent; carries the failure."""
-
-    def __init__(self, reason: str, agent: str | None, detail: str) -> None:
-        super().__init__(f"{reason} ({agent}): {detail}")
-        self.failure = Failure(reason=reason, agent=agent, detail=detail)
-
-
 class _Refused(Exception):
     """An answer refused by verification or a gate; the message is the agent's feedback."""
 
 
 class _Regrasp(Exception):
     """sigma_4 = 0: the brick was put back; start again at Ag1 with this feedback."""
-
-
-@dataclass
-class BuildResult:
-    """What the orchestrator did: target -> brick, LLM usage, and a failure if any."""
-
-    placements: dict[int, int] = field(default_factory=dict)
-    usage: LLMUsage = LLMUsage()
-    decisions: int = 0
-    failure: Failure | None = None
 
 
 def target_supports(goal: GoalPattern) -> dict[int, tuple[int, ...]]:
@@ -81,9 +61,6 @@ def target_supports(goal: GoalPattern) -> dict[int, tuple[int, ...]]:
         for t in goal.targets
     ]
     return {box.index: tuple(o.index for o, _ in carriers(box, boxes)) for box in boxes}
-
-
-StageHook = Callable[[int, str], None]
 
 
 class Orchestrator:
@@ -104,6 +81,7 @@ class Orchestrator:
         self.on_stage = on_stage
         self.specs = {spec.key: spec for spec in agent_specs()}
         self.result = BuildResult()
+        self.calls = AgentCaller(world, reasoner, tolerances, self.result)
         self.memory = TaskMemory()
 
     # --- the pipeline -------------------------------------------------------------------
@@ -149,7 +127,7 @@ class Orchestrator:
         """Ask agent ``key`` until ``act`` accepts its answer, within the retry budget."""
         self.memory = self.memory.model_copy(update={"step": key})
         for attempt in range(1, self.budgets.attempts_per_agent + 1):
-            answer, state = self._ask(self.specs[key])
+            answer, state = self.calls.ask(self.specs[key], self.memory, attempt)
             try:
                 outcome = act(answer, state)
             except _Refused as refusal:
@@ -158,6 +136,10 @@ class Orchestrator:
             except UnreachableError as error:
                 self._remember(key, attempt, f"unreachable: {error}")
                 continue
+            except _Regrasp as regrasp:
+                self.calls.conclude(Outcome.REGRASP, str(regrasp))
+                raise
+            self.calls.conclude(Outcome.ACCEPTED)
             flags = {**self.memory.flags, key: True}
             self.memory = self.memory.model_copy(update={"flags": flags, "last_feedback": ""})
             if self.on_stage is not None and self.memory.current_brick is not None:
@@ -166,44 +148,14 @@ class Orchestrator:
         raise TrialStopped("budget_exhausted", key, self.memory.last_feedback)
 
     def _remember(self, key: str, attempt: int, feedback: str) -> None:
+        self.calls.conclude(Outcome.REFUSED, feedback)
         retries = {**self.memory.retries, key: attempt}
         self.memory = self.memory.model_copy(update={"retries": retries, "last_feedback": feedback})
 
-    def _ask(self, spec: AgentSpec) -> tuple[AgentAnswer, WorldState]:
-        progress = Progress(
-            placed_ids=tuple(p.brick_id for p in self.memory.placed),
-            current_brick=self.memory.current_brick,
-            step=spec.key,
-        )
-        state = self.world.observe(progress)
-        context = self.world.tools(state)
-        reply = self.reasoner.decide(
-            AgentRequest(
-                spec=spec,
-                prompt=render_prompt(spec, state, self.memory, self.tol),
-                state=state,
-                memory=self.memory,
-                tolerances=self.tol,
-                call_tool=lambda name, args: self._tool(spec, context, name, args),
-            )
-        )
-        self.result.decisions += 1
-        self.result.usage += reply.usage
-        if not isinstance(reply.answer, spec.output_model):
-            raise TrialStopped("invalid_output", spec.key, "answer of the wrong schema")
-        return reply.answer, state
-
-    @staticmethod
-    def _tool(
-        spec: AgentSpec, context: ToolContext, name: str, arguments: Mapping[str, Any]
-    ) -> ToolModel:
-        if name not in spec.tools:
-            raise ToolError(f"tool {name[:60]!r} is not in the knowledge base of {spec.key}")
-        return call_tool(name, arguments, context)
-
-    def _check_tool(self, state: WorldState, name: str, **arguments: Any) -> Any:
-        """A measurement for verification and gates (not an agent's tool call)."""
-        return call_tool(name, arguments, self.world.tools(state))
+    def _gate(self, verdict: gates.GateVerdict) -> None:
+        """Record a verdict and refuse the answer if it failed."""
+        if not self.calls.judge(verdict).passed:
+            raise _Refused(verdict.feedback)
 
     # --- the agents' acts ---------------------------------------------------------------
     def _pre_grasp(
@@ -224,7 +176,7 @@ class Orchestrator:
         if state.brick(brick).status != "in_pick_area":
             raise _Refused(f"brick {brick} is {state.brick(brick).status}, not in the pick area")
         waypoint = _checked(answer.waypoint, path="joint")
-        path = self._check_tool(
+        path = self.calls.measure(
             state,
             "collision_check",
             pose=_pose(waypoint),
@@ -232,7 +184,7 @@ class Orchestrator:
             gripper_opening_m=state.robot.gripper_width_m,
             ignore_brick_id=brick,
         )
-        _gate(gates.sigma1_pre_grasp(path, self.tol))
+        self._gate(gates.sigma1_pre_grasp(path, self.tol))
         self.memory = self.memory.model_copy(
             update={"current_brick": brick, "current_target": target}
         )
@@ -248,7 +200,7 @@ class Orchestrator:
             raise _Refused(
                 f"opening {answer.gripper_opening_m:.3f} m < brick width {width:.3f} + delta"
             )
-        path = self._check_tool(
+        path = self.calls.measure(
             state,
             "collision_check",
             pose=_pose(waypoint),
@@ -261,8 +213,8 @@ class Orchestrator:
         self.world.grip(answer.gripper_opening_m)
         self.world.move(waypoint)
         after = self.world.observe(Progress(current_brick=brick, step="descent"))
-        pads = self._check_tool(after, "finger_contacts", brick_id=brick)
-        _gate(gates.sigma2_descent(after.robot.gripper_width_m, width, pads, self.tol))
+        pads = self.calls.measure(after, "finger_contacts", brick_id=brick)
+        self._gate(gates.sigma2_descent(after.robot.gripper_width_m, width, pads, self.tol))
         return waypoint
 
     def _grasp(self, answer: Any, state: WorldState, brick: int, pose: WaypointProposal) -> None:
@@ -270,8 +222,8 @@ class Orchestrator:
             raise _Refused("the gripper is at the grasp pose: answer close = true")
         self.world.grip(None)
         after = self.world.observe(Progress(current_brick=brick, step="grasp"))
-        pads = self._check_tool(after, "finger_contacts", brick_id=brick)
-        slip = self._check_tool(after, "slip_estimate", brick_id=brick)
+        pads = self.calls.measure(after, "finger_contacts", brick_id=brick)
+        slip = self.calls.measure(after, "slip_estimate", brick_id=brick)
         offset = math.hypot(*slip.offset_in_gripper_m)
         turn = math.degrees(
             abs(
@@ -281,7 +233,7 @@ class Orchestrator:
                 )
             )
         )
-        verdict = gates.sigma3_grasp(pads, offset, turn, self.tol)
+        verdict = self.calls.judge(gates.sigma3_grasp(pads, offset, turn, self.tol))
         if not verdict.passed:
             self.world.grip(0.16)
             raise _Refused(verdict.feedback)
@@ -293,9 +245,9 @@ class Orchestrator:
         start = state.robot.ee_pose
         self.world.move(waypoint)
         after = self.world.observe(Progress(current_brick=brick, step="lift"))
-        slip = self._check_tool(after, "slip_estimate", brick_id=brick)
-        pads = self._check_tool(after, "finger_contacts", brick_id=brick)
-        verdict = gates.sigma4_lift(slip, pads, self.tol)
+        slip = self.calls.measure(after, "slip_estimate", brick_id=brick)
+        pads = self.calls.measure(after, "finger_contacts", brick_id=brick)
+        verdict = self.calls.judge(gates.sigma4_lift(slip, pads, self.tol))
         if verdict.passed:
             return
         # sigma_4 = 0: put the brick back down, let go, and start again at Ag1.
@@ -308,15 +260,18 @@ class Orchestrator:
         raise _Regrasp(verdict.feedback)
 
     def _placement(self, brick: int, target: int) -> None:
+        """Ag5 twice: carry the brick over its slot, then, re-measured there, set it down."""
+        self._stage("placement", partial(self._carry_over_slot, brick=brick))
         for _ in range(self.budgets.placement_attempts):
-            slot = self._stage("placement", partial(self._carry_to_slot, brick=brick))
+            slot = self._stage("placement", partial(self._set_down, brick=brick))
             state = self.world.observe(Progress(current_brick=brick, step="placement"))
-            errors = self._check_tool(
+            errors = self.calls.measure(
                 state, "alignment_errors", brick_id=brick, target_index=target
             )
-            verdict = gates.sigma5_placement(errors, self.tol)
+            verdict = self.calls.judge(gates.sigma5_placement(errors, self.tol))
             if verdict.passed:
                 return
+            self.calls.conclude(Outcome.RAISED, verdict.feedback)
             # Misaligned in contact: raise by delta_h and ask Ag5 again.
             x, y, z = state.robot.ee_pose.position_m
             up = WaypointProposal(
@@ -326,35 +281,62 @@ class Orchestrator:
             self.memory = self.memory.model_copy(update={"last_feedback": verdict.feedback})
         raise TrialStopped("placement_misaligned", "placement", self.memory.last_feedback)
 
-    def _carry_to_slot(self, answer: Any, state: WorldState, brick: int) -> WaypointProposal:
-        if answer.waypoint is None:
-            raise _Refused("the answer needs a waypoint")
-        slot = _checked(answer.waypoint)
+    def _carry_over_slot(self, answer: Any, state: WorldState, brick: int) -> None:
+        """Carry the brick over the proposed slot, once the way there and down is clear."""
+        slot = self._slot(answer)
         x, y, z = slot.position_m
-        here_z = state.robot.ee_pose.position_m[2]
-        above = WaypointProposal(position_m=(x, y, max(here_z, z)), quat_xyzw=slot.quat_xyzw)
-        # The set-down ends in contact by design: check the way down to just above the seat.
-        near = WaypointProposal(position_m=(x, y, z + SEAT_CLEARANCE_M), quat_xyzw=slot.quat_xyzw)
+        above = WaypointProposal(
+            position_m=(x, y, max(state.robot.ee_pose.position_m[2], z)), quat_xyzw=slot.quat_xyzw
+        )
         opening = state.robot.gripper_width_m
-        transfer = self._check_tool(
+        transfer = self.calls.measure(
             state, "collision_check", pose=_pose(above), path="joint", gripper_opening_m=opening
         )
-        descent = self._check_tool(
-            state,
-            "collision_check",
-            pose=_pose(near),
-            start_pose=_pose(above),
-            gripper_opening_m=opening,
-        )
-        for path in (transfer, descent):
-            if not path.collision_free:
-                raise _Refused(f"path to the slot collides: {path.closest}")
+        self._check_descent(state, slot, start=above, path=transfer)
         self.world.move(above)
+
+    def _set_down(self, answer: Any, state: WorldState, brick: int) -> WaypointProposal:
+        """Set the brick down on the (re-measured) slot, stopping where it touches."""
+        slot = self._slot(answer)
+        here = state.robot.ee_pose
+        start = WaypointProposal(position_m=here.position_m, quat_xyzw=here.quat_xyzw)
+        self._check_descent(state, slot, start=start)
+        x, y, z = slot.position_m
         down = WaypointProposal(
             position_m=(x, y, z - SET_DOWN_OVERSHOOT_M), quat_xyzw=slot.quat_xyzw, path="linear"
         )
         self.world.move(down, stop_on_contact=brick)
         return slot
+
+    @staticmethod
+    def _slot(answer: Any) -> WaypointProposal:
+        if answer.waypoint is None:
+            raise _Refused("the answer needs a waypoint")
+        return _checked(answer.waypoint)
+
+    def _check_descent(
+        self,
+        state: WorldState,
+        slot: WaypointProposal,
+        start: WaypointProposal,
+        path: Any = None,
+    ) -> None:
+        """Refuse a slot whose way down (and ``path`` to its start, if given) collides.
+
+        The set-down ends in contact by design: the check goes to just above the seat.
+        """
+        x, y, z = slot.position_m
+        near = WaypointProposal(position_m=(x, y, z + SEAT_CLEARANCE_M), quat_xyzw=slot.quat_xyzw)
+        descent = self.calls.measure(
+            state,
+            "collision_check",
+            pose=_pose(near),
+            start_pose=_pose(start),
+            gripper_opening_m=state.robot.gripper_width_m,
+        )
+        for report in (path, descent):
+            if report is not None and not report.collision_free:
+                raise _Refused(f"path to the slot collides: {report.closest}")
 
     def _release(self, answer: Any, state: WorldState, brick: int) -> None:
         if answer.gripper_opening_m is None or answer.waypoint is None:
@@ -364,7 +346,7 @@ class Orchestrator:
         retreat = WaypointProposal(
             position_m=(x, y, z + RETREAT_M), quat_xyzw=state.robot.ee_pose.quat_xyzw, path="linear"
         )
-        path = self._check_tool(
+        path = self.calls.measure(
             state,
             "collision_check",
             pose=_pose(retreat),
@@ -372,15 +354,10 @@ class Orchestrator:
             gripper_opening_m=answer.gripper_opening_m,
             ignore_brick_id=brick,
         )
-        _gate(gates.sigma6_return(path))
+        self._gate(gates.sigma6_return(path))
         self.world.grip(answer.gripper_opening_m)
         self.world.move(retreat)
         self.world.move(ready)
-
-
-def _gate(verdict: gates.GateVerdict) -> None:
-    if not verdict.passed:
-        raise _Refused(verdict.feedback)
 
 
 def _pose(waypoint: WaypointProposal) -> dict[str, Any]:
@@ -389,15 +366,10 @@ def _pose(waypoint: WaypointProposal) -> dict[str, Any]:
 
 def _checked(waypoint: WaypointProposal, path: str | None = None) -> WaypointProposal:
     """A waypoint with a unit quaternion (normalised within tolerance, else refused)."""
-    norm = math.sqrt(sum(q * q for q in waypoint.quat_xyzw))
-    if abs(norm - 1.0) > QUAT_NORM_TOLERANCE:
-        raise _Refused(f"quaternion norm {norm:.4f} is not 1")
-    quat = tuple(q / norm for q in waypoint.quat_xyzw)
-    return WaypointProposal(
-        position_m=waypoint.position_m,
-        quat_xyzw=quat,
-        path=path or waypoint.path,  # type: ignore[arg-type]
-    )
+    try:
+        return unit_waypoint(waypoint, path)
+    except ValueError as error:
+        raise _Refused(str(error)) from None
 
 
 def _wrap_half_turn(angle_rad: float) -> float:

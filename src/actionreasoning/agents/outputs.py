@@ -7,11 +7,15 @@ tool calls name whitelisted tools with their arguments. Never code.
 
 from __future__ import annotations
 
+import math
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.world.geometry import QuatXYZW, Vec3
+
+#: How far from 1 a quaternion's norm may be and still be normalised rather than refused.
+QUAT_NORM_TOLERANCE = 1e-3
 
 
 class _Output(BaseModel):
@@ -31,6 +35,21 @@ class WaypointProposal(_Output):
     position_m: Vec3
     quat_xyzw: QuatXYZW
     path: Literal["joint", "linear"] = "joint"
+
+
+def unit_waypoint(waypoint: WaypointProposal, path: str | None = None) -> WaypointProposal:
+    """The waypoint with its quaternion normalised (and ``path`` if given).
+
+    Raises ValueError when the norm is further than QUAT_NORM_TOLERANCE from 1.
+    """
+    norm = math.sqrt(sum(q * q for q in waypoint.quat_xyzw))
+    if abs(norm - 1.0) > QUAT_NORM_TOLERANCE:
+        raise ValueError(f"quaternion norm {norm:.4f} is not 1")
+    return WaypointProposal(
+        position_m=waypoint.position_m,
+        quat_xyzw=tuple(q / norm for q in waypoint.quat_xyzw),  # type: ignore[arg-type]
+        path=path or waypoint.path,  # type: ignore[arg-type]
+    )
 
 
 class AgentAnswer(_Output):
@@ -80,3 +99,32 @@ class ReleaseAnswer(AgentAnswer):
 
     gripper_opening_m: float | None = Field(None, ge=0.06, le=0.16)
     waypoint: WaypointProposal | None = None
+
+
+SingleAgentStep = Literal[
+    "pre_grasp",
+    "descent",
+    "grasp",
+    "lift",
+    "transfer",
+    "placement",
+    "release",
+    "retreat",
+    "done",
+]
+
+
+class SingleAgentAnswer(AgentAnswer):
+    """The single-agent ablation: the next waypoint of the whole cycle and a gripper command.
+
+    The gripper command is applied once the arm has reached the waypoint (or where it is,
+    without a waypoint). ``pre_grasp`` names the brick and the target; ``done`` ends the
+    build after moving to its waypoint, if any.
+    """
+
+    step: SingleAgentStep
+    brick_id: int | None = Field(None, ge=0)
+    target_index: int | None = Field(None, ge=0)
+    waypoint: WaypointProposal | None = None
+    gripper: Literal["open", "close", "hold"] = "hold"
+    gripper_opening_m: float | None = Field(None, ge=0.06, le=0.16)

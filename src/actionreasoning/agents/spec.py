@@ -1,7 +1,8 @@
-"""The six agents as data, loaded from ``prompts/agents.yaml``.
+"""The six agents as data, loaded from ``prompts/agents.yaml``, and their merger.
 
 Each agent is a role R_i, the names of its tools K_i (all in the tool whitelist), a thinking
 chain Gamma_i and an output schema Omega_i. No class hierarchy: an agent is this record.
+The single-agent ablation merges all six into one (number 0).
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from importlib import resources
 import yaml
 
 from actionreasoning.agents import outputs
-from actionreasoning.agents.outputs import AgentAnswer
+from actionreasoning.agents.outputs import AgentAnswer, SingleAgentAnswer
 from actionreasoning.tools.registry import TOOLS
 
 
@@ -51,3 +52,31 @@ def agent_specs() -> tuple[AgentSpec, ...]:
             )
         )
     return tuple(specs)
+
+
+SINGLE_AGENT_CYCLE = (
+    "Per brick, answer one waypoint per call in this order: pre_grasp (name brick_id and "
+    "target_index; the approach pose above the brick, then open the gripper), descent (straight "
+    "down to the grasp pose), grasp (close), lift (straight up), transfer (above the target "
+    "slot), placement (down onto the slot), release (open), retreat (straight up). After the "
+    "last brick answer done, with the ready pose as waypoint. Task memory's step is the step "
+    "executed last; nothing checks your waypoints before they run."
+)
+
+
+@cache
+def single_agent_spec() -> AgentSpec:
+    """All six roles, tools and thinking chains merged into one agent (the ablation)."""
+    specs = agent_specs()
+    tools = tuple(dict.fromkeys(name for spec in specs for name in spec.tools))
+    role = "\n\n".join([SINGLE_AGENT_CYCLE, *(f"{s.name}: {s.role}" for s in specs)])
+    thinking = tuple(f"{spec.name}: {step}" for spec in specs for step in spec.thinking)
+    return AgentSpec(
+        number=0,
+        key="single_agent",
+        name="Single agent (all six roles merged)",
+        role=role,
+        tools=tools,
+        thinking=thinking,
+        output_model=SingleAgentAnswer,
+    )

@@ -1,7 +1,8 @@
 """An evaluation run: trials of one method on one pattern, written to an output directory.
 
 results.jsonl gets one line per finished trial, flushed as it finishes; summary.json and
-summary.md are written at the end.
+summary.md are written at the end; with transcripts, transcripts/trial_NNN.jsonl holds every
+agent call of trial NNN.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from actionreasoning.errors import ConfigError
 from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.snapshots import SnapshotRecorder
 from actionreasoning.eval.summary import RunSummary, summarize, summary_markdown
-from actionreasoning.eval.trial import Method, SuccessRule, TrialSpec, run_trial
+from actionreasoning.eval.trial import Method, SuccessRule, TrialRun, TrialSpec, run_trial
 from actionreasoning.world.models import GoalPattern
 
 RESULTS_FILE = "results.jsonl"
@@ -33,6 +34,7 @@ class RunConfig:
     out: Path
     llm: str = "builtin"
     snapshots: bool = False
+    transcripts: bool = False
 
 
 def prepare_out_dir(out: Path) -> Path:
@@ -44,6 +46,12 @@ def prepare_out_dir(out: Path) -> Path:
         raise ConfigError(f"--out {out} exists and is not a directory")
     out.mkdir(parents=True, exist_ok=True)
     return results
+
+
+def write_transcript(path: Path, run: TrialRun) -> None:
+    """One JSON line per agent call of the trial."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("".join(call.model_dump_json() + "\n" for call in run.transcript))
 
 
 def run_eval(
@@ -69,7 +77,10 @@ def run_eval(
                 if config.snapshots
                 else None
             )
-            result = run_trial(spec, rule, hook)
+            run = run_trial(spec, rule, hook)
+            result = run.result
+            if config.transcripts:
+                write_transcript(config.out / "transcripts" / f"trial_{trial:03d}.jsonl", run)
             sink.write(result.model_dump_json() + "\n")
             sink.flush()
             results.append(result)

@@ -9,10 +9,13 @@ from enum import StrEnum
 
 import numpy as np
 
+from actionreasoning.agents.calls import BuildResult
 from actionreasoning.agents.orchestrator import Orchestrator
+from actionreasoning.agents.single_agent import SingleAgent
+from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.control.classical import StageEvent, run_classical
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
-from actionreasoning.errors import ConfigError, UnreachableError
+from actionreasoning.errors import UnreachableError
 from actionreasoning.eval.metrics import brick_metrics
 from actionreasoning.eval.results import BrickResult, Failure, LLMUsage, TrialMetrics, TrialResult
 from actionreasoning.eval.sim_world import SimWorld
@@ -36,9 +39,6 @@ class Method(StrEnum):
     AGENTS = "agents"
     SINGLE_AGENT = "single-agent"
     CLASSICAL = "classical"
-
-
-AVAILABLE_METHODS = (Method.AGENTS, Method.CLASSICAL)
 
 
 @dataclass(frozen=True)
@@ -101,13 +101,18 @@ def trial_world(spec: TrialSpec) -> Iterator[tuple[Scene, KinematicArm, int]]:
         yield scene, arm, seed
 
 
+@dataclass(frozen=True)
+class TrialRun:
+    """A trial's result and the transcript of its agent calls (empty for classical)."""
+
+    result: TrialResult
+    transcript: tuple[AgentCall, ...]
+
+
 def run_trial(
     spec: TrialSpec, rule: SuccessRule = SuccessRule(), on_stage: StageHook | None = None
-) -> TrialResult:
+) -> TrialRun:
     """Run one trial start to finish; failures become a ``failure`` record, never a crash."""
-    if spec.method not in AVAILABLE_METHODS:
-        available = ", ".join(str(m) for m in AVAILABLE_METHODS)
-        raise ConfigError(f"method '{spec.method}' is not available yet (available: {available})")
     with trial_world(spec) as (scene, arm, seed):
         controller = WaypointController(scene, arm)
 
@@ -118,10 +123,10 @@ def run_trial(
         if spec.method is Method.CLASSICAL:
             outcome = _run_classical(controller, spec.goal, stage)
         else:
-            outcome = _run_agents(controller, spec.goal, stage)
+            outcome = _run_agents(controller, spec, stage)
         scene.step(scene.ticks_for(FINAL_SETTLE_S))
         stage(-1, "final")
-        return _measure(spec, seed, scene, rule, outcome)
+        return TrialRun(_measure(spec, seed, scene, rule, outcome), outcome.transcript)
 
 
 @dataclass(frozen=True)
@@ -131,6 +136,7 @@ class _Outcome:
     placements: dict[int, int]
     failure: Failure | None
     usage: LLMUsage = LLMUsage()
+    transcript: tuple[AgentCall, ...] = ()
 
 
 def _run_classical(
@@ -146,11 +152,23 @@ def _run_classical(
 
 
 def _run_agents(
-    controller: WaypointController, goal: GoalPattern, stage: Callable[[int, str], None]
+    controller: WaypointController, spec: TrialSpec, stage: Callable[[int, str], None]
 ) -> _Outcome:
-    world = SimWorld(controller, goal)
-    build = Orchestrator(world, BuiltinReasoner(READY_POSE), on_stage=stage).build(goal)
-    return _Outcome(placements=build.placements, failure=build.failure, usage=build.usage)
+    """The six gated agents, or the merged single agent, with the built-in reasoner."""
+    world = SimWorld(controller, spec.goal)
+    reasoner = BuiltinReasoner(READY_POSE)
+    runner = (
+        SingleAgent(world, reasoner, on_stage=stage)
+        if spec.method is Method.SINGLE_AGENT
+        else Orchestrator(world, reasoner, on_stage=stage)
+    )
+    build: BuildResult = runner.build(spec.goal)
+    return _Outcome(
+        placements=build.placements,
+        failure=build.failure,
+        usage=build.usage,
+        transcript=tuple(build.transcript),
+    )
 
 
 def _measure(

@@ -7,6 +7,7 @@ the same schemas, verification and gates. It is the offline default and the refe
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -22,6 +23,7 @@ from actionreasoning.agents.outputs import (
     PlacementAnswer,
     PreGraspAnswer,
     ReleaseAnswer,
+    SingleAgentAnswer,
     WaypointProposal,
 )
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
@@ -32,6 +34,20 @@ LIFT_CLEARANCE_M = 0.12
 MIN_LIFT_M = 0.30
 RELEASE_SIDE_M = 0.005
 DESCENT_EXTRA_M = 0.01
+RETREAT_M = 0.08
+
+#: The single agent's cycle: the step that follows the one executed last.
+NEXT_STEP = {
+    "start": "pre_grasp",
+    "pre_grasp": "descent",
+    "descent": "grasp",
+    "grasp": "lift",
+    "lift": "transfer",
+    "transfer": "placement",
+    "placement": "release",
+    "release": "retreat",
+    "retreat": "pre_grasp",
+}
 
 
 class BuiltinReasoner:
@@ -130,6 +146,72 @@ class BuiltinReasoner:
             waypoint=_proposal(self.ready),
             rationale="open just past the brick's width so neighbours are not pushed; go ready",
         )
+
+    def _single_agent(self, request: AgentRequest) -> AgentAnswer:
+        """The merged agent: the same policies, one waypoint of the cycle per call."""
+        step = NEXT_STEP[request.memory.step]
+        state = request.state
+        if step == "pre_grasp" and len(request.memory.placed) == len(state.goal.targets):
+            return SingleAgentAnswer(
+                step="done", waypoint=_proposal(self.ready), rationale="all built: go ready"
+            )
+        here = state.robot.ee_pose
+        if step == "pre_grasp":
+            pick = self._pre_grasp(request)
+            opening = self._descent(_with_brick(request, pick.brick_id)).gripper_opening_m
+            return SingleAgentAnswer(
+                step=step,
+                brick_id=pick.brick_id,
+                target_index=pick.target_index,
+                waypoint=pick.waypoint,
+                gripper="open",
+                gripper_opening_m=opening,
+                rationale=pick.rationale,
+            )
+        if step in ("descent", "lift"):
+            answer = self._descent(request) if step == "descent" else self._lift(request)
+            return SingleAgentAnswer(
+                step=step, waypoint=answer.waypoint, rationale=answer.rationale
+            )
+        if step == "grasp":
+            return SingleAgentAnswer(step=step, gripper="close", rationale="close on the brick")
+        if step in ("transfer", "placement"):
+            slot = self._placement(request).waypoint
+            assert slot is not None
+            x, y, z = slot.position_m
+            if step == "transfer":
+                above = (x, y, max(z, here.position_m[2]))
+                return SingleAgentAnswer(
+                    step=step,
+                    waypoint=WaypointProposal(position_m=above, quat_xyzw=slot.quat_xyzw),
+                    rationale="carry the brick above its slot",
+                )
+            return SingleAgentAnswer(
+                step=step,
+                waypoint=WaypointProposal(
+                    position_m=slot.position_m, quat_xyzw=slot.quat_xyzw, path="linear"
+                ),
+                rationale="straight down onto the slot",
+            )
+        if step == "release":
+            release = self._release(request)
+            return SingleAgentAnswer(
+                step=step,
+                gripper="open",
+                gripper_opening_m=release.gripper_opening_m,
+                rationale=release.rationale,
+            )
+        x, y, z = here.position_m
+        up = Pose(position_m=(x, y, z + RETREAT_M), quat_xyzw=here.quat_xyzw)
+        return SingleAgentAnswer(
+            step=step, waypoint=_proposal(up, path="linear"), rationale="straight up"
+        )
+
+
+def _with_brick(request: AgentRequest, brick: int | None) -> AgentRequest:
+    """The request with ``brick`` as the current brick of its memory."""
+    memory = request.memory.model_copy(update={"current_brick": brick})
+    return dataclasses.replace(request, memory=memory)
 
 
 def _current(request: AgentRequest) -> int:

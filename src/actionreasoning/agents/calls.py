@@ -1,0 +1,138 @@
+"""Asking a reasoner on an agent's behalf, and the record of a build.
+
+Shared by the gated orchestrator and the single-agent ablation: observe the world, render
+the prompt, let the reasoner call the agent's whitelisted tools, and log every call in
+the transcript of the :class:`BuildResult`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from actionreasoning.agents.gates import GateVerdict
+from actionreasoning.agents.memory import TaskMemory
+from actionreasoning.agents.outputs import AgentAnswer
+from actionreasoning.agents.prompt import render_prompt
+from actionreasoning.agents.reasoner import AgentRequest, Reasoner
+from actionreasoning.agents.spec import AgentSpec
+from actionreasoning.agents.transcript import AgentCall, GateRecord, Outcome, ToolRecord
+from actionreasoning.agents.world import World
+from actionreasoning.errors import ActionReasoningError, ToolError
+from actionreasoning.records import Failure, LLMUsage
+from actionreasoning.tools.base import ToolContext, ToolModel
+from actionreasoning.tools.registry import call_tool
+from actionreasoning.world.models import Progress, WorldState
+from actionreasoning.world.tolerances import Tolerances
+
+#: Called with (brick id, stage name) after each stage a build finished, for snapshots.
+StageHook = Callable[[int, str], None]
+
+
+class TrialStopped(ActionReasoningError):
+    """Raised inside a build when it cannot go on; carries the failure."""
+
+    def __init__(self, reason: str, agent: str | None, detail: str) -> None:
+        super().__init__(f"{reason} ({agent}): {detail}")
+        self.failure = Failure(reason=reason, agent=agent, detail=detail)
+
+
+@dataclass
+class BuildResult:
+    """What a build did: target -> brick, LLM usage, every agent call, a failure if any."""
+
+    placements: dict[int, int] = field(default_factory=dict)
+    usage: LLMUsage = LLMUsage()
+    decisions: int = 0
+    failure: Failure | None = None
+    transcript: list[AgentCall] = field(default_factory=list)
+
+
+class AgentCaller:
+    """Puts an agent's request to the reasoner and writes the transcript."""
+
+    def __init__(
+        self, world: World, reasoner: Reasoner, tolerances: Tolerances, result: BuildResult
+    ) -> None:
+        self.world = world
+        self.reasoner = reasoner
+        self.tol = tolerances
+        self.result = result
+
+    def ask(
+        self, spec: AgentSpec, memory: TaskMemory, attempt: int
+    ) -> tuple[AgentAnswer, WorldState]:
+        """The reasoner's answer for agent ``spec`` now, and the state it was given."""
+        progress = Progress(
+            placed_ids=tuple(p.brick_id for p in memory.placed),
+            current_brick=memory.current_brick,
+            step=spec.key,
+        )
+        state = self.world.observe(progress)
+        context = self.world.tools(state)
+        prompt = render_prompt(spec, state, memory, self.tol)
+        tool_calls: list[ToolRecord] = []
+        reply = self.reasoner.decide(
+            AgentRequest(
+                spec=spec,
+                prompt=prompt,
+                state=state,
+                memory=memory,
+                tolerances=self.tol,
+                call_tool=lambda name, args: _run_tool(spec, context, name, args, tool_calls),
+            )
+        )
+        self.result.decisions += 1
+        self.result.usage += reply.usage
+        self.result.transcript.append(
+            AgentCall(
+                call=len(self.result.transcript),
+                agent=spec.key,
+                brick=memory.current_brick,
+                target=memory.current_target,
+                attempt=attempt,
+                prompt_chars=len(prompt),
+                answer=reply.answer.model_dump(mode="json"),
+                tool_calls=tool_calls,
+                usage=reply.usage,
+            )
+        )
+        if not isinstance(reply.answer, spec.output_model):
+            raise TrialStopped("invalid_output", spec.key, "answer of the wrong schema")
+        return reply.answer, state
+
+    def conclude(self, outcome: Outcome, feedback: str = "") -> None:
+        """Note in the transcript what became of the last answer."""
+        call = self.result.transcript[-1]
+        call.outcome, call.feedback = outcome, feedback
+
+    def judge(self, verdict: GateVerdict) -> GateVerdict:
+        """Record a gate's verdict with the last answer; the caller acts on it."""
+        self.result.transcript[-1].gates.append(GateRecord.of(verdict))
+        return verdict
+
+    def measure(self, state: WorldState, name: str, **arguments: Any) -> Any:
+        """A tool run for verification and gates (not an agent's tool call)."""
+        return call_tool(name, arguments, self.world.tools(state))
+
+
+def _run_tool(
+    spec: AgentSpec,
+    context: ToolContext,
+    name: str,
+    arguments: Mapping[str, Any],
+    log: list[ToolRecord],
+) -> ToolModel:
+    """Run a tool of the agent's knowledge base for the reasoner, and log it."""
+    record = ToolRecord(name=name[:64], arguments=dict(arguments))
+    log.append(record)
+    try:
+        if name not in spec.tools:
+            raise ToolError(f"tool {name[:60]!r} is not in the knowledge base of {spec.key}")
+        result = call_tool(name, arguments, context)
+    except ToolError as error:
+        record.error = str(error)
+        raise
+    record.result = result.model_dump(mode="json")
+    return result

@@ -1,0 +1,101 @@
+"""The paper's single-agent ablation: one merged prompt per waypoint, no stage gating.
+
+One agent holds all six roles, tools and thinking chains and answers the next waypoint of
+the cycle with a gripper command. Its answers are validated (schema, unit quaternion,
+known brick and target) and the controller's limits still hold (an unreachable pose is
+refused), but nothing is verified or gated: no collision check before a move, no force
+check after the grasp, no slip or alignment check, no retries with feedback.
+"""
+
+from __future__ import annotations
+
+from typing import cast
+
+from actionreasoning.agents.calls import AgentCaller, BuildResult, StageHook, TrialStopped
+from actionreasoning.agents.memory import PlacedBrick, TaskMemory
+from actionreasoning.agents.outputs import SingleAgentAnswer, unit_waypoint
+from actionreasoning.agents.reasoner import Reasoner
+from actionreasoning.agents.spec import single_agent_spec
+from actionreasoning.agents.transcript import Outcome
+from actionreasoning.agents.world import World
+from actionreasoning.errors import UnreachableError
+from actionreasoning.records import Failure
+from actionreasoning.world.models import GoalPattern, WorldState
+from actionreasoning.world.tolerances import Tolerances
+
+#: Waypoints the agent may spend per brick (a full cycle takes eight), plus one to finish.
+WAYPOINTS_PER_BRICK = 12
+FULL_OPENING_M = 0.16
+
+
+class SingleAgent:
+    """Runs the merged agent over a goal, one waypoint per call, against a :class:`World`."""
+
+    def __init__(
+        self,
+        world: World,
+        reasoner: Reasoner,
+        tolerances: Tolerances = Tolerances(),
+        on_stage: StageHook | None = None,
+    ) -> None:
+        self.world = world
+        self.spec = single_agent_spec()
+        self.on_stage = on_stage
+        self.result = BuildResult()
+        self.calls = AgentCaller(world, reasoner, tolerances, self.result)
+        self.memory = TaskMemory(step="start")
+
+    def build(self, goal: GoalPattern) -> BuildResult:
+        """Ask for waypoints and run them until the agent is done or the budget is spent."""
+        budget = WAYPOINTS_PER_BRICK * len(goal.targets) + 1
+        try:
+            for call in range(budget):
+                answer, state = self.calls.ask(self.spec, self.memory, attempt=call + 1)
+                self._execute(cast(SingleAgentAnswer, answer), state)
+                self.calls.conclude(Outcome.EXECUTED)
+                if answer.step == "done":
+                    return self.result
+            raise TrialStopped("budget_exhausted", self.spec.key, f"{budget} waypoints spent")
+        except TrialStopped as stop:
+            self.result.failure = stop.failure
+        except UnreachableError as error:
+            self.result.failure = Failure(
+                reason="unreachable", agent=self.spec.key, detail=str(error)
+            )
+        return self.result
+
+    def _execute(self, answer: SingleAgentAnswer, state: WorldState) -> None:
+        """Validate the answer's data, move, grip, and keep the memory of the cycle."""
+        update: dict[str, object] = {"step": answer.step}
+        if answer.step == "pre_grasp":
+            if answer.brick_id is None or answer.target_index is None:
+                raise TrialStopped(
+                    "invalid_output", self.spec.key, "pre_grasp names no brick_id or target_index"
+                )
+            if answer.brick_id not in {b.id for b in state.bricks}:
+                raise TrialStopped("invalid_output", self.spec.key, f"no brick {answer.brick_id}")
+            if answer.target_index >= len(state.goal.targets):
+                raise TrialStopped(
+                    "invalid_output", self.spec.key, f"no target {answer.target_index}"
+                )
+            update |= {"current_brick": answer.brick_id, "current_target": answer.target_index}
+        if answer.waypoint is not None:
+            try:
+                waypoint = unit_waypoint(answer.waypoint)
+            except ValueError as error:
+                raise TrialStopped("invalid_output", self.spec.key, str(error)) from None
+            self.world.move(waypoint)
+        if answer.gripper == "open":
+            self.world.grip(answer.gripper_opening_m or FULL_OPENING_M)
+        elif answer.gripper == "close":
+            self.world.grip(None)
+        self.memory = self.memory.model_copy(update=update)
+        brick, target = self.memory.current_brick, self.memory.current_target
+        if brick is None or target is None:
+            return
+        if answer.step == "release":
+            self.result.placements[target] = brick
+            placed = (*self.memory.placed, PlacedBrick(brick_id=brick, target_index=target))
+            self.memory = self.memory.model_copy(update={"placed": placed})
+        if self.on_stage is not None:
+            self.on_stage(brick, answer.step)

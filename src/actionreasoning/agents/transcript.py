@@ -1,0 +1,91 @@
+"""Transcripts: every agent call of a trial, with what was measured to judge it.
+
+One :class:`AgentCall` per request to a reasoner: the agent, the brick, the attempt, the
+size of the rendered prompt, the answer, the tools it called, the gate verdicts with their
+measured values and thresholds, and what became of the answer. ``eval --transcripts``
+writes them as one JSON line per call. Recording never touches the simulator, so a trial
+is the same with and without transcripts.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+from typing import Any
+
+from pydantic import BaseModel, Field
+
+from actionreasoning.agents.gates import GateVerdict
+from actionreasoning.records import LLMUsage
+
+
+class Outcome(StrEnum):
+    """What became of an answer."""
+
+    PENDING = "pending"  # the trial stopped before the answer was judged
+    ACCEPTED = "accepted"
+    REFUSED = "refused"  # failed verification or its gate; the agent is asked again
+    REGRASP = "regrasp"  # sigma_4 = 0: the brick was put back, the cycle restarts at Ag1
+    RAISED = "raised"  # sigma_5 = 0 in contact: raised by delta_h, Ag5 is asked again
+    EXECUTED = "executed"  # single-agent ablation: run without a gate
+
+
+class CheckRecord(BaseModel):
+    """One inequality of a gate with its measured value."""
+
+    name: str
+    value: float
+    relation: str
+    threshold: float
+    passed: bool
+
+
+class GateRecord(BaseModel):
+    """A gate's verdict sigma_i and every check behind it."""
+
+    gate: str
+    passed: bool
+    checks: list[CheckRecord]
+
+    @classmethod
+    def of(cls, verdict: GateVerdict) -> GateRecord:
+        """The record of a verdict."""
+        return cls(
+            gate=verdict.gate,
+            passed=verdict.passed,
+            checks=[
+                CheckRecord(
+                    name=c.name,
+                    value=c.value,
+                    relation="<=" if c.at_most else ">=",
+                    threshold=c.threshold,
+                    passed=c.passed,
+                )
+                for c in verdict.checks
+            ],
+        )
+
+
+class ToolRecord(BaseModel):
+    """A tool the reasoner called while answering, with its result."""
+
+    name: str
+    arguments: dict[str, Any]
+    result: dict[str, Any] | None = None
+    error: str | None = None
+
+
+class AgentCall(BaseModel):
+    """One request to a reasoner and everything that followed from its answer."""
+
+    call: int = Field(description="Index of the call in the trial, from 0.")
+    agent: str
+    brick: int | None
+    target: int | None
+    attempt: int = Field(description="Attempt of this agent on this brick, from 1.")
+    prompt_chars: int
+    answer: dict[str, Any]
+    tool_calls: list[ToolRecord] = Field(default_factory=list)
+    gates: list[GateRecord] = Field(default_factory=list)
+    outcome: Outcome = Outcome.PENDING
+    feedback: str = Field("", description="Why the answer was refused, as sent back.")
+    usage: LLMUsage = LLMUsage()
