@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import pybullet as p
 import pytest
 
 from actionreasoning.agents.orchestrator import Orchestrator, target_supports
@@ -17,6 +19,7 @@ from actionreasoning.eval.trial import READY_POSE, Method, TrialSpec, trial_worl
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
+from actionreasoning.world.tolerances import Tolerances
 
 
 @pytest.fixture
@@ -40,10 +43,10 @@ class Scripted:
         return self.builtin.decide(request)
 
 
-def build(goal, reasoner):
+def build(goal, reasoner, world=SimWorld):
     spec = TrialSpec(method=Method.AGENTS, pattern_name="small", goal=goal, run_seed=4, trial=0)
     with trial_world(spec) as (scene, arm, _):
-        result = Orchestrator(SimWorld(WaypointController(scene, arm), goal), reasoner).build(goal)
+        result = Orchestrator(world(WaypointController(scene, arm), goal), reasoner).build(goal)
         scene.step(scene.ticks_for(1.0))
         final = [scene.brick_pose(i)[0] for i in range(len(scene.bricks))]
     return result, final
@@ -61,7 +64,7 @@ def test_a_refused_target_gets_feedback_and_the_wall_is_built(small_goal) -> Non
     result, final = build(small_goal, reasoner)
     assert result.failure is None
     assert sorted(result.placements) == [0, 1, 2]
-    assert result.decisions == 3 * 6 + 1
+    assert result.decisions == 3 * 7 + 1  # Ag5 twice per brick, one refused pre-grasp
     retried = [r for r in reasoner.requests if r.spec.key == "pre_grasp"][1]
     assert retried.memory.last_feedback == "the answer needs brick_id, target_index and waypoint"
     for target, brick in result.placements.items():
@@ -77,3 +80,94 @@ def test_a_spent_budget_is_a_typed_failure(small_goal) -> None:
     assert result.failure.agent == "pre_grasp"
     assert "target 2 rests on targets [0, 1], not built yet" in result.failure.detail
     assert result.placements == {}
+
+
+SNAG_MASS_KG = 40.0
+
+
+class SnaggedFirstLift(SimWorld):
+    """The first brick grasped weighs 40 kg until the gripper lets go of it: it must slip."""
+
+    snagged: int | None = None
+    done = False
+
+    def grip(self, opening_m: float | None) -> None:
+        scene = self.controller.scene
+        if opening_m is None and self.snagged is None:
+            tcp = scene.tcp_pose()[0]
+            self.snagged = min(
+                range(len(scene.bricks)), key=lambda i: math.dist(scene.brick_pose(i)[0], tcp)
+            )
+            self._set_mass(SNAG_MASS_KG)
+        elif opening_m is not None and self.snagged is not None and not self.done:
+            self._set_mass(scene.spec.brick_mass_kg)
+            self.done = True
+        super().grip(opening_m)
+
+    def _set_mass(self, mass_kg: float) -> None:
+        scene = self.controller.scene
+        brick = scene.bricks[self.snagged]
+        p.changeDynamics(brick, -1, mass=mass_kg, physicsClientId=scene.client)
+
+
+@pytest.mark.slow
+def test_a_slip_in_the_lift_puts_the_brick_back_and_grasps_it_again(small_goal) -> None:
+    reasoner = Scripted(pre_grasp=[])
+    result, final = build(small_goal, reasoner, world=SnaggedFirstLift)
+    assert result.failure is None, result.failure
+    lifts = [call for call in result.transcript if call.agent == "lift"]
+    slipped, *others = lifts
+    assert slipped.outcome == "regrasp"
+    (sigma4,) = slipped.gates
+    failed = {check.name: check.value for check in sigma4.checks if not check.passed}
+    assert failed["slid_in_hand_m"] > Tolerances().eps_g_m
+    assert all(call.outcome == "accepted" for call in others)
+    # The re-grasp starts at Ag1 with sigma_4's feedback, and the same brick is picked up.
+    again = result.transcript[result.transcript.index(slipped) + 1]
+    assert again.agent == "pre_grasp"
+    assert again.answer["brick_id"] == slipped.brick
+    pre_grasps = [r for r in reasoner.requests if r.spec.key == "pre_grasp"]
+    assert pre_grasps[1].memory.last_feedback.startswith("sigma4_lift failed: ")
+    assert "slid_in_hand_m" in pre_grasps[1].memory.last_feedback
+    for target, brick in result.placements.items():
+        assert center_offset_cm(final[brick], small_goal.targets[target].pose.position_m) < 0.1
+
+
+@dataclass
+class MisplacesFirstSetDown(Scripted):
+    """Sets the first brick down 6 mm off its slot, then answers like the built-in reasoner."""
+
+    misplaced: bool = False
+
+    def decide(self, request: AgentRequest) -> AgentReply:
+        reply = super().decide(request)
+        first_set_down = request.spec.key == "placement" and request.memory.flags.get("placement")
+        if first_set_down and not self.misplaced:
+            self.misplaced = True
+            x, y, z = reply.answer.waypoint.position_m
+            moved = reply.answer.waypoint.model_copy(update={"position_m": (x + 0.006, y, z)})
+            return AgentReply(answer=reply.answer.model_copy(update={"waypoint": moved}))
+        return reply
+
+
+@pytest.mark.slow
+def test_a_misaligned_set_down_is_raised_and_placed_again(small_goal) -> None:
+    reasoner = MisplacesFirstSetDown(pre_grasp=[])
+    result, final = build(small_goal, reasoner)
+    assert result.failure is None, result.failure
+    placements = [call for call in result.transcript if call.agent == "placement"]
+    carry, misplaced, corrected = placements[:3]
+    assert [carry.outcome, misplaced.outcome, corrected.outcome] == [
+        "accepted",
+        "raised",
+        "accepted",
+    ]
+    (sigma5,) = misplaced.gates
+    measured = {check.name: check.value for check in sigma5.checks}
+    assert 0.004 < measured["e_xy_m"] < 0.008
+    assert "e_xy_m" in misplaced.feedback
+    assert corrected.gates[0].passed
+    requests = [r for r in reasoner.requests if r.spec.key == "placement"]
+    assert requests[2].memory.last_feedback == misplaced.feedback
+    for target, brick in result.placements.items():
+        assert center_offset_cm(final[brick], small_goal.targets[target].pose.position_m) < 0.1

@@ -13,7 +13,7 @@ from jsonschema import Draft202012Validator
 
 from actionreasoning.agents.memory import PlacedBrick, TaskMemory
 from actionreasoning.agents.prompt import _ENVIRONMENT, render_prompt
-from actionreasoning.agents.spec import agent_specs
+from actionreasoning.agents.spec import AgentSpec, agent_specs, single_agent_spec
 from actionreasoning.tools.registry import TOOLS
 from actionreasoning.world.geometry import top_down_quat
 from actionreasoning.world.models import BrickState, Pose, RobotState, WorldState
@@ -57,11 +57,11 @@ def test_there_are_six_agents_with_known_tools_and_valid_output_schemas() -> Non
         Draft202012Validator.check_schema(spec.output_model.model_json_schema())
 
 
-@pytest.mark.parametrize("number", range(1, 7))
-def test_every_agent_renders_its_six_parts(number: int) -> None:
-    spec = agent_specs()[number - 1]
+@pytest.mark.parametrize("spec", [*agent_specs(), single_agent_spec()], ids=lambda s: s.key)
+def test_every_agent_renders_its_six_parts(spec: AgentSpec) -> None:
     prompt = render_prompt(spec, STATE, MEMORY, Tolerances())
-    assert prompt.startswith(f"# Agent {number} of 6: {spec.name}")
+    title = f"# Agent {spec.number} of 6: {spec.name}" if spec.number else f"# {spec.name}"
+    assert prompt.startswith(title + "\n")
     for heading in (
         "## Role",
         "## Current environment state S_t",
@@ -106,3 +106,12 @@ def test_prompt_command_prints_what_agent_one_is_sent() -> None:
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("# Agent 1 of 6: Pre-grasp positioning")
     assert "### grasp_candidates" in result.stdout
+
+
+def test_the_single_agent_merges_all_six_roles_tools_and_chains() -> None:
+    merged, specs = single_agent_spec(), agent_specs()
+    assert set(merged.tools) == {tool for spec in specs for tool in spec.tools}
+    assert len(merged.thinking) == sum(len(spec.thinking) for spec in specs)
+    for spec in specs:
+        assert spec.role in merged.role
+    Draft202012Validator.check_schema(merged.output_model.model_json_schema())

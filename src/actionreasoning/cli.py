@@ -14,7 +14,7 @@ from rich.table import Table
 
 from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.prompt import render_prompt
-from actionreasoning.agents.spec import agent_specs
+from actionreasoning.agents.spec import SINGLE_AGENT_START, agent_specs, single_agent_spec
 from actionreasoning.errors import ActionReasoningError, ConfigError
 from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.run import RunConfig, run_eval
@@ -210,7 +210,12 @@ def _evaluate(
 
 @app.command("prompt")
 def prompt_command(
-    agent: Annotated[int, typer.Option(min=1, max=6, help="Agent number, 1 (pre-grasp) to 6.")],
+    agent: Annotated[
+        int,
+        typer.Option(
+            min=0, max=6, help="Agent number, 1 (pre-grasp) to 6; 0 is the merged single agent."
+        ),
+    ],
     pattern: PatternOption = "pyramid",
     seed: Annotated[int, typer.Option(help="Run seed; the scene is that of trial 0.")] = 0,
 ) -> None:
@@ -219,11 +224,12 @@ def prompt_command(
         goal = load_pattern(pattern, SceneSpec())
     except ActionReasoningError as error:
         _fail(error)
-    spec = agent_specs()[agent - 1]
+    spec = agent_specs()[agent - 1] if agent else single_agent_spec()
     trial = TrialSpec(method=Method.AGENTS, pattern_name=pattern, goal=goal, run_seed=seed, trial=0)
     with trial_world(trial) as (scene, _, _):
         state = perceive(scene, goal, BuildProgress(step=spec.key))
-    print(render_prompt(spec, state, TaskMemory(step=spec.key), Tolerances()), end="")
+    memory = TaskMemory(step=spec.key if agent else SINGLE_AGENT_START)
+    print(render_prompt(spec, state, memory, Tolerances()), end="")
 
 
 @app.command("pattern")

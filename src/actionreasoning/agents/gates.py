@@ -95,11 +95,17 @@ def sigma3_grasp(
     )
 
 
-def sigma4_lift(slip: SlipEstimate, pads: ContactForces, tol: Tolerances) -> GateVerdict:
-    """Brick speed relative to the gripper <= v_th, and friction f_t <= mu f_n on both pads."""
+def sigma4_lift(
+    slip: SlipEstimate, slid_m: float, pads: ContactForces, tol: Tolerances
+) -> GateVerdict:
+    """Still held (f_n >= f_min on both pads), moved in the hand by at most eps_g during the
+    lift, brick speed relative to the gripper <= v_th, and friction f_t <= mu f_n on both pads.
+    """
     return GateVerdict(
         "sigma4_lift",
         (
+            Check("normal_force_n", min(pads.normal_n), tol.f_min_n, at_most=False),
+            Check("slid_in_hand_m", slid_m, tol.eps_g_m, at_most=True),
             Check("relative_speed_mps", slip.relative_speed_mps, tol.v_th_mps, at_most=True),
             Check("friction_margin_n", pads.friction_margin_n, 0.0, at_most=False),
         ),

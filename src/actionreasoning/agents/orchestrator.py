@@ -25,7 +25,7 @@ from actionreasoning.agents.reasoner import Reasoner
 from actionreasoning.agents.spec import agent_specs
 from actionreasoning.agents.transcript import Outcome
 from actionreasoning.agents.world import World
-from actionreasoning.errors import UnreachableError
+from actionreasoning.errors import ToolError, UnreachableError
 from actionreasoning.records import Failure
 from actionreasoning.world.geometry import quat_yaw
 from actionreasoning.world.models import GoalPattern, Progress, WorldState
@@ -96,6 +96,10 @@ class Orchestrator:
         except UnreachableError as error:
             self.result.failure = Failure(
                 reason="unreachable", agent=self.memory.step, detail=str(error)
+            )
+        except ToolError as error:
+            self.result.failure = Failure(
+                reason="tool_error", agent=self.memory.step, detail=str(error)
             )
         return self.result
 
@@ -243,11 +247,13 @@ class Orchestrator:
             raise _Refused("the answer needs a waypoint")
         waypoint = _checked(answer.waypoint, path="linear")
         start = state.robot.ee_pose
+        grasped = self.calls.measure(state, "slip_estimate", brick_id=brick).offset_in_gripper_m
         self.world.move(waypoint)
         after = self.world.observe(Progress(current_brick=brick, step="lift"))
         slip = self.calls.measure(after, "slip_estimate", brick_id=brick)
         pads = self.calls.measure(after, "finger_contacts", brick_id=brick)
-        verdict = self.calls.judge(gates.sigma4_lift(slip, pads, self.tol))
+        slid = math.dist(grasped, slip.offset_in_gripper_m)
+        verdict = self.calls.judge(gates.sigma4_lift(slip, slid, pads, self.tol))
         if verdict.passed:
             return
         # sigma_4 = 0: put the brick back down, let go, and start again at Ag1.
@@ -284,23 +290,31 @@ class Orchestrator:
     def _carry_over_slot(self, answer: Any, state: WorldState, brick: int) -> None:
         """Carry the brick over the proposed slot, once the way there and down is clear."""
         slot = self._slot(answer)
-        x, y, z = slot.position_m
-        above = WaypointProposal(
-            position_m=(x, y, max(state.robot.ee_pose.position_m[2], z)), quat_xyzw=slot.quat_xyzw
-        )
-        opening = state.robot.gripper_width_m
+        above = _above(slot, state)
         transfer = self.calls.measure(
-            state, "collision_check", pose=_pose(above), path="joint", gripper_opening_m=opening
+            state,
+            "collision_check",
+            pose=_pose(above),
+            path="joint",
+            gripper_opening_m=state.robot.gripper_width_m,
         )
         self._check_descent(state, slot, start=above, path=transfer)
         self.world.move(above)
 
     def _set_down(self, answer: Any, state: WorldState, brick: int) -> WaypointProposal:
-        """Set the brick down on the (re-measured) slot, stopping where it touches."""
+        """Set the brick down on the (re-measured) slot: over it, then straight down until
+        it touches."""
         slot = self._slot(answer)
-        here = state.robot.ee_pose
-        start = WaypointProposal(position_m=here.position_m, quat_xyzw=here.quat_xyzw)
-        self._check_descent(state, slot, start=start)
+        above = _above(slot, state, path="linear")
+        shift = self.calls.measure(
+            state,
+            "collision_check",
+            pose=_pose(above),
+            start_pose=state.robot.ee_pose.model_dump(),
+            gripper_opening_m=state.robot.gripper_width_m,
+        )
+        self._check_descent(state, slot, start=above, path=shift)
+        self.world.move(above)
         x, y, z = slot.position_m
         down = WaypointProposal(
             position_m=(x, y, z - SET_DOWN_OVERSHOOT_M), quat_xyzw=slot.quat_xyzw, path="linear"
@@ -358,6 +372,13 @@ class Orchestrator:
         self.world.grip(answer.gripper_opening_m)
         self.world.move(retreat)
         self.world.move(ready)
+
+
+def _above(slot: WaypointProposal, state: WorldState, path: str = "joint") -> WaypointProposal:
+    """The tool over ``slot`` at the current height (or the slot's, if higher)."""
+    x, y, z = slot.position_m
+    height = max(state.robot.ee_pose.position_m[2], z)
+    return WaypointProposal(position_m=(x, y, height), quat_xyzw=slot.quat_xyzw, path=path)  # type: ignore[arg-type]
 
 
 def _pose(waypoint: WaypointProposal) -> dict[str, Any]:

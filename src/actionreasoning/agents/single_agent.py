@@ -15,7 +15,7 @@ from actionreasoning.agents.calls import AgentCaller, BuildResult, StageHook, Tr
 from actionreasoning.agents.memory import PlacedBrick, TaskMemory
 from actionreasoning.agents.outputs import SingleAgentAnswer, unit_waypoint
 from actionreasoning.agents.reasoner import Reasoner
-from actionreasoning.agents.spec import single_agent_spec
+from actionreasoning.agents.spec import SINGLE_AGENT_START, single_agent_spec
 from actionreasoning.agents.transcript import Outcome
 from actionreasoning.agents.world import World
 from actionreasoning.errors import UnreachableError
@@ -43,7 +43,7 @@ class SingleAgent:
         self.on_stage = on_stage
         self.result = BuildResult()
         self.calls = AgentCaller(world, reasoner, tolerances, self.result)
-        self.memory = TaskMemory(step="start")
+        self.memory = TaskMemory(step=SINGLE_AGENT_START)
 
     def build(self, goal: GoalPattern) -> BuildResult:
         """Ask for waypoints and run them until the agent is done or the budget is spent."""

@@ -54,6 +54,8 @@ def agent_specs() -> tuple[AgentSpec, ...]:
     return tuple(specs)
 
 
+#: The single agent's task-memory step before its first waypoint.
+SINGLE_AGENT_START = "start"
 SINGLE_AGENT_CYCLE = (
     "Per brick, answer one waypoint per call in this order: pre_grasp (name brick_id and "
     "target_index; the approach pose above the brick, then open the gripper), descent (straight "

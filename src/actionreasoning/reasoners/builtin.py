@@ -27,6 +27,7 @@ from actionreasoning.agents.outputs import (
     WaypointProposal,
 )
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
+from actionreasoning.agents.spec import SINGLE_AGENT_START
 from actionreasoning.world.geometry import quat_yaw, top_down_quat, wrap_angle
 from actionreasoning.world.models import Pose
 
@@ -38,7 +39,7 @@ RETREAT_M = 0.08
 
 #: The single agent's cycle: the step that follows the one executed last.
 NEXT_STEP = {
-    "start": "pre_grasp",
+    SINGLE_AGENT_START: "pre_grasp",
     "pre_grasp": "descent",
     "descent": "grasp",
     "grasp": "lift",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from actionreasoning.sim.robot_model import FINGER_PAD_BELOW_TCP_M
+from actionreasoning.sim.robot_model import FINGER_MAX_M, FINGER_MIN_M, FINGER_PAD_BELOW_TCP_M
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.geometry import tilt_deg
 from actionreasoning.world.models import (
@@ -37,7 +37,8 @@ def perceive(scene: Scene, goal: GoalPattern, progress: Progress = Progress()) -
     robot = RobotState(
         ee_pose=Pose(position_m=tcp_position, quat_xyzw=tcp_quat),
         joint_positions_rad=tuple(float(q) for q in joints),
-        gripper_width_m=left + right,
+        # The pads' joint limits bound the gap; the solver can overshoot them by microns.
+        gripper_width_m=min(max(left + right, 2 * FINGER_MIN_M), 2 * FINGER_MAX_M),
         finger_depth_m=FINGER_PAD_BELOW_TCP_M,
         finger_forces_n=normal,
         finger_tangential_n=tangential,
