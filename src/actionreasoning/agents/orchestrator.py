@@ -47,7 +47,14 @@ class Budgets:
 
 
 class _Refused(Exception):
-    """An answer refused by verification or a gate; the message is the agent's feedback."""
+    """An answer refused by verification or a gate; the message is the agent's feedback.
+
+    ``reason`` is the failure code the trial ends with if the agent's budget runs out.
+    """
+
+    def __init__(self, feedback: str, reason: str = "invalid_output") -> None:
+        super().__init__(feedback)
+        self.reason = reason
 
 
 class _Regrasp(Exception):
@@ -127,17 +134,25 @@ class Orchestrator:
         )
         self.result.placements[target] = brick
 
-    def _stage(self, key: str, act: Callable[[AgentAnswer, WorldState], Any]) -> Any:
-        """Ask agent ``key`` until ``act`` accepts its answer, within the retry budget."""
+    def _stage(
+        self, key: str, act: Callable[[AgentAnswer, WorldState], Any], label: str | None = None
+    ) -> Any:
+        """Ask agent ``key`` until ``act`` accepts its answer, within the retry budget.
+
+        ``label`` names the finished stage for the stage hook (default: ``key``).
+        """
         self.memory = self.memory.model_copy(update={"step": key})
+        reason = "budget_exhausted"
         for attempt in range(1, self.budgets.attempts_per_agent + 1):
             answer, state = self.calls.ask(self.specs[key], self.memory, attempt)
             try:
                 outcome = act(answer, state)
             except _Refused as refusal:
+                reason = refusal.reason
                 self._remember(key, attempt, str(refusal))
                 continue
             except UnreachableError as error:
+                reason = "unreachable"
                 self._remember(key, attempt, f"unreachable: {error}")
                 continue
             except _Regrasp as regrasp:
@@ -147,19 +162,23 @@ class Orchestrator:
             flags = {**self.memory.flags, key: True}
             self.memory = self.memory.model_copy(update={"flags": flags, "last_feedback": ""})
             if self.on_stage is not None and self.memory.current_brick is not None:
-                self.on_stage(self.memory.current_brick, key)
+                self.on_stage(self.memory.current_brick, label or key)
             return outcome
-        raise TrialStopped("budget_exhausted", key, self.memory.last_feedback)
+        raise TrialStopped(
+            reason,
+            key,
+            f"{self.budgets.attempts_per_agent} answers refused; last: {self.memory.last_feedback}",
+        )
 
     def _remember(self, key: str, attempt: int, feedback: str) -> None:
         self.calls.conclude(Outcome.REFUSED, feedback)
         retries = {**self.memory.retries, key: attempt}
         self.memory = self.memory.model_copy(update={"retries": retries, "last_feedback": feedback})
 
-    def _gate(self, verdict: gates.GateVerdict) -> None:
-        """Record a verdict and refuse the answer if it failed."""
+    def _gate(self, verdict: gates.GateVerdict, reason: str) -> None:
+        """Record a verdict and refuse the answer (failure code ``reason``) if it failed."""
         if not self.calls.judge(verdict).passed:
-            raise _Refused(verdict.feedback)
+            raise _Refused(verdict.feedback, reason)
 
     # --- the agents' acts ---------------------------------------------------------------
     def _pre_grasp(
@@ -171,14 +190,19 @@ class Orchestrator:
         used = {p.brick_id for p in self.memory.placed}
         target, brick = answer.target_index, answer.brick_id
         if target >= len(state.goal.targets) or target in built:
-            raise _Refused(f"target {target} does not exist or is already built")
+            raise _Refused(f"target {target} does not exist or is already built", "invalid_choice")
         missing = [t for t in supports[target] if t not in built]
         if missing:
-            raise _Refused(f"target {target} rests on targets {missing}, not built yet")
+            raise _Refused(
+                f"target {target} rests on targets {missing}, not built yet", "invalid_choice"
+            )
         if brick in used or brick not in {b.id for b in state.bricks}:
-            raise _Refused(f"brick {brick} does not exist or is already placed")
+            raise _Refused(f"brick {brick} does not exist or is already placed", "invalid_choice")
         if state.brick(brick).status != "in_pick_area":
-            raise _Refused(f"brick {brick} is {state.brick(brick).status}, not in the pick area")
+            raise _Refused(
+                f"brick {brick} is {state.brick(brick).status}, not in the pick area",
+                "invalid_choice",
+            )
         waypoint = _checked(answer.waypoint, path="joint")
         path = self.calls.measure(
             state,
@@ -188,7 +212,7 @@ class Orchestrator:
             gripper_opening_m=state.robot.gripper_width_m,
             ignore_brick_id=brick,
         )
-        self._gate(gates.sigma1_pre_grasp(path, self.tol))
+        self._gate(gates.sigma1_pre_grasp(path, self.tol), "collision")
         self.memory = self.memory.model_copy(
             update={"current_brick": brick, "current_target": target}
         )
@@ -213,12 +237,15 @@ class Orchestrator:
             ignore_brick_id=brick,
         )
         if not path.collision_free:
-            raise _Refused(f"descent path collides: {path.closest} ({path.clearance_m:.3f} m)")
+            raise _Refused(
+                f"descent path collides: {path.closest} ({path.clearance_m:.3f} m)", "collision"
+            )
         self.world.grip(answer.gripper_opening_m)
         self.world.move(waypoint)
         after = self.world.observe(Progress(current_brick=brick, step="descent"))
         pads = self.calls.measure(after, "finger_contacts", brick_id=brick)
-        self._gate(gates.sigma2_descent(after.robot.gripper_width_m, width, pads, self.tol))
+        sigma2 = gates.sigma2_descent(after.robot.gripper_width_m, width, pads, self.tol)
+        self._gate(sigma2, "descent_blocked")
         return waypoint
 
     def _grasp(self, answer: Any, state: WorldState, brick: int, pose: WaypointProposal) -> None:
@@ -240,7 +267,7 @@ class Orchestrator:
         verdict = self.calls.judge(gates.sigma3_grasp(pads, offset, turn, self.tol))
         if not verdict.passed:
             self.world.grip(0.16)
-            raise _Refused(verdict.feedback)
+            raise _Refused(verdict.feedback, "grasp_failed")
 
     def _lift(self, answer: Any, state: WorldState, brick: int) -> None:
         if answer.waypoint is None:
@@ -267,7 +294,7 @@ class Orchestrator:
 
     def _placement(self, brick: int, target: int) -> None:
         """Ag5 twice: carry the brick over its slot, then, re-measured there, set it down."""
-        self._stage("placement", partial(self._carry_over_slot, brick=brick))
+        self._stage("placement", partial(self._carry_over_slot, brick=brick), label="transfer")
         for _ in range(self.budgets.placement_attempts):
             slot = self._stage("placement", partial(self._set_down, brick=brick))
             state = self.world.observe(Progress(current_brick=brick, step="placement"))
@@ -350,7 +377,7 @@ class Orchestrator:
         )
         for report in (path, descent):
             if report is not None and not report.collision_free:
-                raise _Refused(f"path to the slot collides: {report.closest}")
+                raise _Refused(f"path to the slot collides: {report.closest}", "collision")
 
     def _release(self, answer: Any, state: WorldState, brick: int) -> None:
         if answer.gripper_opening_m is None or answer.waypoint is None:
@@ -368,7 +395,7 @@ class Orchestrator:
             gripper_opening_m=answer.gripper_opening_m,
             ignore_brick_id=brick,
         )
-        self._gate(gates.sigma6_return(path))
+        self._gate(gates.sigma6_return(path), "collision")
         self.world.grip(answer.gripper_opening_m)
         self.world.move(retreat)
         self.world.move(ready)

@@ -51,10 +51,15 @@ class SnapshotRecorder:
 
 
 def save_sheet(rows: dict[int, list[tuple[str, np.ndarray]]], path: Path) -> None:
-    """A grid of stage images: one row per brick, stage names as column titles."""
+    """A grid of stage images: one row per brick, stage names as column titles.
+
+    A picture whose stage differs from the first row's in its column (a re-grasp, an extra
+    waypoint) gets its own title.
+    """
     n_rows, n_cols = len(rows), max(len(r) for r in rows.values())
     figure = Figure(figsize=(1.9 * n_cols, 1.5 * n_rows), dpi=100)
     axes = figure.subplots(n_rows, n_cols, squeeze=False)
+    ordered = [row for _, row in sorted(rows.items())]
     for r, (brick, row) in enumerate(sorted(rows.items())):
         for c, axis in enumerate(axes[r]):
             axis.set_xticks([])
@@ -62,7 +67,7 @@ def save_sheet(rows: dict[int, list[tuple[str, np.ndarray]]], path: Path) -> Non
             if c < len(row):
                 stage, image = row[c]
                 axis.imshow(image)
-                if r == 0:
+                if r == 0 or c >= len(ordered[0]) or ordered[0][c][0] != stage:
                     axis.set_title(stage.replace("_", " "), fontsize=9)
             else:
                 axis.set_axis_off()
