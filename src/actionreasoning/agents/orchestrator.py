@@ -32,7 +32,6 @@ from actionreasoning.world.models import GoalPattern, Progress, WorldState
 from actionreasoning.world.support import BrickBox, carriers
 from actionreasoning.world.tolerances import Tolerances
 
-SET_DOWN_OVERSHOOT_M = 0.005
 SEAT_CLEARANCE_M = 0.003
 RETREAT_M = 0.08
 
@@ -329,8 +328,7 @@ class Orchestrator:
         self.world.move(above)
 
     def _set_down(self, answer: Any, state: WorldState, brick: int) -> WaypointProposal:
-        """Set the brick down on the (re-measured) slot: over it, then straight down until
-        it touches."""
+        """Set the brick down on the (re-measured) slot: over it, then straight down onto it."""
         slot = self._slot(answer)
         above = _above(slot, state, path="linear")
         shift = self.calls.measure(
@@ -342,11 +340,9 @@ class Orchestrator:
         )
         self._check_descent(state, slot, start=above, path=shift)
         self.world.move(above)
-        x, y, z = slot.position_m
-        down = WaypointProposal(
-            position_m=(x, y, z - SET_DOWN_OVERSHOOT_M), quat_xyzw=slot.quat_xyzw, path="linear"
-        )
-        self.world.move(down, stop_on_contact=brick)
+        # Onto the slot itself, pressed flat by the position controller; the guard stops the
+        # move early if the brick meets its support above the slot.
+        self.world.move(slot.model_copy(update={"path": "linear"}), stop_on_contact=brick)
         return slot
 
     @staticmethod

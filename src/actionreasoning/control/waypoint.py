@@ -53,8 +53,8 @@ class Waypoint(BaseModel):
     stop_on_contact: int | None = Field(
         None,
         ge=0,
-        description="Brick id: a linear move stops as soon as this brick presses on anything "
-        "but the fingers (a guarded set-down).",
+        description="Brick id: a linear move stops as soon as something other than the "
+        "fingers carries more than the contact force limit of this brick (a guarded set-down).",
     )
 
     @model_validator(mode="after")
@@ -76,7 +76,9 @@ class ControllerLimits:
     settle_max_s: float = 2.0
     joint_tolerance_rad: float = 2e-3
     joint_speed_tolerance_radps: float = 0.02
-    contact_force_n: float = 2.0
+    #: A guarded move stops when its brick's support carries this much: about twice a
+    #: brick's weight, so a brick is pressed flat before the guard trips.
+    contact_force_n: float = 30.0
     gripper_s: float = 0.625
 
 
