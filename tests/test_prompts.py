@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 import pytest
+from conftest import built_state
 from jinja2 import UndefinedError
 from jsonschema import Draft202012Validator
 
@@ -15,29 +16,9 @@ from actionreasoning.agents.memory import PlacedBrick, TaskMemory
 from actionreasoning.agents.prompt import _ENVIRONMENT, render_prompt
 from actionreasoning.agents.spec import AgentSpec, agent_specs, single_agent_spec
 from actionreasoning.tools.registry import TOOLS
-from actionreasoning.world.geometry import top_down_quat
-from actionreasoning.world.models import BrickState, Pose, RobotState, WorldState
-from actionreasoning.world.patterns import load_pattern
-from actionreasoning.world.scene_spec import SceneSpec
 from actionreasoning.world.tolerances import Tolerances
 
-SPEC = SceneSpec()
-GOAL = load_pattern("grid", SPEC)
-STATE = WorldState(
-    time_s=1.5,
-    robot=RobotState(
-        ee_pose=Pose(position_m=(0.45, -0.25, 0.4), quat_xyzw=top_down_quat(0.0)),
-        joint_positions_rad=(0.1,) * 7,
-        gripper_width_m=0.16,
-        finger_depth_m=0.02,
-        finger_forces_n=(0.0, 0.0),
-    ),
-    bricks=tuple(
-        BrickState(id=i, size_m=SPEC.brick_size_m, mass_kg=1.5, friction=0.8, pose=t.pose)
-        for i, t in enumerate(GOAL.targets)
-    ),
-    goal=GOAL,
-)
+STATE = built_state("grid")
 MEMORY = TaskMemory(placed=(PlacedBrick(brick_id=0, target_index=0),), current_brick=1)
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import shutil
+from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
 
@@ -20,6 +21,9 @@ from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.run import RunConfig, run_eval
 from actionreasoning.eval.summary import RunSummary
 from actionreasoning.eval.trial import Method, TrialSpec, trial_world
+from actionreasoning.reasoners.factory import LLMConfig, check_backend
+from actionreasoning.reasoners.llm import LLMLimits
+from actionreasoning.reasoners.openai_chat import ServerOptions
 from actionreasoning.sim.perceive import perceive
 from actionreasoning.world.geometry import quat_yaw
 from actionreasoning.world.models import Progress as BuildProgress
@@ -38,6 +42,27 @@ err_console = Console(stderr=True)
 PatternOption = Annotated[
     str, typer.Option(help="'pyramid', 'grid', or a pattern file (JSON/YAML, see README).")
 ]
+LLMOption = Annotated[
+    str,
+    typer.Option(
+        help="Reasoning backend: builtin, openai:MODEL (any OpenAI-compatible server), "
+        "llamacpp:PATH (a GGUF file, in process) or replay:FILE (a --record file, offline)."
+    ),
+]
+BaseUrlOption = Annotated[
+    str | None,
+    typer.Option(help="Base URL of an OpenAI-compatible server (default: OPENAI_BASE_URL)."),
+]
+TimeoutOption = Annotated[
+    float, typer.Option(min=0.1, help="Seconds to wait for one answer of the model server.")
+]
+
+
+class Fallback(StrEnum):
+    """Who answers a step after the model's repair budget is spent."""
+
+    NONE = "none"
+    BUILTIN = "builtin"
 
 
 def _fail(error: ActionReasoningError) -> None:
@@ -45,15 +70,11 @@ def _fail(error: ActionReasoningError) -> None:
     raise typer.Exit(code=2)
 
 
-def _check_options(
-    method: Method, llm: str, base_url: str | None, workers: int, transcripts: bool
-) -> None:
+def _check_options(method: Method, llm: LLMConfig, workers: int, transcripts: bool) -> None:
     if transcripts and method is Method.CLASSICAL:
         raise ConfigError("--transcripts records agent calls; --method classical makes none")
-    if llm != "builtin":
-        raise ConfigError(f"--llm {llm!r} is not available yet; only 'builtin' is")
-    if base_url is not None:
-        raise ConfigError("--base-url is for --llm openai:MODEL, which is not available yet")
+    if method is Method.CLASSICAL and llm.spec != "builtin":
+        raise ConfigError("--method classical uses no reasoner; drop --llm")
     if workers != 1:
         raise ConfigError("--workers above 1 is not available yet")
 
@@ -121,10 +142,26 @@ def eval_command(
     pattern: PatternOption = "pyramid",
     trials: Annotated[int, typer.Option(min=1, help="Number of trials.")] = 10,
     seed: Annotated[int, typer.Option(help="Run seed; trial k uses a seed from (seed, k).")] = 0,
-    llm: Annotated[str, typer.Option(help="Reasoning backend: builtin.")] = "builtin",
-    base_url: Annotated[
-        str | None, typer.Option(help="Base URL of an OpenAI-compatible server.")
+    llm: LLMOption = "builtin",
+    base_url: BaseUrlOption = None,
+    record: Annotated[
+        Path | None,
+        typer.Option(help="Append every exchange with the model to this file, for replay:FILE."),
     ] = None,
+    fallback: Annotated[
+        Fallback,
+        typer.Option(help="Who answers a step once the model's repair budget is spent."),
+    ] = Fallback.NONE,
+    llm_timeout: TimeoutOption = 60.0,
+    llm_retries: Annotated[
+        int, typer.Option(min=0, help="Retries on connection errors, 429 and 5xx (backoff).")
+    ] = 2,
+    repairs: Annotated[
+        int, typer.Option(min=0, help="Invalid answers sent back to the model per step.")
+    ] = 2,
+    tool_turns: Annotated[
+        int, typer.Option(min=0, help="Rounds of tool calls a model may make per step.")
+    ] = 2,
     workers: Annotated[int, typer.Option(min=1, help="Parallel worker processes.")] = 1,
     snapshots: Annotated[
         bool, typer.Option(help="Write per-stage PNG snapshots of every trial.")
@@ -137,13 +174,23 @@ def eval_command(
         ),
     ] = False,
 ) -> None:
-    """Run randomized trials of one method on one pattern and write results and summaries."""
+    """Run randomized trials of one method on one pattern and write results and summaries.
+
+    The API key of an OpenAI-compatible server comes from OPENAI_API_KEY only.
+    """
+    config = LLMConfig(
+        spec=llm,
+        server=ServerOptions(base_url=base_url, timeout_s=llm_timeout, max_retries=llm_retries),
+        limits=LLMLimits(tool_turns=tool_turns, repairs=repairs),
+        fallback=fallback is Fallback.BUILTIN,
+        record=record,
+    )
     try:
-        _check_options(method, llm, base_url, workers, transcripts)
+        _check_options(method, config, workers, transcripts)
     except ActionReasoningError as error:
         _fail(error)
     _evaluate(
-        method, pattern, trials, seed, out, llm=llm, snapshots=snapshots, transcripts=transcripts
+        method, pattern, trials, seed, out, llm=config, snapshots=snapshots, transcripts=transcripts
     )
 
 
@@ -164,7 +211,7 @@ def demo(
         for name in DEMO_FILES:
             (out / name).unlink(missing_ok=True)
         shutil.rmtree(out / "snapshots", ignore_errors=True)
-    _evaluate(Method.AGENTS, pattern, 1, seed, out, llm="builtin", snapshots=True)
+    _evaluate(Method.AGENTS, pattern, 1, seed, out, llm=LLMConfig(), snapshots=True)
     report = out / "report.md"
     report.write_text(
         (out / "summary.md").read_text()
@@ -183,7 +230,7 @@ def _evaluate(
     seed: int,
     out: Path,
     *,
-    llm: str,
+    llm: LLMConfig,
     snapshots: bool,
     transcripts: bool = False,
 ) -> RunSummary:
@@ -251,3 +298,33 @@ def pattern_command(
             str(target.index), f"{x:.3f}", f"{y:.3f}", f"{z:.3f}", f"{math.degrees(yaw):.1f}"
         )
     console.print(table)
+
+
+llm_app = typer.Typer(help="Language-model backends.", no_args_is_help=True)
+app.add_typer(llm_app, name="llm")
+
+
+@llm_app.command("check")
+def llm_check(
+    llm: LLMOption,
+    base_url: BaseUrlOption = None,
+    llm_timeout: TimeoutOption = 60.0,
+) -> None:
+    """Connect to a backend, send one schema-constrained request, and report what came back."""
+    config = LLMConfig(spec=llm, server=ServerOptions(base_url=base_url, timeout_s=llm_timeout))
+    try:
+        report = check_backend(config)
+    except ActionReasoningError as error:
+        _fail(error)
+    table = Table(title=f"llm check {report.label}", show_header=False)
+    for name, value in (
+        ("model", report.model),
+        ("structured output", report.mode),
+        ("latency", f"{report.latency_s:.2f} s"),
+        ("tokens", f"{report.prompt_tokens} prompt, {report.completion_tokens} completion"),
+        ("answer", ("valid: " if report.valid else "INVALID: ") + report.detail),
+    ):
+        table.add_row(name, value)
+    console.print(table)
+    if not report.valid:
+        raise typer.Exit(code=1)

@@ -4,6 +4,8 @@ Every error a user can cause (bad files, bad options, unreachable targets) is an
 :class:`ActionReasoningError`; the CLI prints its message on one line and exits non-zero.
 """
 
+from actionreasoning.records import LLMUsage
+
 
 class ActionReasoningError(Exception):
     """Base class of every error the project raises on purpose."""
@@ -23,3 +25,21 @@ class UnreachableError(ActionReasoningError):
 
 class ToolError(ActionReasoningError):
     """A tool was called with arguments that name nothing in the world (bad brick id, ...)."""
+
+
+class LLMError(ActionReasoningError):
+    """A language model could not give a valid answer: the server failed or timed out, or
+    every repair of its output was refused. ``reason`` is the trial's failure code."""
+
+    def __init__(
+        self,
+        reason: str,
+        detail: str,
+        repairs: tuple[str, ...] = (),
+        usage: LLMUsage | None = None,
+    ) -> None:
+        super().__init__(f"{reason}: {detail}")
+        self.reason = reason
+        self.detail = detail
+        self.repairs = repairs
+        self.usage = usage or LLMUsage()

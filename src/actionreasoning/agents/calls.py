@@ -19,7 +19,7 @@ from actionreasoning.agents.reasoner import AgentRequest, Reasoner
 from actionreasoning.agents.spec import AgentSpec
 from actionreasoning.agents.transcript import AgentCall, GateRecord, Outcome, ToolRecord
 from actionreasoning.agents.world import World
-from actionreasoning.errors import ActionReasoningError, ToolError
+from actionreasoning.errors import ActionReasoningError, LLMError, ToolError
 from actionreasoning.records import Failure, LLMUsage
 from actionreasoning.tools.base import ToolContext, ToolModel
 from actionreasoning.tools.registry import call_tool
@@ -45,6 +45,7 @@ class BuildResult:
     placements: dict[int, int] = field(default_factory=dict)
     usage: LLMUsage = LLMUsage()
     decisions: int = 0
+    fallbacks: int = 0
     failure: Failure | None = None
     transcript: list[AgentCall] = field(default_factory=list)
 
@@ -73,31 +74,38 @@ class AgentCaller:
         context = self.world.tools(state)
         prompt = render_prompt(spec, state, memory, self.tol)
         tool_calls: list[ToolRecord] = []
-        reply = self.reasoner.decide(
-            AgentRequest(
-                spec=spec,
-                prompt=prompt,
-                state=state,
-                memory=memory,
-                tolerances=self.tol,
-                call_tool=lambda name, args: _run_tool(spec, context, name, args, tool_calls),
-            )
+        call = AgentCall(
+            call=len(self.result.transcript),
+            agent=spec.key,
+            brick=memory.current_brick,
+            target=memory.current_target,
+            attempt=attempt,
+            prompt_chars=len(prompt),
+            answer={},
         )
+        self.result.transcript.append(call)
+        try:
+            reply = self.reasoner.decide(
+                AgentRequest(
+                    spec=spec,
+                    prompt=prompt,
+                    state=state,
+                    memory=memory,
+                    tolerances=self.tol,
+                    call_tool=lambda name, args: _run_tool(spec, context, name, args, tool_calls),
+                )
+            )
+        except LLMError as error:
+            self.result.usage += error.usage
+            call.tool_calls, call.usage, call.repairs = tool_calls, error.usage, list(error.repairs)
+            self.conclude(Outcome.FAILED, error.detail)
+            raise TrialStopped(error.reason, spec.key, error.detail) from None
         self.result.decisions += 1
+        self.result.fallbacks += reply.fallback
         self.result.usage += reply.usage
-        self.result.transcript.append(
-            AgentCall(
-                call=len(self.result.transcript),
-                agent=spec.key,
-                brick=memory.current_brick,
-                target=memory.current_target,
-                attempt=attempt,
-                prompt_chars=len(prompt),
-                answer=reply.answer.model_dump(mode="json"),
-                tool_calls=tool_calls,
-                usage=reply.usage,
-            )
-        )
+        call.answer, call.tool_calls = reply.answer.model_dump(mode="json"), tool_calls
+        call.usage, call.repairs = reply.usage, list(reply.repairs)
+        call.tool_turns, call.fallback = reply.tool_turns, reply.fallback
         if not isinstance(reply.answer, spec.output_model):
             raise TrialStopped("invalid_output", spec.key, "answer of the wrong schema")
         return reply.answer, state

@@ -37,7 +37,8 @@ def _rounded(value: Any) -> Any:
     return value
 
 
-def _compact(data: Any) -> str:
+def compact_json(data: Any) -> str:
+    """Compact JSON with floats rounded as in prompts."""
     return json.dumps(_rounded(data), separators=(",", ":"))
 
 
@@ -50,7 +51,7 @@ def render_prompt(
         {
             "name": name,
             "description": TOOLS[name].description,
-            "schema_json": _compact(TOOLS[name].input_model.model_json_schema()),
+            "schema_json": compact_json(TOOLS[name].input_model.model_json_schema()),
         }
         for name in spec.tools
     ]
@@ -58,10 +59,10 @@ def render_prompt(
         number=spec.number,
         name=spec.name,
         role=spec.role,
-        state_json=_compact(state.model_dump(mode="json")),
-        memory_json=_compact(memory.model_dump(mode="json")),
+        state_json=compact_json(state.model_dump(mode="json")),
+        memory_json=compact_json(memory.model_dump(mode="json")),
         tolerances=tolerances.model_dump(),
         tools=tools,
         thinking=spec.thinking,
-        output_schema_json=_compact(spec.output_model.model_json_schema()),
+        output_schema_json=compact_json(spec.output_model.model_json_schema()),
     )

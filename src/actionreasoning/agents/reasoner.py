@@ -35,10 +35,18 @@ class AgentRequest:
 
 @dataclass(frozen=True)
 class AgentReply:
-    """A validated answer (an instance of the agent's output model) and what it cost."""
+    """A validated answer (an instance of the agent's output model) and what it cost.
+
+    ``repairs`` are the errors that sent the model's earlier outputs back for repair,
+    ``tool_turns`` how many rounds of tool calls it made, and ``fallback`` whether the
+    built-in reasoner answered after the repair budget was spent.
+    """
 
     answer: AgentAnswer
     usage: LLMUsage = LLMUsage()
+    repairs: tuple[str, ...] = ()
+    tool_turns: int = 0
+    fallback: bool = False
 
 
 class Reasoner(Protocol):

@@ -27,6 +27,7 @@ class Outcome(StrEnum):
     REGRASP = "regrasp"  # sigma_4 = 0: the brick was put back, the cycle restarts at Ag1
     RAISED = "raised"  # sigma_5 = 0 in contact: raised by delta_h, Ag5 is asked again
     EXECUTED = "executed"  # single-agent ablation: run without a gate
+    FAILED = "failed"  # the model gave no valid answer, or its server failed
 
 
 class CheckRecord(BaseModel):
@@ -88,4 +89,17 @@ class AgentCall(BaseModel):
     gates: list[GateRecord] = Field(default_factory=list)
     outcome: Outcome = Outcome.PENDING
     feedback: str = Field("", description="Why the answer was refused, as sent back.")
+    repairs: list[str] = Field(
+        default_factory=list, description="Why the model's earlier outputs were sent back."
+    )
+    tool_turns: int = 0
+    fallback: bool = Field(False, description="Answered by the built-in reasoner instead.")
     usage: LLMUsage = LLMUsage()
+
+    @property
+    def brick_in_hand(self) -> int | None:
+        """The brick this call was about (for Ag1: the brick it chose)."""
+        if self.brick is not None:
+            return self.brick
+        chosen = self.answer.get("brick_id")
+        return chosen if isinstance(chosen, int) else None

@@ -31,6 +31,7 @@ class BrickResult(_Record):
     rotation_error_deg: float
     symmetric_rotation_error_deg: float
     iou: float
+    llm_usage: LLMUsage = LLMUsage()
 
 
 class TrialMetrics(_Record):
@@ -57,4 +58,7 @@ class TrialResult(_Record):
     metrics: TrialMetrics
     failure: Failure | None
     llm_usage: LLMUsage = LLMUsage()
+    llm_usage_by_agent: dict[str, LLMUsage] = {}
+    decisions: int = 0
+    fallback_decisions: int = 0
     sim_steps: int

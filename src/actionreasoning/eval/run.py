@@ -17,6 +17,7 @@ from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.snapshots import SnapshotRecorder
 from actionreasoning.eval.summary import RunSummary, summarize, summary_markdown
 from actionreasoning.eval.trial import Method, SuccessRule, TrialRun, TrialSpec, run_trial
+from actionreasoning.reasoners.factory import LLMConfig, prepare
 from actionreasoning.world.models import GoalPattern
 
 RESULTS_FILE = "results.jsonl"
@@ -32,7 +33,7 @@ class RunConfig:
     trials: int
     seed: int
     out: Path
-    llm: str = "builtin"
+    llm: LLMConfig = LLMConfig()
     snapshots: bool = False
     transcripts: bool = False
 
@@ -59,6 +60,7 @@ def run_eval(
 ) -> RunSummary:
     """Run every trial, append each result as it finishes, then write the summaries."""
     results_path = prepare_out_dir(config.out)
+    llm = prepare(config.llm) if config.method is not Method.CLASSICAL else config.llm
     rule = SuccessRule()
     started = time.perf_counter()
     results: list[TrialResult] = []
@@ -70,7 +72,7 @@ def run_eval(
                 goal=config.goal,
                 run_seed=config.seed,
                 trial=trial,
-                llm=config.llm,
+                llm=llm,
             )
             hook = (
                 SnapshotRecorder(config.out / "snapshots" / f"trial_{trial:03d}")
@@ -86,7 +88,8 @@ def run_eval(
             results.append(result)
             if on_trial is not None:
                 on_trial(result)
-    summary = summarize(results, time.perf_counter() - started, rule)
+    mode = None if llm.mode is None else str(llm.mode)
+    summary = summarize(results, time.perf_counter() - started, rule, llm_mode=mode)
     (config.out / "summary.json").write_text(summary.model_dump_json(indent=2) + "\n")
     (config.out / "summary.md").write_text(summary_markdown(summary))
     return summary

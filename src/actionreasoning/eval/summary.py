@@ -36,12 +36,17 @@ class RunSummary(BaseModel):
     successes: int
     success_rate: float
     bricks_placed_mean: float
+    bricks_per_trial: int = 0
     success_rule: str
     successful: dict[str, MetricStats]
     all_trials: dict[str, MetricStats]
     failures: dict[str, int]
     failure_examples: dict[str, int]
     llm_usage: LLMUsage
+    llm_usage_by_agent: dict[str, LLMUsage] = {}
+    llm_mode: str | None = None
+    decisions: int = 0
+    fallback_decisions: int = 0
     wall_time_s: float
 
 
@@ -63,7 +68,10 @@ def _stats(results: Sequence[TrialResult], metric: str) -> MetricStats:
 
 
 def summarize(
-    results: Sequence[TrialResult], wall_time_s: float, rule: SuccessRule = SuccessRule()
+    results: Sequence[TrialResult],
+    wall_time_s: float,
+    rule: SuccessRule = SuccessRule(),
+    llm_mode: str | None = None,
 ) -> RunSummary:
     """Means and standard deviations over successful trials (the paper's protocol) and all."""
     if not results:
@@ -84,12 +92,20 @@ def summarize(
         successes=len(ok),
         success_rate=len(ok) / len(results),
         bricks_placed_mean=float(np.mean([r.bricks_placed for r in results])),
+        bricks_per_trial=len(first.bricks),
         success_rule=describe_rule(rule),
         successful={m: _stats(ok, m) for m in METRICS},
         all_trials={m: _stats(results, m) for m in METRICS},
         failures=dict(sorted(failures.items())),
         failure_examples=examples,
         llm_usage=sum((r.llm_usage for r in results), LLMUsage()),
+        llm_usage_by_agent={
+            agent: sum((r.llm_usage_by_agent.get(agent, LLMUsage()) for r in results), LLMUsage())
+            for agent in dict.fromkeys(a for r in results for a in r.llm_usage_by_agent)
+        },
+        llm_mode=llm_mode,
+        decisions=sum(r.decisions for r in results),
+        fallback_decisions=sum(r.fallback_decisions for r in results),
         wall_time_s=wall_time_s,
     )
 
@@ -131,10 +147,28 @@ def summary_markdown(summary: RunSummary) -> str:
     else:
         lines.append("No failures.")
     if summary.llm_usage.calls:
-        u = summary.llm_usage
-        lines += [
-            "",
-            f"LLM: {u.calls} calls, {u.prompt_tokens} prompt and {u.completion_tokens} completion "
-            f"tokens, {u.latency_s:.1f} s latency.",
-        ]
+        lines += ["", *_llm_lines(summary)]
     return "\n".join(lines) + "\n"
+
+
+def _llm_lines(summary: RunSummary) -> list[str]:
+    """LLM cost per agent, per brick of the pattern, and the model's share of decisions."""
+    u, bricks = summary.llm_usage, summary.trials * summary.bricks_per_trial
+    own = summary.decisions - summary.fallback_decisions
+    lines = [
+        f"LLM (`{summary.llm}`, structured output `{summary.llm_mode}`): {u.calls} calls, "
+        f"{u.prompt_tokens} prompt and {u.completion_tokens} completion tokens, "
+        f"{u.latency_s:.1f} s. Decisions: {summary.decisions}, "
+        f"{summary.fallback_decisions} of them by the built-in fallback "
+        f"({own / max(summary.decisions, 1):.0%} the model's own).",
+        "",
+        "| Agent | Calls | Prompt tokens / brick | Completion tokens / brick "
+        "| Latency / call (s) |",
+        "|---|---|---|---|---|",
+    ]
+    for agent, a in summary.llm_usage_by_agent.items():
+        lines.append(
+            f"| {agent} | {a.calls} | {a.prompt_tokens / bricks:.0f} | "
+            f"{a.completion_tokens / bricks:.0f} | {a.latency_s / max(a.calls, 1):.2f} |"
+        )
+    return lines

@@ -19,7 +19,7 @@ from actionreasoning.errors import UnreachableError
 from actionreasoning.eval.metrics import brick_metrics
 from actionreasoning.eval.results import BrickResult, Failure, LLMUsage, TrialMetrics, TrialResult
 from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.reasoners.builtin import BuiltinReasoner
+from actionreasoning.reasoners.factory import LLMConfig, make_reasoner
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.geometry import Vec3, top_down_quat
@@ -74,7 +74,7 @@ class TrialSpec:
     goal: GoalPattern
     run_seed: int
     trial: int
-    llm: str = "builtin"
+    llm: LLMConfig = LLMConfig()
     scene: SceneSpec = SceneSpec()
 
 
@@ -137,6 +137,8 @@ class _Outcome:
     failure: Failure | None
     usage: LLMUsage = LLMUsage()
     transcript: tuple[AgentCall, ...] = ()
+    decisions: int = 0
+    fallbacks: int = 0
 
 
 def _run_classical(
@@ -156,7 +158,7 @@ def _run_agents(
 ) -> _Outcome:
     """The six gated agents, or the merged single agent, with the built-in reasoner."""
     world = SimWorld(controller, spec.goal)
-    reasoner = BuiltinReasoner(READY_POSE)
+    reasoner = make_reasoner(spec.llm, READY_POSE)
     runner = (
         SingleAgent(world, reasoner, on_stage=stage)
         if spec.method is Method.SINGLE_AGENT
@@ -168,6 +170,8 @@ def _run_agents(
         failure=build.failure,
         usage=build.usage,
         transcript=tuple(build.transcript),
+        decisions=build.decisions,
+        fallbacks=build.fallbacks,
     )
 
 
@@ -202,6 +206,7 @@ def _measure(
                 rotation_error_deg=m.rotation_error_deg,
                 symmetric_rotation_error_deg=m.symmetric_rotation_error_deg,
                 iou=m.iou,
+                llm_usage=_usage_of(outcome.transcript, brick),
             )
         )
     within = [rule.is_placed(b) for b in bricks]
@@ -223,7 +228,7 @@ def _measure(
         trial=spec.trial,
         trial_seed=seed,
         success=failure is None,
-        llm=spec.llm if spec.method is not Method.CLASSICAL else "none",
+        llm=spec.llm.label if spec.method is not Method.CLASSICAL else "none",
         bricks=tuple(bricks),
         bricks_placed=sum(within),
         metrics=TrialMetrics(
@@ -236,5 +241,26 @@ def _measure(
         ),
         failure=failure,
         llm_usage=outcome.usage,
+        llm_usage_by_agent={
+            agent: _usage_of(outcome.transcript, agent=agent)
+            for agent in dict.fromkeys(call.agent for call in outcome.transcript)
+        },
+        decisions=outcome.decisions,
+        fallback_decisions=outcome.fallbacks,
         sim_steps=scene.ticks,
+    )
+
+
+def _usage_of(
+    transcript: tuple[AgentCall, ...], brick: int | None = None, agent: str | None = None
+) -> LLMUsage:
+    """LLM usage summed over the calls about ``brick`` or of ``agent``."""
+    return sum(
+        (
+            call.usage
+            for call in transcript
+            if (brick is None or call.brick_in_hand == brick)
+            and (agent is None or call.agent == agent)
+        ),
+        LLMUsage(),
     )

@@ -28,6 +28,21 @@ class ReachBand(BaseModel):
         return self.min_radius_m <= radius <= self.max_radius_m and 0.0 <= z <= self.max_height_m
 
 
+class WorkspaceBox(BaseModel):
+    """The box (world frame, metres) every commanded tool position must lie in."""
+
+    model_config = ConfigDict(frozen=True)
+
+    low_m: Vec3 = (-0.9, -0.9, 0.0)
+    high_m: Vec3 = (0.9, 0.9, 0.8)
+
+    def contains(self, position: Vec3) -> bool:
+        """Whether ``position`` lies inside the box."""
+        return all(
+            lo <= v <= hi for lo, v, hi in zip(self.low_m, position, self.high_m, strict=True)
+        )
+
+
 class SceneSpec(BaseModel):
     """Everything that defines a scene apart from the goal pattern and the seed."""
 
@@ -45,6 +60,7 @@ class SceneSpec(BaseModel):
         0.24, description="Minimum centre distance of spawned bricks."
     )
     reach: ReachBand = ReachBand()
+    workspace: WorkspaceBox = WorkspaceBox()
 
     @property
     def build_center_m(self) -> Vec3:

@@ -1,0 +1,113 @@
+"""Validation of a model's answer: text in, a checked answer of the agent's schema out.
+
+LLM output is data. It is parsed as JSON (never evaluated), validated against the agent's
+output schema, and checked against physical bounds: finite numbers, tool positions inside
+the workspace box, unit quaternions (normalised within a tolerance, else refused), brick
+ids and target indexes that exist, and tool calls to whitelisted tools of the agent's
+knowledge base with typed arguments. A failure is an :class:`OutputError` whose message is
+short enough to send back to the model for a repair.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from typing import Any
+
+from pydantic import ValidationError
+
+from actionreasoning.agents.outputs import AgentAnswer, WaypointProposal, unit_waypoint
+from actionreasoning.agents.spec import AgentSpec
+from actionreasoning.errors import ActionReasoningError
+from actionreasoning.tools.registry import TOOLS
+from actionreasoning.world.models import WorldState
+from actionreasoning.world.scene_spec import WorkspaceBox
+
+MAX_ANSWER_CHARS = 20_000
+MAX_ERRORS_SHOWN = 3
+_FENCE = re.compile(r"^```(?:json)?\s*(.*?)\s*```$", re.S)
+
+
+class OutputError(ActionReasoningError):
+    """A model's answer that is not a valid answer; the message says what to repair."""
+
+
+def parse_answer(
+    text: str, spec: AgentSpec, state: WorldState, workspace: WorkspaceBox = WorkspaceBox()
+) -> AgentAnswer:
+    """The answer in ``text`` as ``spec``'s output model, checked and normalised."""
+    data = _json_object(text)
+    try:
+        answer = spec.output_model.model_validate(data)
+    except ValidationError as error:
+        raise OutputError(_describe(error)) from None
+    return check_answer(answer, spec, state, workspace)
+
+
+def check_answer(
+    answer: AgentAnswer, spec: AgentSpec, state: WorldState, workspace: WorkspaceBox
+) -> AgentAnswer:
+    """Physical bounds, known ids and whitelisted tools; returns it with unit quaternions."""
+    update: dict[str, Any] = {}
+    waypoint = getattr(answer, "waypoint", None)
+    if isinstance(waypoint, WaypointProposal):
+        if not workspace.contains(waypoint.position_m):
+            raise OutputError(
+                f"waypoint.position_m {_short(waypoint.position_m)} is outside the workspace "
+                f"box {_short(workspace.low_m)} .. {_short(workspace.high_m)} m"
+            )
+        try:
+            update["waypoint"] = unit_waypoint(waypoint)
+        except ValueError as error:
+            raise OutputError(f"waypoint.quat_xyzw: {error} (give a unit quaternion)") from None
+    brick = getattr(answer, "brick_id", None)
+    if brick is not None and brick not in {b.id for b in state.bricks}:
+        raise OutputError(f"brick_id {brick} names no brick (ids 0..{len(state.bricks) - 1})")
+    target = getattr(answer, "target_index", None)
+    if target is not None and target >= len(state.goal.targets):
+        count = len(state.goal.targets)
+        raise OutputError(f"target_index {target} names no target (0..{count - 1})")
+    for index, call in enumerate(answer.tool_calls):
+        if call.name not in spec.tools:
+            raise OutputError(
+                f"tool_calls[{index}].name {call.name[:40]!r} is not one of your tools: "
+                + ", ".join(spec.tools)
+            )
+        try:
+            TOOLS[call.name].input_model.model_validate(call.arguments)
+        except ValidationError as error:
+            raise OutputError(f"tool_calls[{index}] ({call.name}): {_describe(error)}") from None
+    return answer.model_copy(update=update) if update else answer
+
+
+def _json_object(text: str) -> dict[str, Any]:
+    """The one JSON object in ``text`` (a Markdown code fence around it is allowed)."""
+    if len(text) > MAX_ANSWER_CHARS:
+        raise OutputError(f"the answer is {len(text)} characters; answer with one short object")
+    stripped = text.strip()
+    fenced = _FENCE.match(stripped)
+    if fenced:
+        stripped = fenced.group(1)
+    try:
+        data = json.loads(stripped)
+    except json.JSONDecodeError as error:
+        raise OutputError(f"not valid JSON ({error.msg} at character {error.pos})") from None
+    except RecursionError:
+        raise OutputError("the JSON is nested too deeply") from None
+    if not isinstance(data, dict):
+        raise OutputError(f"the answer must be a JSON object, not {type(data).__name__}")
+    return data
+
+
+def _describe(error: ValidationError) -> str:
+    """The first few schema errors, one line each, without echoing long inputs."""
+    parts = []
+    for item in error.errors()[:MAX_ERRORS_SHOWN]:
+        where = ".".join(str(part) for part in item["loc"]) or "answer"
+        parts.append(f"{where}: {item['msg']}")
+    more = len(error.errors()) - MAX_ERRORS_SHOWN
+    return "; ".join(parts) + (f"; and {more} more" if more > 0 else "")
+
+
+def _short(values: Any) -> str:
+    return "(" + ", ".join(f"{v:.3f}" for v in values) + ")"

@@ -1,0 +1,79 @@
+"""A GGUF model in process through llama-cpp-python (the optional ``local`` extra).
+
+Output is constrained by a grammar built from the agent's JSON schema, so the model can
+only write JSON of the schema's shape; validation still checks the values.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+from actionreasoning.errors import ConfigError, LLMError
+from actionreasoning.reasoners.chat import ChatReply, ChatRequest
+from actionreasoning.records import LLMUsage
+
+CONTEXT_TOKENS = 8192
+MAX_COMPLETION_TOKENS = 300
+
+
+@cache
+def _load(path: str) -> Any:
+    """The model, loaded once per process."""
+    try:
+        from llama_cpp import Llama
+    except ImportError:
+        raise ConfigError(
+            "--llm llamacpp:PATH needs llama-cpp-python: pip install 'actionreasoning[local]'"
+        ) from None
+    if not Path(path).is_file():
+        raise ConfigError(f"--llm llamacpp:{path}: no such model file")
+    try:
+        model = Llama(
+            model_path=path,
+            n_ctx=CONTEXT_TOKENS,
+            n_threads=os.cpu_count() or 1,
+            seed=0,
+            verbose=False,
+        )
+    except ValueError as error:
+        raise ConfigError(f"--llm llamacpp:{path}: cannot load the model ({error})") from None
+    architecture = model.metadata.get("general.architecture", "")
+    if "tokenizer.chat_template" not in model.metadata and architecture.startswith("gemma"):
+        model.chat_format = "gemma"  # a Gemma GGUF without its template: use Gemma's turns
+    return model
+
+
+class LlamaCppChat:
+    """Chat completions from a local GGUF model with grammar-constrained JSON."""
+
+    def __init__(self, path: str) -> None:
+        self.label = f"llamacpp:{path}"
+        self.model = _load(path)
+
+    def complete(self, request: ChatRequest) -> ChatReply:
+        """One completion constrained to the request's JSON schema."""
+        started = time.perf_counter()
+        try:
+            result = self.model.create_chat_completion(
+                messages=list(request.messages),
+                response_format={"type": "json_object", "schema": request.schema},
+                temperature=0.0,
+                max_tokens=MAX_COMPLETION_TOKENS,
+            )
+        except ValueError as error:  # e.g. a prompt longer than the context
+            raise LLMError("llm_bad_request", f"llama.cpp refused the request: {error}") from None
+        usage = result.get("usage") or {}
+        return ChatReply(
+            model=str(result.get("model", self.label)),
+            content=result["choices"][0]["message"].get("content") or "",
+            usage=LLMUsage(
+                calls=1,
+                prompt_tokens=usage.get("prompt_tokens", 0),
+                completion_tokens=usage.get("completion_tokens", 0),
+                latency_s=time.perf_counter() - started,
+            ),
+        )

@@ -1,0 +1,110 @@
+"""An LLM as the reasoner: the agent's prompt out, tool turns, validation and repair.
+
+Per agent request: the rendered prompt goes to the model with the agent's output schema.
+An answer that lists ``tool_calls`` gets the tools run (whitelisted, on the measured world)
+and their results back, for a bounded number of turns. Every answer is parsed and
+validated as data (``agents/validation.py``); a refused one goes back with a short error
+for a bounded number of repairs. After that the step fails with ``invalid_output``, or,
+with a fallback, the built-in reasoner answers and the reply says so.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from actionreasoning.agents.outputs import AgentAnswer
+from actionreasoning.agents.prompt import compact_json
+from actionreasoning.agents.reasoner import AgentReply, AgentRequest, Reasoner
+from actionreasoning.agents.validation import OutputError, parse_answer
+from actionreasoning.errors import LLMError, ToolError
+from actionreasoning.reasoners.chat import ChatBackend, ChatRequest, Message
+from actionreasoning.records import LLMUsage
+
+
+@dataclass(frozen=True)
+class LLMLimits:
+    """Turn budgets of one agent request."""
+
+    tool_turns: int = 2
+    repairs: int = 2
+
+
+class LLMReasoner:
+    """Answers agents with a language model behind a :class:`ChatBackend`."""
+
+    def __init__(
+        self,
+        backend: ChatBackend,
+        limits: LLMLimits = LLMLimits(),
+        fallback: Reasoner | None = None,
+    ) -> None:
+        self.backend = backend
+        self.name = backend.label
+        self.limits = limits
+        self.fallback = fallback
+
+    def decide(self, request: AgentRequest) -> AgentReply:
+        """Ask the model until it gives a valid answer, within the turn budgets."""
+        schema = request.spec.output_model.model_json_schema()
+        messages: list[Message] = [{"role": "user", "content": request.prompt}]
+        usage, repairs, tool_turns = LLMUsage(), [], 0
+        while True:
+            reply = self.backend.complete(
+                ChatRequest(messages=tuple(messages), schema_name=request.spec.key, schema=schema)
+            )
+            usage += reply.usage
+            messages.append({"role": "assistant", "content": reply.content})
+            try:
+                answer = parse_answer(reply.content, request.spec, request.state)
+            except OutputError as error:
+                repairs.append(str(error))
+                if len(repairs) > self.limits.repairs:
+                    return self._give_up(request, usage, tuple(repairs))
+                messages.append({"role": "user", "content": _repair_prompt(str(error))})
+                continue
+            if answer.tool_calls and tool_turns < self.limits.tool_turns:
+                tool_turns += 1
+                last = tool_turns == self.limits.tool_turns
+                messages.append({"role": "user", "content": _tool_results(request, answer, last)})
+                continue
+            return AgentReply(
+                answer=answer, usage=usage, repairs=tuple(repairs), tool_turns=tool_turns
+            )
+
+    def _give_up(
+        self, request: AgentRequest, usage: LLMUsage, repairs: tuple[str, ...]
+    ) -> AgentReply:
+        if self.fallback is None:
+            raise LLMError(
+                "invalid_output",
+                f"{len(repairs)} answers refused; last: {repairs[-1]}",
+                repairs=repairs,
+                usage=usage,
+            )
+        reply = self.fallback.decide(request)
+        return AgentReply(answer=reply.answer, usage=usage, repairs=repairs, fallback=True)
+
+
+def _repair_prompt(error: str) -> str:
+    return (
+        f"Your answer was refused: {error}. Answer again with one JSON object that matches "
+        "the output schema, and nothing else."
+    )
+
+
+def _tool_results(request: AgentRequest, answer: AgentAnswer, last: bool) -> str:
+    """Run the answer's tool calls and describe their results (or errors) as JSON."""
+    results: list[dict[str, Any]] = []
+    for call in answer.tool_calls:
+        try:
+            result = request.call_tool(call.name, call.arguments)
+            results.append({"tool": call.name, "result": result.model_dump(mode="json")})
+        except ToolError as error:
+            results.append({"tool": call.name, "error": str(error)})
+    then = (
+        "No more tool calls now: answer with your decision and an empty tool_calls."
+        if last
+        else "Call more tools, or answer with your decision and an empty tool_calls."
+    )
+    return f"Tool results: {compact_json(results)}\n{then}"
