@@ -19,7 +19,7 @@ from actionreasoning.agents.reasoner import AgentRequest, Reasoner
 from actionreasoning.agents.spec import AgentSpec
 from actionreasoning.agents.transcript import AgentCall, GateRecord, Outcome, ToolRecord
 from actionreasoning.agents.world import World
-from actionreasoning.errors import ActionReasoningError, LLMError, ToolError
+from actionreasoning.errors import ActionReasoningError, LLMError, ToolError, UnreachableError
 from actionreasoning.records import Failure, LLMUsage
 from actionreasoning.tools.base import ToolContext, ToolModel
 from actionreasoning.tools.registry import call_tool
@@ -36,6 +36,18 @@ class TrialStopped(ActionReasoningError):
     def __init__(self, reason: str, agent: str | None, detail: str) -> None:
         super().__init__(f"{reason} ({agent}): {detail}")
         self.failure = Failure(reason=reason, agent=agent, detail=detail)
+
+
+#: The errors that end a build (rather than the program), and how to say so.
+BUILD_STOPPERS = (TrialStopped, UnreachableError, ToolError)
+
+
+def failure_of(error: Exception, agent: str | None) -> Failure:
+    """The failure record of an error in BUILD_STOPPERS raised while ``agent`` was acting."""
+    if isinstance(error, TrialStopped):
+        return error.failure
+    reason = "unreachable" if isinstance(error, UnreachableError) else "tool_error"
+    return Failure(reason=reason, agent=agent, detail=str(error))
 
 
 @dataclass

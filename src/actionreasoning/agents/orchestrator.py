@@ -18,17 +18,24 @@ from functools import partial
 from typing import Any
 
 from actionreasoning.agents import gates
-from actionreasoning.agents.calls import AgentCaller, BuildResult, StageHook, TrialStopped
+from actionreasoning.agents.calls import (
+    BUILD_STOPPERS,
+    AgentCaller,
+    BuildResult,
+    StageHook,
+    TrialStopped,
+    failure_of,
+)
 from actionreasoning.agents.memory import PlacedBrick, TaskMemory
 from actionreasoning.agents.outputs import AgentAnswer, WaypointProposal, unit_waypoint
 from actionreasoning.agents.reasoner import Reasoner
 from actionreasoning.agents.spec import agent_specs
 from actionreasoning.agents.transcript import Outcome
 from actionreasoning.agents.world import World
-from actionreasoning.errors import ToolError, UnreachableError
-from actionreasoning.records import Failure
+from actionreasoning.errors import UnreachableError
+from actionreasoning.tools.collision import CollisionReport
 from actionreasoning.world.geometry import quat_yaw
-from actionreasoning.world.models import GoalPattern, Progress, WorldState
+from actionreasoning.world.models import GoalPattern, Pose, Progress, WorldState
 from actionreasoning.world.support import BrickBox, carriers
 from actionreasoning.world.tolerances import Tolerances
 
@@ -97,16 +104,8 @@ class Orchestrator:
         try:
             while len(self.memory.placed) < len(goal.targets):
                 self._place_one(supports)
-        except TrialStopped as stop:
-            self.result.failure = stop.failure
-        except UnreachableError as error:
-            self.result.failure = Failure(
-                reason="unreachable", agent=self.memory.step, detail=str(error)
-            )
-        except ToolError as error:
-            self.result.failure = Failure(
-                reason="tool_error", agent=self.memory.step, detail=str(error)
-            )
+        except BUILD_STOPPERS as error:
+            self.result.failure = failure_of(error, self.memory.step)
         return self.result
 
     def _place_one(self, supports: Mapping[int, tuple[int, ...]]) -> None:
@@ -203,14 +202,7 @@ class Orchestrator:
                 "invalid_choice",
             )
         waypoint = _checked(answer.waypoint, path="joint")
-        path = self.calls.measure(
-            state,
-            "collision_check",
-            pose=_pose(waypoint),
-            path="joint",
-            gripper_opening_m=state.robot.gripper_width_m,
-            ignore_brick_id=brick,
-        )
+        path = self._clearance(state, waypoint, ignore=brick)
         self._gate(gates.sigma1_pre_grasp(path, self.tol), "collision")
         self.memory = self.memory.model_copy(
             update={"current_brick": brick, "current_target": target}
@@ -227,13 +219,12 @@ class Orchestrator:
             raise _Refused(
                 f"opening {answer.gripper_opening_m:.3f} m < brick width {width:.3f} + delta"
             )
-        path = self.calls.measure(
+        path = self._clearance(
             state,
-            "collision_check",
-            pose=_pose(waypoint),
-            start_pose=state.robot.ee_pose.model_dump(),
-            gripper_opening_m=answer.gripper_opening_m,
-            ignore_brick_id=brick,
+            waypoint,
+            start=state.robot.ee_pose,
+            opening=answer.gripper_opening_m,
+            ignore=brick,
         )
         if not path.collision_free:
             raise _Refused(
@@ -317,13 +308,7 @@ class Orchestrator:
         """Carry the brick over the proposed slot, once the way there and down is clear."""
         slot = self._slot(answer)
         above = _above(slot, state)
-        transfer = self.calls.measure(
-            state,
-            "collision_check",
-            pose=_pose(above),
-            path="joint",
-            gripper_opening_m=state.robot.gripper_width_m,
-        )
+        transfer = self._clearance(state, above)
         self._check_descent(state, slot, start=above, path=transfer)
         self.world.move(above)
 
@@ -331,13 +316,7 @@ class Orchestrator:
         """Set the brick down on the (re-measured) slot: over it, then straight down onto it."""
         slot = self._slot(answer)
         above = _above(slot, state, path="linear")
-        shift = self.calls.measure(
-            state,
-            "collision_check",
-            pose=_pose(above),
-            start_pose=state.robot.ee_pose.model_dump(),
-            gripper_opening_m=state.robot.gripper_width_m,
-        )
+        shift = self._clearance(state, above, start=state.robot.ee_pose)
         self._check_descent(state, slot, start=above, path=shift)
         self.world.move(above)
         # Onto the slot itself, pressed flat by the position controller; the guard stops the
@@ -364,16 +343,31 @@ class Orchestrator:
         """
         x, y, z = slot.position_m
         near = WaypointProposal(position_m=(x, y, z + SEAT_CLEARANCE_M), quat_xyzw=slot.quat_xyzw)
-        descent = self.calls.measure(
-            state,
-            "collision_check",
-            pose=_pose(near),
-            start_pose=_pose(start),
-            gripper_opening_m=state.robot.gripper_width_m,
-        )
+        descent = self._clearance(state, near, start=start)
         for report in (path, descent):
             if report is not None and not report.collision_free:
                 raise _Refused(f"path to the slot collides: {report.closest}", "collision")
+
+    def _clearance(
+        self,
+        state: WorldState,
+        to: WaypointProposal,
+        start: WaypointProposal | Pose | None = None,
+        opening: float | None = None,
+        ignore: int | None = None,
+    ) -> CollisionReport:
+        """Clearance on the way to ``to``: straight from ``start`` if given, else a joint move
+        from where the arm is; at ``opening`` (default: the gripper's now), the held brick
+        carried, brick ``ignore`` left out."""
+        way: dict[str, Any] = {"path": "joint"} if start is None else {"start_pose": _pose(start)}
+        return self.calls.measure(
+            state,
+            "collision_check",
+            pose=_pose(to),
+            gripper_opening_m=state.robot.gripper_width_m if opening is None else opening,
+            ignore_brick_id=ignore,
+            **way,
+        )
 
     def _release(self, answer: Any, state: WorldState, brick: int) -> None:
         if answer.gripper_opening_m is None or answer.waypoint is None:
@@ -383,13 +377,12 @@ class Orchestrator:
         retreat = WaypointProposal(
             position_m=(x, y, z + RETREAT_M), quat_xyzw=state.robot.ee_pose.quat_xyzw, path="linear"
         )
-        path = self.calls.measure(
+        path = self._clearance(
             state,
-            "collision_check",
-            pose=_pose(retreat),
-            start_pose=state.robot.ee_pose.model_dump(),
-            gripper_opening_m=answer.gripper_opening_m,
-            ignore_brick_id=brick,
+            retreat,
+            start=state.robot.ee_pose,
+            opening=answer.gripper_opening_m,
+            ignore=brick,
         )
         self._gate(gates.sigma6_return(path), "collision")
         self.world.grip(answer.gripper_opening_m)
@@ -404,7 +397,7 @@ def _above(slot: WaypointProposal, state: WorldState, path: str = "joint") -> Wa
     return WaypointProposal(position_m=(x, y, height), quat_xyzw=slot.quat_xyzw, path=path)  # type: ignore[arg-type]
 
 
-def _pose(waypoint: WaypointProposal) -> dict[str, Any]:
+def _pose(waypoint: WaypointProposal | Pose) -> dict[str, Any]:
     return {"position_m": list(waypoint.position_m), "quat_xyzw": list(waypoint.quat_xyzw)}
 
 

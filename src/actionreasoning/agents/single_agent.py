@@ -1,9 +1,10 @@
 """The paper's single-agent ablation: one merged prompt per waypoint, no stage gating.
 
 One agent holds all six roles, tools and thinking chains and answers the next waypoint of
-the cycle with a gripper command. Its answers are validated (schema, unit quaternion,
-known brick and target) and the controller's limits still hold (an unreachable pose is
-refused), but nothing is verified or gated: no collision check before a move, no force
+the cycle with a gripper command. Its answers are validated as any model answer is
+(``agents/validation.py``: schema, workspace box, unit quaternion, known brick and target)
+and the controller's limits still hold (an unreachable pose is refused), but nothing is
+verified or gated: no collision check before a move, no force
 check after the grasp, no slip or alignment check, no retries with feedback.
 """
 
@@ -11,16 +12,23 @@ from __future__ import annotations
 
 from typing import cast
 
-from actionreasoning.agents.calls import AgentCaller, BuildResult, StageHook, TrialStopped
+from actionreasoning.agents.calls import (
+    BUILD_STOPPERS,
+    AgentCaller,
+    BuildResult,
+    StageHook,
+    TrialStopped,
+    failure_of,
+)
 from actionreasoning.agents.memory import PlacedBrick, TaskMemory
-from actionreasoning.agents.outputs import SingleAgentAnswer, unit_waypoint
+from actionreasoning.agents.outputs import SingleAgentAnswer
 from actionreasoning.agents.reasoner import Reasoner
 from actionreasoning.agents.spec import SINGLE_AGENT_START, single_agent_spec
 from actionreasoning.agents.transcript import Outcome
+from actionreasoning.agents.validation import OutputError, check_answer
 from actionreasoning.agents.world import World
-from actionreasoning.errors import UnreachableError
-from actionreasoning.records import Failure
 from actionreasoning.world.models import GoalPattern, WorldState
+from actionreasoning.world.scene_spec import WorkspaceBox
 from actionreasoning.world.tolerances import Tolerances
 
 #: Waypoints the agent may spend per brick (a full cycle takes eight), plus one to finish.
@@ -56,35 +64,26 @@ class SingleAgent:
                 if answer.step == "done":
                     return self.result
             raise TrialStopped("budget_exhausted", self.spec.key, f"{budget} waypoints spent")
-        except TrialStopped as stop:
-            self.result.failure = stop.failure
-        except UnreachableError as error:
-            self.result.failure = Failure(
-                reason="unreachable", agent=self.spec.key, detail=str(error)
-            )
+        except BUILD_STOPPERS as error:
+            self.result.failure = failure_of(error, self.spec.key)
         return self.result
 
     def _execute(self, answer: SingleAgentAnswer, state: WorldState) -> None:
-        """Validate the answer's data, move, grip, and keep the memory of the cycle."""
+        """Check the answer's data (as any model answer is checked), move, grip, and keep the
+        memory of the cycle."""
+        try:
+            answer = cast(SingleAgentAnswer, check_answer(answer, self.spec, state, WorkspaceBox()))
+        except OutputError as error:
+            raise TrialStopped("invalid_output", self.spec.key, str(error)) from None
         update: dict[str, object] = {"step": answer.step}
         if answer.step == "pre_grasp":
             if answer.brick_id is None or answer.target_index is None:
                 raise TrialStopped(
                     "invalid_output", self.spec.key, "pre_grasp names no brick_id or target_index"
                 )
-            if answer.brick_id not in {b.id for b in state.bricks}:
-                raise TrialStopped("invalid_output", self.spec.key, f"no brick {answer.brick_id}")
-            if answer.target_index >= len(state.goal.targets):
-                raise TrialStopped(
-                    "invalid_output", self.spec.key, f"no target {answer.target_index}"
-                )
             update |= {"current_brick": answer.brick_id, "current_target": answer.target_index}
         if answer.waypoint is not None:
-            try:
-                waypoint = unit_waypoint(answer.waypoint)
-            except ValueError as error:
-                raise TrialStopped("invalid_output", self.spec.key, str(error)) from None
-            self.world.move(waypoint)
+            self.world.move(answer.waypoint)
         if answer.gripper == "open":
             self.world.grip(answer.gripper_opening_m or FULL_OPENING_M)
         elif answer.gripper == "close":

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from enum import StrEnum
@@ -126,36 +126,24 @@ def run_trial(
             outcome = _run_agents(controller, spec, stage)
         scene.step(scene.ticks_for(FINAL_SETTLE_S))
         stage(-1, "final")
-        return TrialRun(_measure(spec, seed, scene, rule, outcome), outcome.transcript)
-
-
-@dataclass(frozen=True)
-class _Outcome:
-    """What a method did: which brick went to which target, its failure and LLM usage."""
-
-    placements: dict[int, int]
-    failure: Failure | None
-    usage: LLMUsage = LLMUsage()
-    transcript: tuple[AgentCall, ...] = ()
-    decisions: int = 0
-    fallbacks: int = 0
+        return TrialRun(_measure(spec, seed, scene, rule, outcome), tuple(outcome.transcript))
 
 
 def _run_classical(
     controller: WaypointController, goal: GoalPattern, stage: Callable[[int, str], None]
-) -> _Outcome:
+) -> BuildResult:
     failure = None
     try:
         run_classical(controller, goal, lambda event: stage(event.brick, event.stage))
         controller.execute(Waypoint(pose=READY_POSE, gripper=GripperCommand.OPEN))
     except UnreachableError as error:
         failure = Failure(reason="unreachable", detail=str(error))
-    return _Outcome(placements={t.index: t.index for t in goal.targets}, failure=failure)
+    return BuildResult(placements={t.index: t.index for t in goal.targets}, failure=failure)
 
 
 def _run_agents(
     controller: WaypointController, spec: TrialSpec, stage: Callable[[int, str], None]
-) -> _Outcome:
+) -> BuildResult:
     """The six gated agents, or the merged single agent, with the built-in reasoner."""
     world = SimWorld(controller, spec.goal)
     reasoner = make_reasoner(spec.llm, READY_POSE)
@@ -164,19 +152,11 @@ def _run_agents(
         if spec.method is Method.SINGLE_AGENT
         else Orchestrator(world, reasoner, on_stage=stage)
     )
-    build: BuildResult = runner.build(spec.goal)
-    return _Outcome(
-        placements=build.placements,
-        failure=build.failure,
-        usage=build.usage,
-        transcript=tuple(build.transcript),
-        decisions=build.decisions,
-        fallbacks=build.fallbacks,
-    )
+    return runner.build(spec.goal)
 
 
 def _measure(
-    spec: TrialSpec, seed: int, scene: Scene, rule: SuccessRule, outcome: _Outcome
+    spec: TrialSpec, seed: int, scene: Scene, rule: SuccessRule, outcome: BuildResult
 ) -> TrialResult:
     failure = outcome.failure
     unplaced = iter(sorted(set(range(len(scene.bricks))) - set(outcome.placements.values())))
@@ -252,7 +232,7 @@ def _measure(
 
 
 def _usage_of(
-    transcript: tuple[AgentCall, ...], brick: int | None = None, agent: str | None = None
+    transcript: Sequence[AgentCall], brick: int | None = None, agent: str | None = None
 ) -> LLMUsage:
     """LLM usage summed over the calls about ``brick`` or of ``agent``."""
     return sum(
