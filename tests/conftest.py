@@ -37,6 +37,29 @@ SMALL_PATTERN = {
 }
 
 
+def cli(
+    *args: str, cwd: Path | None = None, timeout: float = 600
+) -> subprocess.CompletedProcess[str]:
+    """The `actionreasoning` command, run as a user runs it."""
+    return subprocess.run(
+        [sys.executable, "-m", "actionreasoning", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=cwd,
+    )
+
+
+def assert_clean_error(result: subprocess.CompletedProcess[str], *needles: str) -> None:
+    """The command failed with exit code 2 and one line naming the problem, no traceback."""
+    assert result.returncode == 2, result.stderr
+    assert "Traceback" not in result.stderr + result.stdout
+    message = result.stderr.strip()
+    assert message.startswith("error:") and "\n" not in message, message
+    for needle in needles:
+        assert needle in message, message
+
+
 @pytest.fixture
 def small_pattern(tmp_path: Path) -> Path:
     """The small pattern written to a JSON file."""

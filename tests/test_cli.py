@@ -3,32 +3,12 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from conftest import assert_clean_error, cli
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "patterns"
-
-
-def cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "actionreasoning", *args],
-        capture_output=True,
-        text=True,
-        timeout=600,
-        cwd=cwd,
-    )
-
-
-def assert_clean_error(result: subprocess.CompletedProcess[str], *needles: str) -> None:
-    assert result.returncode == 2, result.stderr
-    assert "Traceback" not in result.stderr + result.stdout
-    message = result.stderr.strip()
-    assert message.startswith("error:") and "\n" not in message, message
-    for needle in needles:
-        assert needle in message, message
 
 
 BAD_PATTERNS = {
@@ -130,4 +110,4 @@ def test_classical_eval_end_to_end(tmp_path: Path) -> None:
     assert summary["trials"] == 1
     assert "| classical |" in (out / "summary.md").read_text()
     again = cli("eval", "--trials", "1", "--out", str(out))
-    assert_clean_error(again, "results.jsonl already exists")
+    assert_clean_error(again, "holds a different run", "method 'classical' there, 'agents' now")

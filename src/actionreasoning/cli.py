@@ -10,15 +10,17 @@ from typing import Annotated
 
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+from rich.markdown import Markdown
 from rich.table import Table
 
 from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.prompt import render_prompt
 from actionreasoning.agents.spec import SINGLE_AGENT_START, agent_specs, single_agent_spec
 from actionreasoning.errors import ActionReasoningError, ConfigError
-from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.run import RunConfig, run_eval
+from actionreasoning.eval.progress import ConsoleProgress
+from actionreasoning.eval.report.build import build_report
+from actionreasoning.eval.report.tables import to_markdown
+from actionreasoning.eval.run import RunConfig, check_engine, run_eval
 from actionreasoning.eval.summary import RunSummary
 from actionreasoning.eval.trial import Method, TrialSpec, trial_world
 from actionreasoning.reasoners.factory import LLMConfig, check_backend
@@ -70,13 +72,11 @@ def _fail(error: ActionReasoningError) -> None:
     raise typer.Exit(code=2)
 
 
-def _check_options(method: Method, llm: LLMConfig, workers: int, transcripts: bool) -> None:
+def _check_options(method: Method, llm: LLMConfig, transcripts: bool) -> None:
     if transcripts and method is Method.CLASSICAL:
         raise ConfigError("--transcripts records agent calls; --method classical makes none")
     if method is Method.CLASSICAL and llm.spec != "builtin":
         raise ConfigError("--method classical uses no reasoner; drop --llm")
-    if workers != 1:
-        raise ConfigError("--workers above 1 is not available yet")
 
 
 def _summary_table(summary: RunSummary) -> Table:
@@ -102,42 +102,15 @@ def _summary_table(summary: RunSummary) -> Table:
     return table
 
 
-def _trial_line(result: TrialResult) -> str:
-    m = result.metrics
-    status = "ok" if result.success else f"FAILED ({result.failure.reason})"
-    return (
-        f"trial {result.trial}: {status}; {m.center_offset_cm:.3f} cm, "
-        f"{m.rotation_error_deg:.3f} deg, IoU {m.iou:.3f}"
-    )
-
-
-def _run_with_progress(config: RunConfig) -> RunSummary:
-    if not console.is_terminal:
-        return run_eval(config, on_trial=lambda r: print(_trial_line(r), flush=True))
-    columns = (
-        TextColumn("[bold]{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("{task.fields[successes]} ok"),
-        TimeRemainingColumn(),
-    )
-    with Progress(*columns, console=console) as progress:
-        task = progress.add_task(
-            f"{config.method} / {config.pattern_name}", total=config.trials, successes=0
-        )
-        done = {"ok": 0}
-
-        def on_trial(result: TrialResult) -> None:
-            done["ok"] += result.success
-            progress.console.print(_trial_line(result), highlight=False)
-            progress.update(task, advance=1, successes=done["ok"])
-
-        return run_eval(config, on_trial=on_trial)
-
-
 @app.command("eval")
 def eval_command(
-    out: Annotated[Path, typer.Option(help="Output directory (created; must not hold results).")],
+    out: Annotated[
+        Path,
+        typer.Option(
+            help="Output directory. Created if new; if it holds this run already, the trials "
+            "finished there are kept and only the missing ones run."
+        ),
+    ],
     method: Annotated[Method, typer.Option(help="Reasoning method.")] = Method.AGENTS,
     pattern: PatternOption = "pyramid",
     trials: Annotated[int, typer.Option(min=1, help="Number of trials.")] = 10,
@@ -162,7 +135,17 @@ def eval_command(
     tool_turns: Annotated[
         int, typer.Option(min=0, help="Rounds of tool calls a model may make per step.")
     ] = 2,
-    workers: Annotated[int, typer.Option(min=1, help="Parallel worker processes.")] = 1,
+    workers: Annotated[
+        int, typer.Option(min=1, help="Trials in parallel, one worker process each.")
+    ] = 1,
+    ray: Annotated[
+        str | None,
+        typer.Option(
+            metavar="ADDRESS",
+            help="Run trials as tasks on the Ray cluster at ADDRESS ('auto': the one started "
+            "on this machine with `ray start`). Needs the ray extra.",
+        ),
+    ] = None,
     snapshots: Annotated[
         bool, typer.Option(help="Write per-stage PNG snapshots of every trial.")
     ] = False,
@@ -176,7 +159,9 @@ def eval_command(
 ) -> None:
     """Run randomized trials of one method on one pattern and write results and summaries.
 
-    The API key of an OpenAI-compatible server comes from OPENAI_API_KEY only.
+    Trial k uses a seed from (--seed, k) only, so results are the same serial, with
+    --workers or on Ray. Run the same command again to resume a killed run. The API key of
+    an OpenAI-compatible server comes from OPENAI_API_KEY only.
     """
     config = LLMConfig(
         spec=llm,
@@ -186,15 +171,24 @@ def eval_command(
         record=record,
     )
     try:
-        _check_options(method, config, workers, transcripts)
+        _check_options(method, config, transcripts)
     except ActionReasoningError as error:
         _fail(error)
     _evaluate(
-        method, pattern, trials, seed, out, llm=config, snapshots=snapshots, transcripts=transcripts
+        method,
+        pattern,
+        trials,
+        seed,
+        out,
+        llm=config,
+        snapshots=snapshots,
+        transcripts=transcripts,
+        workers=workers,
+        ray=ray,
     )
 
 
-DEMO_FILES = ("results.jsonl", "summary.json", "summary.md", "report.md")
+DEMO_FILES = ("results.jsonl", "run.json", "summary.json", "summary.md", "report.md")
 
 
 @app.command()
@@ -233,6 +227,8 @@ def _evaluate(
     llm: LLMConfig,
     snapshots: bool,
     transcripts: bool = False,
+    workers: int = 1,
+    ray: str | None = None,
 ) -> RunSummary:
     """Load the pattern, run the trials with progress, print the table; errors end the command."""
     try:
@@ -246,13 +242,39 @@ def _evaluate(
             llm=llm,
             snapshots=snapshots,
             transcripts=transcripts,
+            workers=workers,
+            ray=ray,
         )
-        summary = _run_with_progress(config)
+        check_engine(config)
+        with ConsoleProgress(console, f"{method} / {pattern}") as progress:
+            summary = run_eval(config, progress)
     except ActionReasoningError as error:
         _fail(error)
     console.print(_summary_table(summary))
     console.print(f"wall time {summary.wall_time_s:.1f} s; results in {out}/", highlight=False)
     return summary
+
+
+@app.command("report")
+def report_command(
+    runs: Annotated[
+        list[Path], typer.Argument(help="Eval --out directories: methods, backends, patterns.")
+    ],
+    out: Annotated[Path, typer.Option(help="Directory for the report's files.")] = Path("report"),
+    gif: Annotated[
+        bool, typer.Option(help="Also make an animated GIF of every trial with snapshots.")
+    ] = False,
+) -> None:
+    """Compare eval runs: Table I (markdown, CSV, LaTeX), plots, stage grids, one HTML page."""
+    try:
+        report = build_report(runs, out, gifs=gif)
+    except ActionReasoningError as error:
+        _fail(error)
+    console.print(Markdown(to_markdown(report.table)))
+    if gif and not report.gifs:
+        console.print("no GIFs: no run kept snapshots (eval --snapshots)", highlight=False)
+    written = [*report.tables, *(p for p, _ in (*report.plots, *report.grids, *report.gifs))]
+    console.print(f"{len(written) + 1} files in {out}/; open {report.html}", highlight=False)
 
 
 @app.command("prompt")

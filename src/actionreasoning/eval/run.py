@@ -1,26 +1,41 @@
 """An evaluation run: trials of one method on one pattern, written to an output directory.
 
-results.jsonl gets one line per finished trial, flushed as it finishes; summary.json and
-summary.md are written at the end; with transcripts, transcripts/trial_NNN.jsonl holds every
-agent call of trial NNN.
+results.jsonl gets one line per finished trial, as it finishes; running the same command
+again skips the trials already there (run_dir.py). Trials run one after another, in worker
+processes or on a Ray cluster (jobs.py); only this process writes files. With transcripts,
+transcripts/trial_NNN.jsonl holds every agent call of trial NNN; with snapshots,
+snapshots/trial_NNN/ its pictures. summary.json and summary.md are written at the end.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Protocol
 
 from actionreasoning.errors import ConfigError
+from actionreasoning.eval.jobs import (
+    TrialJob,
+    TrialOutput,
+    run_in_processes,
+    run_on_ray,
+    run_serial,
+)
 from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.snapshots import SnapshotRecorder
-from actionreasoning.eval.summary import RunSummary, summarize, summary_markdown
-from actionreasoning.eval.trial import Method, SuccessRule, TrialRun, TrialSpec, run_trial
+from actionreasoning.eval.run_dir import (
+    RESULTS_FILE,
+    RunManifest,
+    append_result,
+    digest,
+    open_run,
+)
+from actionreasoning.eval.snapshots import save_files
+from actionreasoning.eval.summary import RunSummary, describe_rule, summarize, summary_markdown
+from actionreasoning.eval.trial import Method, SuccessRule, TrialSpec
 from actionreasoning.reasoners.factory import LLMConfig, prepare
 from actionreasoning.world.models import GoalPattern
-
-RESULTS_FILE = "results.jsonl"
 
 
 @dataclass(frozen=True)
@@ -36,60 +51,105 @@ class RunConfig:
     llm: LLMConfig = LLMConfig()
     snapshots: bool = False
     transcripts: bool = False
+    workers: int = 1
+    ray: str | None = None
+    rule: SuccessRule = SuccessRule()
+
+    def manifest(self) -> RunManifest:
+        """What a resumed run must share with this one."""
+        reasoned = self.method is not Method.CLASSICAL
+        return RunManifest(
+            method=str(self.method),
+            pattern=self.pattern_name,
+            pattern_sha256=digest(self.goal.model_dump_json()),
+            seed=self.seed,
+            llm=self.llm.spec if reasoned else "none",
+            llm_limits={**asdict(self.llm.limits), "fallback": self.llm.fallback}
+            if reasoned
+            else {},
+            success_rule=describe_rule(self.rule),
+        )
 
 
-def prepare_out_dir(out: Path) -> Path:
-    """Create ``out``; refuse one that already holds results, so runs never mix."""
-    results = out / RESULTS_FILE
-    if results.exists() and results.stat().st_size > 0:
-        raise ConfigError(f"{results} already exists: choose another --out or remove it")
-    if out.exists() and not out.is_dir():
-        raise ConfigError(f"--out {out} exists and is not a directory")
-    out.mkdir(parents=True, exist_ok=True)
-    return results
+class RunObserver(Protocol):
+    """Told what a run resumes and of every trial as it finishes (progress display)."""
+
+    def started(self, total: int, finished: list[TrialResult]) -> None: ...
+
+    def finished(self, result: TrialResult) -> None: ...
 
 
-def write_transcript(path: Path, run: TrialRun) -> None:
-    """One JSON line per agent call of the trial."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("".join(call.model_dump_json() + "\n" for call in run.transcript))
+def check_engine(config: RunConfig) -> None:
+    """Refuse engine options that cannot work together."""
+    if config.workers > 1 and config.ray:
+        raise ConfigError("--workers and --ray exclude each other: Ray places the trials itself")
+    if config.llm.record and (config.workers > 1 or config.ray):
+        raise ConfigError(
+            "--record writes one file from one process: use it without --workers/--ray"
+        )
 
 
-def run_eval(
-    config: RunConfig, on_trial: Callable[[TrialResult], None] | None = None
-) -> RunSummary:
-    """Run every trial, append each result as it finishes, then write the summaries."""
-    results_path = prepare_out_dir(config.out)
+def run_eval(config: RunConfig, observer: RunObserver | None = None) -> RunSummary:
+    """Run the trials not yet in ``config.out``, append each as it finishes, then summarize."""
+    check_engine(config)
+    finished = open_run(config.out, config.manifest())
     llm = prepare(config.llm) if config.method is not Method.CLASSICAL else config.llm
-    rule = SuccessRule()
-    started = time.perf_counter()
-    results: list[TrialResult] = []
-    with results_path.open("a", encoding="utf-8") as sink:
-        for trial in range(config.trials):
-            spec = TrialSpec(
+    done = {r.trial for r in finished}
+    jobs = [
+        TrialJob(
+            spec=TrialSpec(
                 method=config.method,
                 pattern_name=config.pattern_name,
                 goal=config.goal,
                 run_seed=config.seed,
                 trial=trial,
                 llm=llm,
-            )
-            hook = (
-                SnapshotRecorder(config.out / "snapshots" / f"trial_{trial:03d}")
-                if config.snapshots
-                else None
-            )
-            run = run_trial(spec, rule, hook)
-            result = run.result
-            if config.transcripts:
-                write_transcript(config.out / "transcripts" / f"trial_{trial:03d}.jsonl", run)
-            sink.write(result.model_dump_json() + "\n")
-            sink.flush()
-            results.append(result)
-            if on_trial is not None:
-                on_trial(result)
+            ),
+            rule=config.rule,
+            snapshots=config.snapshots,
+            transcripts=config.transcripts,
+        )
+        for trial in range(config.trials)
+        if trial not in done
+    ]
+    if observer is not None:
+        observer.started(config.trials, [r for r in finished if r.trial < config.trials])
+    started = time.perf_counter()
+    results = [r for r in finished if r.trial < config.trials]
+    with (config.out / RESULTS_FILE).open("ab", buffering=0) as sink:
+        for output in _engine(config, jobs):
+            _write_outputs(config, output)
+            append_result(sink, output.result)
+            results.append(output.result)
+            if observer is not None:
+                observer.finished(output.result)
     mode = None if llm.mode is None else str(llm.mode)
-    summary = summarize(results, time.perf_counter() - started, rule, llm_mode=mode)
+    summary = summarize(
+        sorted(results, key=lambda r: r.trial),
+        time.perf_counter() - started,
+        config.rule,
+        llm_mode=mode,
+        resumed_trials=len(results) - len(jobs),
+    )
     (config.out / "summary.json").write_text(summary.model_dump_json(indent=2) + "\n")
     (config.out / "summary.md").write_text(summary_markdown(summary))
     return summary
+
+
+def _engine(config: RunConfig, jobs: list[TrialJob]) -> Iterator[TrialOutput]:
+    if config.ray:
+        return run_on_ray(jobs, config.ray)
+    if config.workers > 1 and len(jobs) > 1:
+        return run_in_processes(jobs, min(config.workers, len(jobs)))
+    return run_serial(jobs)
+
+
+def _write_outputs(config: RunConfig, output: TrialOutput) -> None:
+    """A trial's transcript and pictures; written before its result line, never after."""
+    name = f"trial_{output.result.trial:03d}"
+    if config.transcripts:
+        path = config.out / "transcripts" / f"{name}.jsonl"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(output.transcript)
+    if config.snapshots:
+        save_files(config.out / "snapshots" / name, output.pictures)

@@ -48,6 +48,7 @@ class RunSummary(BaseModel):
     decisions: int = 0
     fallback_decisions: int = 0
     wall_time_s: float
+    resumed_trials: int = 0
 
 
 def describe_rule(rule: SuccessRule) -> str:
@@ -72,6 +73,7 @@ def summarize(
     wall_time_s: float,
     rule: SuccessRule = SuccessRule(),
     llm_mode: str | None = None,
+    resumed_trials: int = 0,
 ) -> RunSummary:
     """Means and standard deviations over successful trials (the paper's protocol) and all."""
     if not results:
@@ -107,6 +109,7 @@ def summarize(
         decisions=sum(r.decisions for r in results),
         fallback_decisions=sum(r.fallback_decisions for r in results),
         wall_time_s=wall_time_s,
+        resumed_trials=resumed_trials,
     )
 
 
@@ -123,7 +126,12 @@ def summary_markdown(summary: RunSummary) -> str:
         f"# {summary.method} on {summary.pattern}",
         "",
         f"Reasoning backend: `{summary.llm}` · seed {summary.seed} · {summary.trials} trials · "
-        f"wall time {summary.wall_time_s:.1f} s",
+        f"wall time {summary.wall_time_s:.1f} s"
+        + (
+            f" (this session; {summary.resumed_trials} trials were finished by an earlier one)"
+            if summary.resumed_trials
+            else ""
+        ),
         "",
         "Means ± standard deviations over successful trials (per-brick values averaged per trial).",
         "",

@@ -28,8 +28,8 @@ class CameraView:
 
 
 def overview(scene: Scene) -> CameraView:
-    """The whole workspace: pick area, arm and build area."""
-    return CameraView(target_m=(0.2, -0.1, 0.0), distance_m=1.9, yaw_deg=30.0, pitch_deg=-65.0)
+    """The whole workspace from above the arm's back: pick area, arm and build area."""
+    return CameraView(target_m=(0.2, 0.0, 0.1), distance_m=2.0, yaw_deg=0.0, pitch_deg=-70.0)
 
 
 def closeup(target_m: Vec3) -> CameraView:

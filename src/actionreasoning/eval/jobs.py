@@ -1,0 +1,113 @@
+"""Trials as self-contained jobs, and the engines that run them: serial, local worker
+processes, or tasks on a Ray cluster.
+
+A job carries everything its trial needs and returns everything it produced (result,
+transcript, pictures), so only the process that owns the output directory writes files:
+the same code serves a worker on this machine and a Ray task on another.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import socket
+import time
+from collections.abc import Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field
+
+from actionreasoning.errors import ConfigError
+from actionreasoning.eval.results import TrialResult
+from actionreasoning.eval.snapshots import SnapshotRecorder
+from actionreasoning.eval.trial import SuccessRule, TrialSpec, run_trial
+
+
+@dataclass(frozen=True)
+class TrialJob:
+    """One trial to run and what to keep of it."""
+
+    spec: TrialSpec
+    rule: SuccessRule = SuccessRule()
+    snapshots: bool = False
+    transcripts: bool = False
+
+
+@dataclass(frozen=True)
+class TrialOutput:
+    """What a job produced: the result line, the transcript lines, the pictures."""
+
+    result: TrialResult
+    transcript: str = ""
+    pictures: dict[str, bytes] = field(default_factory=dict)
+    wall_time_s: float = 0.0
+
+
+def execute(job: TrialJob) -> TrialOutput:
+    """Run one trial (in whatever process this is) and collect its outputs."""
+    started = time.perf_counter()
+    recorder = SnapshotRecorder() if job.snapshots else None
+    run = run_trial(job.spec, job.rule, recorder)
+    transcript = (
+        "".join(call.model_dump_json() + "\n" for call in run.transcript) if job.transcripts else ""
+    )
+    return TrialOutput(
+        result=run.result,
+        transcript=transcript,
+        pictures=recorder.files if recorder is not None else {},
+        wall_time_s=time.perf_counter() - started,
+    )
+
+
+def run_serial(jobs: Sequence[TrialJob]) -> Iterator[TrialOutput]:
+    """Jobs one after another in this process."""
+    for job in jobs:
+        yield execute(job)
+
+
+def run_in_processes(jobs: Sequence[TrialJob], workers: int) -> Iterator[TrialOutput]:
+    """Jobs in ``workers`` fresh processes, yielded as they finish (not in trial order)."""
+    # spawn, not fork: a worker must not inherit this process's simulator clients or threads.
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+        pending: set[Future[TrialOutput]] = {pool.submit(execute, job) for job in jobs}
+        try:
+            while pending:
+                done, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for future in sorted(done, key=lambda f: f.result().result.trial):
+                    yield future.result()
+        finally:
+            for future in pending:
+                future.cancel()
+
+
+def _probe(address: str, timeout_s: float = 5.0) -> None:
+    """Fail fast where nothing listens at HOST:PORT (Ray itself retries for minutes)."""
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    if not host or not port.isdigit():
+        return  # "auto" and the like: Ray looks up the local cluster and fails fast itself
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout_s).close()
+    except OSError as error:
+        raise ConfigError(f"--ray {address}: no Ray cluster answers there ({error})") from error
+
+
+def run_on_ray(jobs: Sequence[TrialJob], address: str) -> Iterator[TrialOutput]:
+    """Jobs as tasks on the Ray cluster at ``address`` (``auto``: the one on this machine)."""
+    try:
+        import ray
+    except ImportError as error:
+        raise ConfigError(
+            "--ray needs Ray: pip install 'actionreasoning[ray]' (or drop --ray)"
+        ) from error
+    _probe(address)
+    try:
+        ray.init(address=address, log_to_driver=False, configure_logging=False)
+    except (ConnectionError, ValueError, RuntimeError) as error:
+        raise ConfigError(f"--ray {address}: cannot join a Ray cluster there ({error})") from error
+    try:
+        task = ray.remote(num_cpus=1)(execute)
+        pending = [task.remote(job) for job in jobs]
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            yield ray.get(done[0])
+    finally:
+        ray.shutdown()

@@ -1,0 +1,154 @@
+"""Write a report of eval runs: tables, plots, stage grids, GIFs on request, one HTML page.
+
+The HTML page embeds every picture (data URIs), so it can be mailed or archived alone.
+"""
+
+from __future__ import annotations
+
+import base64
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from jinja2 import Environment, PackageLoader, select_autoescape
+
+from actionreasoning.eval.report.collect import Group, load_groups, patterns
+from actionreasoning.eval.report.pictures import stage_grid, trial_gif
+from actionreasoning.eval.report.plots import error_distributions, llm_cost, success_rates
+from actionreasoning.eval.report.tables import (
+    AVERAGE,
+    COLUMNS,
+    Table,
+    comparison_table,
+    pattern_title,
+    to_csv,
+    to_latex,
+    to_markdown,
+)
+
+HTML_FILE = "report.html"
+
+
+@dataclass
+class Report:
+    """The files a report wrote, by kind."""
+
+    directory: Path
+    table: Table
+    tables: list[Path] = field(default_factory=list)
+    plots: list[tuple[Path, str]] = field(default_factory=list)
+    grids: list[tuple[Path, str]] = field(default_factory=list)
+    gifs: list[tuple[Path, str]] = field(default_factory=list)
+    html: Path | None = None
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9]+", "_", text).strip("_").lower()
+
+
+def build_report(directories: Sequence[Path], out: Path, gifs: bool = False) -> Report:
+    """Read the runs in ``directories`` and write the report into ``out``."""
+    groups = load_groups(directories)
+    out.mkdir(parents=True, exist_ok=True)
+    table = comparison_table(groups)
+    report = Report(directory=out, table=table)
+    for name, text in (
+        ("table.md", to_markdown(table)),
+        ("table.csv", to_csv(table)),
+        ("table.tex", to_latex(table)),
+    ):
+        (out / name).write_text(text)
+        report.tables.append(out / name)
+    report.plots.append(
+        (error_distributions(groups, out / "errors.png"), "Per-brick errors by method and pattern")
+    )
+    report.plots.append((success_rates(groups, out / "success.png"), "Success rate per pattern"))
+    cost = llm_cost(groups, out / "llm_cost.png")
+    if cost is not None:
+        report.plots.append((cost, "LLM tokens per brick and latency per call, by agent"))
+    for pattern in patterns(groups):
+        members = [g for g in groups if g.pattern == pattern]
+        grid = stage_grid(members, out / f"stages_{_slug(pattern_title(pattern))}.png")
+        if grid is not None:
+            report.grids.append((grid, f"Stages on {pattern_title(pattern)}"))
+    if gifs:
+        report.gifs = _gifs(groups, out / "gifs")
+    report.html = write_html(report, groups, directories)
+    return report
+
+
+def _gifs(groups: Sequence[Group], directory: Path) -> list[tuple[Path, str]]:
+    made = []
+    for group in groups:
+        for result in group.results:
+            snapshots = group.snapshot_dir(result.trial)
+            if snapshots is None:
+                continue
+            pattern = pattern_title(group.pattern)
+            name = f"{_slug(group.label)}_{_slug(pattern)}_trial_{result.trial:03d}"
+            gif = trial_gif(snapshots, directory / f"{name}.gif")
+            if gif is not None:
+                status = "success" if result.failure is None else result.failure.reason
+                made.append((gif, f"{group.label} on {pattern}, trial {result.trial} ({status})"))
+    return made
+
+
+def _data_uri(path: Path) -> str:
+    kind = "gif" if path.suffix == ".gif" else "png"
+    return f"data:image/{kind};base64," + base64.b64encode(path.read_bytes()).decode()
+
+
+def write_html(report: Report, groups: Sequence[Group], directories: Sequence[Path]) -> Path:
+    """The self-contained page of the report."""
+    table = report.table
+    column_groups = [*table.patterns, AVERAGE]
+    environment = Environment(
+        loader=PackageLoader("actionreasoning.eval.report"), autoescape=select_autoescape()
+    )
+    failures = []
+    for group in groups:
+        for reason, count in group.summary.failures.items():
+            example = next(r for r in group.results if r.failure and r.failure.reason == reason)
+            failures.append(
+                {
+                    "label": group.label,
+                    "pattern": pattern_title(group.pattern),
+                    "reason": reason,
+                    "count": count,
+                    "trial": example.trial,
+                    "detail": example.failure.detail if example.failure else "",
+                }
+            )
+    page = environment.get_template("report.html.j2").render(
+        title="actionreasoning report",
+        runs=[str(d) for d in directories],
+        column_groups=[pattern_title(p) for p in column_groups],
+        columns=[f"{title} {'↓' if lower else '↑'}" for _, title, _, _, lower in COLUMNS],
+        table_rows=[
+            {
+                "label": row,
+                "cells": [
+                    dict(zip(("text", "best"), table.cell(row, p, metric), strict=True))
+                    for p in column_groups
+                    for metric, *_ in COLUMNS
+                ],
+            }
+            for row in table.rows
+        ],
+        success_columns=[pattern_title(p) if p != AVERAGE else "all" for p in column_groups],
+        success_rows=[
+            {
+                "label": row,
+                "cells": [table.success_cell(row, p) for p in column_groups],
+            }
+            for row in table.rows
+        ],
+        failures=failures,
+        plots=[{"data": _data_uri(p), "caption": c} for p, c in report.plots],
+        grids=[{"data": _data_uri(p), "caption": c} for p, c in report.grids],
+        gifs=[{"data": _data_uri(p), "caption": c} for p, c in report.gifs],
+    )
+    path = report.directory / HTML_FILE
+    path.write_text(page, encoding="utf-8")
+    return path

@@ -1,0 +1,156 @@
+"""Report plots as PNG: per-brick errors per method, success per pattern, LLM cost per agent."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib import colormaps
+from matplotlib.figure import Figure
+
+from actionreasoning.eval.report.collect import Group, labels, patterns
+from actionreasoning.eval.report.tables import pattern_title
+from actionreasoning.records import LLMUsage
+
+#: (per-brick field, axis title, scale)
+BRICK_METRICS = (
+    ("center_offset_cm", "centre offset (cm)", 1.0),
+    ("rotation_error_deg", "rotation error (°)", 1.0),
+    ("iou", "3D IoU (%)", 100.0),
+)
+
+
+def _colours(n: int) -> list[tuple[float, ...]]:
+    return [colormaps["tab10"](i % 10) for i in range(n)]
+
+
+def error_distributions(groups: Sequence[Group], path: Path) -> Path:
+    """Box plots of per-brick errors in successful trials: a box per method and pattern."""
+    rows, cols = labels(groups), patterns(groups)
+    by_key = {(g.label, g.pattern): g for g in groups}
+    figure = Figure(figsize=(4.2 * len(BRICK_METRICS), 3.8), dpi=110)
+    axes = figure.subplots(1, len(BRICK_METRICS))
+    width = 0.8 / len(rows)
+    colours = _colours(len(rows))
+    for axis, (field, title, scale) in zip(axes, BRICK_METRICS, strict=True):
+        for r, row in enumerate(rows):
+            data, where = [], []
+            for c, pattern in enumerate(cols):
+                group = by_key.get((row, pattern))
+                values = (
+                    []
+                    if group is None
+                    else [
+                        getattr(b, field) * scale
+                        for t in group.results
+                        if t.success
+                        for b in t.bricks
+                    ]
+                )
+                if values:
+                    data.append(values)
+                    where.append(c + (r - (len(rows) - 1) / 2) * width)
+            if data:
+                boxes = axis.boxplot(
+                    data,
+                    positions=where,
+                    widths=width * 0.9,
+                    patch_artist=True,
+                    medianprops={"color": "black"},
+                )
+                for box in boxes["boxes"]:
+                    box.set_facecolor(colours[r])
+                    box.set_alpha(0.7)
+        axis.set_xticks(range(len(cols)), [pattern_title(p) for p in cols])
+        axis.set_title(title)
+        axis.grid(axis="y", alpha=0.3)
+    handles = [
+        axes[0].bar(0, 0, color=colours[r], alpha=0.7, label=row) for r, row in enumerate(rows)
+    ]
+    figure.legend(handles=handles, loc="lower center", ncol=min(len(rows), 4), frameon=False)
+    figure.suptitle("Per-brick errors over successful trials")
+    figure.tight_layout(rect=(0, 0.1, 1, 1))
+    figure.savefig(path)
+    return path
+
+
+def success_rates(groups: Sequence[Group], path: Path) -> Path:
+    """Bars: success rate of each method on each pattern, with k/n on top."""
+    rows, cols = labels(groups), patterns(groups)
+    by_key = {(g.label, g.pattern): g for g in groups}
+    figure = Figure(figsize=(max(4.5, 1.8 * len(cols) * max(1, len(rows) / 2)), 3.6), dpi=110)
+    axis = figure.subplots()
+    width = 0.8 / len(rows)
+    for r, (row, colour) in enumerate(zip(rows, _colours(len(rows)), strict=True)):
+        for c, pattern in enumerate(cols):
+            group = by_key.get((row, pattern))
+            if group is None:
+                continue
+            x = c + (r - (len(rows) - 1) / 2) * width
+            rate = 100.0 * group.summary.success_rate
+            axis.bar(x, rate, width * 0.95, color=colour, label=row if c == 0 else None)
+            axis.text(
+                x,
+                rate + 1,
+                f"{group.summary.successes}/{group.summary.trials}",
+                ha="center",
+                fontsize=8,
+            )
+    axis.set_xticks(range(len(cols)), [pattern_title(p) for p in cols])
+    axis.set_ylim(0, 112)
+    axis.set_ylabel("success (%)")
+    axis.legend(fontsize=8, loc="lower right")
+    axis.set_title("Success rate per pattern")
+    figure.tight_layout()
+    figure.savefig(path)
+    return path
+
+
+def llm_cost(groups: Sequence[Group], path: Path) -> Path | None:
+    """Tokens per brick and latency per call of every agent, for methods that called a model."""
+    usage: dict[str, dict[str, LLMUsage]] = {}
+    bricks: dict[str, int] = {}
+    for group in groups:
+        for result in group.results:
+            for agent, u in result.llm_usage_by_agent.items():
+                if u.calls:
+                    row = usage.setdefault(group.label, {})
+                    row[agent] = row.get(agent, LLMUsage()) + u
+            bricks[group.label] = bricks.get(group.label, 0) + len(result.bricks)
+    if not usage:
+        return None
+    agents = list(dict.fromkeys(a for row in usage.values() for a in row))
+    figure = Figure(figsize=(max(6.0, 1.3 * len(agents) * 2), 3.8), dpi=110)
+    tokens, latency = figure.subplots(1, 2)
+    width = 0.8 / len(usage)
+    x = np.arange(len(agents))
+    for r, ((label, row), colour) in enumerate(
+        zip(usage.items(), _colours(len(usage)), strict=True)
+    ):
+        shift = x + (r - (len(usage) - 1) / 2) * width
+        prompt = [row.get(a, LLMUsage()).prompt_tokens / bricks[label] for a in agents]
+        completion = [row.get(a, LLMUsage()).completion_tokens / bricks[label] for a in agents]
+        tokens.bar(shift, prompt, width * 0.95, color=colour, alpha=0.55, label=f"{label} prompt")
+        tokens.bar(
+            shift,
+            completion,
+            width * 0.95,
+            bottom=prompt,
+            color=colour,
+            label=f"{label} completion",
+        )
+        per_call = [
+            (u.latency_s / u.calls) if (u := row.get(a)) is not None and u.calls else 0.0
+            for a in agents
+        ]
+        latency.bar(shift, per_call, width * 0.95, color=colour, label=label)
+    for axis, title in ((tokens, "tokens per brick"), (latency, "latency per call (s)")):
+        axis.set_xticks(x, [a.replace("_", " ") for a in agents], rotation=30, ha="right")
+        axis.set_title(title)
+        axis.grid(axis="y", alpha=0.3)
+    tokens.legend(fontsize=7)
+    latency.legend(fontsize=7)
+    figure.tight_layout()
+    figure.savefig(path)
+    return path

@@ -1,0 +1,177 @@
+"""The paper's Table I: methods in rows; per pattern and on average, rotation error (°),
+centre offset (cm) and IoU (%), means over successful trials; as markdown, CSV and LaTeX.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import PurePath
+
+import numpy as np
+
+from actionreasoning.eval.report.collect import Group, labels, patterns
+
+#: (summary metric, column title, scale, digits, lower is better)
+COLUMNS = (
+    ("rotation_error_deg", "Rot. Err", 1.0, 3, True),
+    ("center_offset_cm", "Ctr. Off.", 1.0, 3, True),
+    ("iou", "IoU", 100.0, 2, False),
+)
+AVERAGE = "Average"  # Table I's last column group; for success counts, the total
+
+
+def pattern_title(pattern: str) -> str:
+    """A pattern as a column title: a built-in name, or a pattern file's stem."""
+    return PurePath(pattern).stem if pattern.endswith((".json", ".yaml", ".yml")) else pattern
+
+
+@dataclass(frozen=True)
+class Table:
+    """Cell values (None where a method has no successful trial on a pattern)."""
+
+    rows: list[str]
+    patterns: list[str]
+    values: dict[tuple[str, str, str], float | None]  # (row, pattern or Average, metric)
+    success: dict[tuple[str, str], tuple[int, int]]  # (row, pattern) -> (successes, trials);
+    # (row, Average): summed over the patterns
+
+    def best(self, pattern: str, metric: str) -> float | None:
+        """The best value of a column, for bold type."""
+        lower = next(c[4] for c in COLUMNS if c[0] == metric)
+        found = [v for r in self.rows if (v := self.values[(r, pattern, metric)]) is not None]
+        if len(found) < 2:
+            return None
+        return min(found) if lower else max(found)
+
+    def cell(self, row: str, pattern: str, metric: str) -> tuple[str, bool]:
+        """A formatted cell and whether it is the column's best."""
+        value = self.values[(row, pattern, metric)]
+        if value is None:
+            return "–", False
+        _, _, scale, digits, _ = next(c for c in COLUMNS if c[0] == metric)
+        return f"{value * scale:.{digits}f}", value == self.best(pattern, metric)
+
+    def success_cell(self, row: str, pattern: str) -> str:
+        """Successful trials out of all, or a dash where the method did not run the pattern."""
+        if (row, pattern) not in self.success:
+            return "–"
+        ok, n = self.success[(row, pattern)]
+        return f"{ok}/{n}"
+
+
+def comparison_table(groups: Sequence[Group]) -> Table:
+    """Table I from grouped runs; Average is the mean over the patterns a method has values on."""
+    rows, cols = labels(groups), patterns(groups)
+    by_key = {(g.label, g.pattern): g for g in groups}
+    values: dict[tuple[str, str, str], float | None] = {}
+    success: dict[tuple[str, str], tuple[int, int]] = {}
+    for row in rows:
+        for metric, *_ in COLUMNS:
+            means = []
+            for pattern in cols:
+                group = by_key.get((row, pattern))
+                mean = None if group is None else group.summary.successful[metric].mean
+                values[(row, pattern, metric)] = mean
+                if mean is not None:
+                    means.append(mean)
+            values[(row, AVERAGE, metric)] = float(np.mean(means)) if means else None
+        for pattern in cols:
+            group = by_key.get((row, pattern))
+            if group is not None:
+                success[(row, pattern)] = (group.summary.successes, group.summary.trials)
+        counts = [success[(row, p)] for p in cols if (row, p) in success]
+        success[(row, AVERAGE)] = (sum(c[0] for c in counts), sum(c[1] for c in counts))
+    return Table(rows=rows, patterns=cols, values=values, success=success)
+
+
+def to_markdown(table: Table) -> str:
+    """Table I as a markdown table (best of each column in bold), then success per pattern."""
+    groups = [*table.patterns, AVERAGE]
+    header = ["Method"] + [
+        f"{pattern_title(p)}: {title} {'↓' if lower else '↑'}"
+        for p in groups
+        for _, title, _, _, lower in COLUMNS
+    ]
+    lines = ["| " + " | ".join(header) + " |", "|---" * len(header) + "|"]
+    for row in table.rows:
+        cells = [row]
+        for pattern in groups:
+            for metric, *_ in COLUMNS:
+                text, best = table.cell(row, pattern, metric)
+                cells.append(f"**{text}**" if best else text)
+        lines.append("| " + " | ".join(cells) + " |")
+    lines += [
+        "",
+        "| Method | "
+        + " | ".join(f"{pattern_title(p) if p != AVERAGE else 'all'}: success" for p in groups)
+        + " |",
+        "|---" * (len(groups) + 1) + "|",
+    ]
+    for row in table.rows:
+        lines.append(f"| {row} | " + " | ".join(table.success_cell(row, p) for p in groups) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def to_csv(table: Table) -> str:
+    """One line per method and pattern (Average included): every Table I value, unrounded."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(
+        ["method", "pattern", "successes", "trials", *(f"{m}_mean" for m, *_ in COLUMNS)]
+    )
+    for row in table.rows:
+        for pattern in [*table.patterns, AVERAGE]:
+            if (row, pattern) not in table.success:
+                continue
+            ok, n = table.success[(row, pattern)]
+            means = [table.values[(row, pattern, m)] for m, *_ in COLUMNS]
+            writer.writerow([row, pattern, ok, n, *("" if v is None else repr(v) for v in means)])
+    return buffer.getvalue()
+
+
+def _latex_escape(text: str) -> str:
+    for char, escaped in (("\\", r"\textbackslash{}"), ("_", r"\_"), ("%", r"\%"), ("&", r"\&")):
+        text = text.replace(char, escaped)
+    for char in "#$":
+        text = text.replace(char, "\\" + char)
+    return text
+
+
+def to_latex(table: Table) -> str:
+    """Table I as a booktabs tabular, laid out like the paper's (best values in bold)."""
+    groups = [*table.patterns, AVERAGE]
+    n = len(COLUMNS)
+    lines = [
+        r"\begin{tabular}{l" + "c" * (n * len(groups)) + "}",
+        r"\toprule",
+        r"\multirow{2}{*}{\textbf{Method}}"
+        + "".join(
+            rf" & \multicolumn{{{n}}}{{c}}{{\textbf{{{_latex_escape(pattern_title(p))}}}}}"
+            for p in groups
+        )
+        + r" \\",
+        "".join(rf"\cmidrule(lr){{{2 + i * n}-{1 + (i + 1) * n}}}" for i in range(len(groups))),
+        " & ".join(
+            [""]
+            + [
+                rf"\textbf{{{title}}} $\{'downarrow' if lower else 'uparrow'}$"
+                for _ in groups
+                for _, title, _, _, lower in COLUMNS
+            ]
+        )
+        + r" \\",
+        r"\midrule",
+    ]
+    for row in table.rows:
+        cells = [_latex_escape(row)]
+        for pattern in groups:
+            for metric, *_ in COLUMNS:
+                text, best = table.cell(row, pattern, metric)
+                text = "--" if text == "–" else text
+                cells.append(rf"\textbf{{{text}}}" if best else text)
+        lines.append(" & ".join(cells) + r" \\")
+    lines += [r"\bottomrule", r"\end{tabular}"]
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,143 @@
+"""Evaluation at scale, as a user runs it: worker processes, a Ray cluster, SIGKILL and
+resume; each compared line for line with a serial run of the same seeds."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from conftest import SMALL_PATTERN, assert_clean_error, cli, free_port
+
+TRIALS = "3"
+
+
+@pytest.fixture(scope="module")
+def pattern(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("pattern") / "small.json"
+    path.write_text(json.dumps(SMALL_PATTERN))
+    return path
+
+
+def eval_args(pattern: Path, out: Path, *extra: str) -> list[str]:
+    return [
+        "eval", "--method", "classical", "--pattern", str(pattern), "--trials", TRIALS,
+        "--seed", "5", "--out", str(out), *extra,
+    ]  # fmt: skip
+
+
+def sorted_lines(out: Path) -> list[str]:
+    lines = (out / "results.jsonl").read_text().splitlines()
+    return sorted(lines, key=lambda line: json.loads(line)["trial"])
+
+
+@pytest.fixture(scope="module")
+def serial(pattern: Path, tmp_path_factory: pytest.TempPathFactory) -> list[str]:
+    """The reference: the trials one after another in one process."""
+    out = tmp_path_factory.mktemp("serial") / "run"
+    result = cli(*eval_args(pattern, out))
+    assert result.returncode == 0, result.stderr
+    lines = sorted_lines(out)
+    assert [json.loads(line)["trial"] for line in lines] == [0, 1, 2]
+    return lines
+
+
+@pytest.mark.slow
+def test_two_workers_give_the_serial_results(
+    pattern: Path, serial: list[str], tmp_path: Path
+) -> None:
+    result = cli(*eval_args(pattern, tmp_path / "run", "--workers", "2"))
+    assert result.returncode == 0, result.stderr
+    assert sorted_lines(tmp_path / "run") == serial
+    # Not a terminal: one plain line per finished trial, with the count and successes so far.
+    assert "[3/3, 3 ok] trial" in result.stdout
+
+
+@pytest.mark.slow
+def test_a_run_killed_with_sigkill_resumes_without_loss_or_duplicates(
+    pattern: Path, serial: list[str], tmp_path: Path
+) -> None:
+    out = tmp_path / "run"
+    command = [sys.executable, "-m", "actionreasoning", *eval_args(pattern, out)]
+    process = subprocess.Popen(
+        command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+    )
+    results = out / "results.jsonl"
+    deadline = time.monotonic() + 300
+    while not (results.exists() and results.read_text().count("\n") >= 1):
+        assert process.poll() is None and time.monotonic() < deadline, "no trial finished"
+        time.sleep(0.05)
+    os.killpg(process.pid, signal.SIGKILL)
+    process.wait()
+    finished = sorted_lines(out)
+    assert 1 <= len(finished) < 3 and finished == serial[: len(finished)]
+
+    resumed = cli(*eval_args(pattern, out))
+    assert resumed.returncode == 0, resumed.stderr
+    assert f"resuming: {len(finished)} of 3 trials" in resumed.stdout
+    assert sorted_lines(out) == serial
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["trials"] == 3 and summary["resumed_trials"] == len(finished)
+
+    again = cli(*eval_args(pattern, out))
+    assert again.returncode == 0 and "resuming: 3 of 3" in again.stdout
+    assert sorted_lines(out) == serial
+
+
+@pytest.fixture(scope="module")
+def ray_cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """A real local Ray head node, started as a user would, stopped afterwards."""
+    ray = shutil.which("ray", path=str(Path(sys.executable).parent))
+    assert ray is not None, "the test extras install ray"
+    port = free_port()
+    temp = tmp_path_factory.mktemp("ray")
+    start = subprocess.run(
+        [ray, "start", "--head", f"--port={port}", "--num-cpus=2", "--include-dashboard=false",
+         "--disable-usage-stats", f"--temp-dir={temp}"],
+        capture_output=True, text=True, timeout=180,
+    )  # fmt: skip
+    assert start.returncode == 0, start.stderr
+    try:
+        yield f"127.0.0.1:{port}"
+    finally:
+        subprocess.run([ray, "stop", "--force"], capture_output=True, timeout=120)
+
+
+@pytest.mark.slow
+def test_trials_on_a_local_ray_cluster_give_the_serial_results(
+    pattern: Path, serial: list[str], ray_cluster: str, tmp_path: Path
+) -> None:
+    result = cli(*eval_args(pattern, tmp_path / "run", "--ray", ray_cluster))
+    assert result.returncode == 0, result.stderr
+    assert sorted_lines(tmp_path / "run") == serial
+
+
+def test_a_ray_address_where_nothing_listens_is_refused_at_once(
+    pattern: Path, tmp_path: Path
+) -> None:
+    address = f"127.0.0.1:{free_port()}"
+    result = cli(*eval_args(pattern, tmp_path / "run", "--ray", address), timeout=60)
+    assert_clean_error(result, f"--ray {address}: no Ray cluster answers there")
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        (("--workers", "2", "--ray", "auto"), "--workers and --ray exclude each other"),
+        (
+            ("--method", "agents", "--llm", "openai:m", "--record", "r.jsonl", "--workers", "2"),
+            "--record writes one file from one process",
+        ),
+    ],
+)
+def test_engine_options_that_cannot_work_together_are_refused(
+    pattern: Path, tmp_path: Path, extra: tuple[str, ...], needle: str
+) -> None:
+    assert_clean_error(cli(*eval_args(pattern, tmp_path / "run", *extra)), needle)

@@ -1,0 +1,128 @@
+"""`actionreasoning report` on real runs: tables, plots, stage grids, GIFs, and the HTML page
+as Chromium renders it."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import shutil
+from pathlib import Path
+
+import imageio.v3 as iio
+import pytest
+from conftest import SMALL_PATTERN, assert_clean_error, cli
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
+    """Two methods on the small pattern, with snapshots."""
+    root = tmp_path_factory.mktemp("runs")
+    pattern = root / "small.json"
+    pattern.write_text(json.dumps(SMALL_PATTERN))
+    made = []
+    for method, trials in (("classical", "2"), ("agents", "1")):
+        out = root / method
+        result = cli(
+            "eval", "--method", method, "--pattern", str(pattern), "--trials", trials,
+            "--out", str(out), "--snapshots",
+        )  # fmt: skip
+        assert result.returncode == 0, result.stderr
+        made.append(out)
+    return made
+
+
+@pytest.fixture(scope="module")
+def report(runs: list[Path], tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("report")
+    result = cli("report", *map(str, runs), "--out", str(out), "--gif")
+    assert result.returncode == 0, result.stderr
+    assert "report.html" in result.stdout
+    return out
+
+
+def summary_of(run: Path) -> dict:
+    return json.loads((run / "summary.json").read_text())
+
+
+@pytest.mark.slow
+def test_the_tables_hold_each_runs_figures(runs: list[Path], report: Path) -> None:
+    rows = list(csv.DictReader((report / "table.csv").open()))
+    assert [(r["method"], r["pattern"].endswith("small.json") or r["pattern"]) for r in rows] == [
+        ("classical", True), ("classical", "Average"),
+        ("agents (builtin)", True), ("agents (builtin)", "Average"),
+    ]  # fmt: skip
+    for run, row in zip(runs, rows[::2], strict=True):
+        summary = summary_of(run)
+        assert (int(row["successes"]), int(row["trials"])) == (
+            summary["successes"],
+            summary["trials"],
+        )
+        for metric in ("rotation_error_deg", "center_offset_cm", "iou"):
+            assert float(row[f"{metric}_mean"]) == pytest.approx(
+                summary["successful"][metric]["mean"]
+            )
+    markdown = (report / "table.md").read_text()
+    assert "| small: Rot. Err ↓ |" in markdown and "| agents (builtin) |" in markdown
+    assert "| classical | 2/2 | 2/2 |" in markdown
+    latex = (report / "table.tex").read_text()
+    assert r"\multicolumn{3}{c}{\textbf{small}}" in latex and latex.count(r"\\") == 4
+
+
+@pytest.mark.slow
+def test_plots_grids_and_gifs_are_real_pictures(report: Path) -> None:
+    for name in ("errors.png", "success.png", "stages_small.png"):
+        image = iio.imread(report / name)
+        assert image.shape[0] > 200 and image.shape[1] > 300 and image.std() > 10
+    gifs = sorted((report / "gifs").glob("*.gif"))
+    assert [g.name for g in gifs] == [
+        "agents_builtin_small_trial_000.gif",
+        "classical_small_trial_000.gif",
+        "classical_small_trial_001.gif",
+    ]
+    frames = iio.imread(gifs[0], index=None)
+    assert len(frames) == 3 * 7 + 1  # every stage of every brick, then the final frame
+    assert not (report / "llm_cost.png").exists()  # no run called a model
+
+
+@pytest.mark.slow
+def test_the_html_page_renders_in_chromium(runs: list[Path], report: Path) -> None:
+    if CHROMIUM is None:
+        if os.environ.get("ACTIONREASONING_REQUIRE_BROWSER"):
+            pytest.fail("Chromium is not installed, and this run requires the browser test")
+        pytest.skip("Chromium is not installed (apt-get install chromium); .ci/run installs it")
+    from playwright.sync_api import sync_playwright
+
+    page_path = report / "report.html"
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(
+            executable_path=CHROMIUM,
+            args=["--no-sandbox", "--disable-gpu", "--disable-background-networking"],
+        )
+        page = browser.new_page()
+        page.goto(page_path.as_uri())
+        page.wait_for_load_state("load")
+        rows = page.locator("#table-i tbody tr").all()
+        cells = [row.locator("td").all_inner_texts() for row in rows]
+        images = page.eval_on_selector_all(
+            "img", "all => all.map(i => [i.complete, i.naturalWidth, i.naturalHeight])"
+        )
+        shown = page.locator("img").first.bounding_box()
+        browser.close()
+    classical = summary_of(runs[0])["successful"]
+    assert [row[0] for row in cells] == ["classical", "agents (builtin)"]
+    assert cells[0][1:4] == [
+        f"{classical['rotation_error_deg']['mean']:.3f}",
+        f"{classical['center_offset_cm']['mean']:.3f}",
+        f"{classical['iou']['mean'] * 100:.2f}",
+    ]
+    assert len(images) == 2 + 1 + 3  # two plots, one stage grid, three GIFs
+    assert all(done and width > 0 and height > 0 for done, width, height in images)
+    assert shown is not None and shown["width"] > 100 and shown["height"] > 100
+    assert 'src="data:image/png;base64,' in page_path.read_text()  # nothing to fetch
+
+
+def test_a_directory_without_results_is_refused(tmp_path: Path) -> None:
+    assert_clean_error(cli("report", str(tmp_path)), "holds no results.jsonl")

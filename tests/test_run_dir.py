@@ -1,0 +1,109 @@
+"""The output directory of a run on its own (no simulation): what resume reads and refuses."""
+
+from __future__ import annotations
+
+from io import StringIO
+from pathlib import Path
+
+import pytest
+from rich.console import Console
+
+from actionreasoning.errors import ConfigError
+from actionreasoning.eval.progress import ConsoleProgress
+from actionreasoning.eval.results import TrialMetrics, TrialResult
+from actionreasoning.eval.run_dir import RunManifest, append_result, open_run, read_results
+from actionreasoning.records import Failure
+
+MANIFEST = RunManifest(
+    method="agents",
+    pattern="pyramid",
+    pattern_sha256="0" * 64,
+    seed=0,
+    llm="builtin",
+    llm_limits={"tool_turns": 2, "repairs": 2, "fallback": False},
+    success_rule="rule",
+)
+
+
+def result(trial: int, success: bool = True) -> TrialResult:
+    return TrialResult(
+        method="agents", pattern="pyramid", seed=0, trial=trial, trial_seed=trial, success=success,
+        llm="builtin", bricks=(), bricks_placed=0,
+        metrics=TrialMetrics(
+            center_offset_cm=0.01, rotation_error_deg=0.02, symmetric_rotation_error_deg=0.02,
+            iou=0.99,
+        ),
+        failure=None if success else Failure(reason="misplaced", detail="brick 3"), sim_steps=10,
+    )  # fmt: skip
+
+
+def write_run(out: Path, trials: int) -> None:
+    assert open_run(out, MANIFEST) == []
+    with (out / "results.jsonl").open("ab", buffering=0) as sink:
+        for trial in range(trials):
+            append_result(sink, result(trial))
+
+
+def test_a_partial_last_line_is_cut_off_and_whole_lines_kept(tmp_path: Path) -> None:
+    write_run(tmp_path, 2)
+    path = tmp_path / "results.jsonl"
+    whole = path.read_bytes()
+    path.write_bytes(whole + result(2).model_dump_json()[:57].encode())  # killed mid-write
+    assert [r.trial for r in read_results(path)] == [0, 1]
+    assert path.read_bytes() != whole  # reading alone repairs nothing
+    assert [r.trial for r in open_run(tmp_path, MANIFEST)] == [0, 1]
+    assert path.read_bytes() == whole
+
+
+def test_a_different_run_is_refused_naming_what_differs(tmp_path: Path) -> None:
+    write_run(tmp_path, 1)
+    other = MANIFEST.model_copy(update={"seed": 4, "llm": "openai:m"})
+    with pytest.raises(ConfigError, match=r"seed 0 there, 4 now, llm 'builtin' there"):
+        open_run(tmp_path, other)
+
+
+@pytest.mark.parametrize(
+    ("damage", "message"),
+    [
+        ("{not json}\n", r"line 2 is not a trial result"),
+        (None, r"line 2 repeats trial 0"),
+    ],
+)
+def test_damaged_results_are_refused_with_the_line(
+    tmp_path: Path, damage: str | None, message: str
+) -> None:
+    write_run(tmp_path, 1)
+    path = tmp_path / "results.jsonl"
+    first = path.read_text()
+    path.write_text(first + (damage or first))
+    with pytest.raises(ConfigError, match=message):
+        open_run(tmp_path, MANIFEST)
+
+
+def test_results_without_a_manifest_are_not_mixed_into(tmp_path: Path) -> None:
+    (tmp_path / "results.jsonl").write_text(result(0).model_dump_json() + "\n")
+    with pytest.raises(ConfigError, match=r"run\.json does not"):
+        open_run(tmp_path, MANIFEST)
+
+
+def test_the_progress_bar_counts_resumed_trials_and_successes() -> None:
+    buffer = StringIO()
+    console = Console(file=buffer, force_terminal=True, width=120)
+    with ConsoleProgress(console, "agents / pyramid") as progress:
+        progress.started(4, [result(0)])
+        progress.finished(result(1, success=False))
+        progress.finished(result(2))
+    text = buffer.getvalue()
+    assert "resuming: 1 of 4 trials already in results.jsonl (1 ok)" in text
+    assert "trial 1: FAILED (misplaced)" in text
+    assert "3/4" in text and "2 ok" in text
+
+
+def test_plain_lines_when_not_a_terminal(capsys: pytest.CaptureFixture[str]) -> None:
+    console = Console(file=StringIO(), force_terminal=False)
+    with ConsoleProgress(console, "x") as progress:
+        progress.started(2, [])
+        progress.finished(result(0))
+    assert capsys.readouterr().out.splitlines() == [
+        "[1/2, 1 ok] trial 0: ok; 0.010 cm, 0.020 deg, IoU 0.990"
+    ]
