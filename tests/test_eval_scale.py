@@ -141,3 +141,27 @@ def test_engine_options_that_cannot_work_together_are_refused(
     pattern: Path, tmp_path: Path, extra: tuple[str, ...], needle: str
 ) -> None:
     assert_clean_error(cli(*eval_args(pattern, tmp_path / "run", *extra)), needle)
+
+
+@pytest.mark.slow
+def test_ctrl_c_stops_workers_at_once_and_keeps_whole_lines(
+    pattern: Path, serial: list[str], tmp_path: Path
+) -> None:
+    out = tmp_path / "run"
+    command = [sys.executable, "-m", "actionreasoning", *eval_args(pattern, out, "--workers", "2")]
+    process = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
+    )
+    results = out / "results.jsonl"
+    deadline = time.monotonic() + 300
+    while not (results.exists() and results.read_text().count("\n") >= 1):
+        assert process.poll() is None and time.monotonic() < deadline, "no trial finished"
+        time.sleep(0.05)
+    process.send_signal(signal.SIGINT)  # to the main process only, as a terminal's Ctrl-C
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == 130, stderr
+    assert stderr.strip() == (
+        "interrupted: the finished trials are saved: run the same command to run the rest"
+    )
+    finished = sorted_lines(out)
+    assert finished and set(finished) <= set(serial)

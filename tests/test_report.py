@@ -126,3 +126,27 @@ def test_the_html_page_renders_in_chromium(runs: list[Path], report: Path) -> No
 
 def test_a_directory_without_results_is_refused(tmp_path: Path) -> None:
     assert_clean_error(cli("report", str(tmp_path)), "holds no results.jsonl")
+
+
+def test_llm_cost_per_agent_is_plotted_where_a_model_was_called(tmp_path: Path) -> None:
+    """A run whose results carry usage per agent (as an LLM run writes them) gets the plot."""
+    from test_run_dir import result
+
+    from actionreasoning.records import LLMUsage
+
+    run = tmp_path / "run"
+    run.mkdir()
+    usage = {
+        "pre_grasp": LLMUsage(calls=2, prompt_tokens=9000, completion_tokens=300, latency_s=40.0),
+        "placement": LLMUsage(calls=4, prompt_tokens=20000, completion_tokens=900, latency_s=90.0),
+    }
+    lines = [
+        result(trial).model_copy(update={"llm": "openai:gemma", "llm_usage_by_agent": usage})
+        for trial in range(2)
+    ]
+    (run / "results.jsonl").write_text("".join(r.model_dump_json() + "\n" for r in lines))
+    outcome = cli("report", str(run), "--out", str(tmp_path / "report"))
+    assert outcome.returncode == 0, outcome.stderr
+    image = iio.imread(tmp_path / "report" / "llm_cost.png")
+    assert image.shape[1] > 500 and image.std() > 10
+    assert "| agents (openai:gemma) |" in (tmp_path / "report" / "table.md").read_text()

@@ -10,16 +10,17 @@ from typing import Annotated
 
 import typer
 from rich.console import Console
-from rich.markdown import Markdown
 from rich.table import Table
 
 from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.prompt import render_prompt
 from actionreasoning.agents.spec import SINGLE_AGENT_START, agent_specs, single_agent_spec
 from actionreasoning.errors import ActionReasoningError, ConfigError
+from actionreasoning.eval.jobs import RESUME_HINT
 from actionreasoning.eval.progress import ConsoleProgress
 from actionreasoning.eval.report.build import build_report
-from actionreasoning.eval.report.tables import to_markdown
+from actionreasoning.eval.report.tables import AVERAGE, COLUMNS, pattern_title
+from actionreasoning.eval.report.tables import Table as ComparisonTable
 from actionreasoning.eval.run import RunConfig, check_engine, run_eval
 from actionreasoning.eval.summary import RunSummary
 from actionreasoning.eval.trial import Method, TrialSpec, trial_world
@@ -199,22 +200,26 @@ def demo(
 ) -> None:
     """Build a pattern once with the six agents and write a report with pictures of every stage.
 
-    Running it again into the same directory replaces the previous demo's files.
+    report.md shows the stages and the result; report/report.html adds the plots and an
+    animation of the build. Running it again into the same directory replaces the files.
     """
     if (out / "report.md").exists():
         for name in DEMO_FILES:
             (out / name).unlink(missing_ok=True)
-        shutil.rmtree(out / "snapshots", ignore_errors=True)
+        for folder in ("snapshots", "report"):
+            shutil.rmtree(out / folder, ignore_errors=True)
     _evaluate(Method.AGENTS, pattern, 1, seed, out, llm=LLMConfig(), snapshots=True)
+    html = build_report([out], out / "report", gifs=True)
+    animation = html.gifs[0][0].relative_to(out)
     report = out / "report.md"
     report.write_text(
         (out / "summary.md").read_text()
         + "\n## Stages\n\nStages left to right, bricks top to bottom.\n\n"
         + "![stages](snapshots/trial_000/stages.png)\n\n## Result\n\n"
         + "![build](snapshots/trial_000/final_build.png)\n"
-        + "![overview](snapshots/trial_000/final_overview.png)\n"
+        + f"![the build, stage by stage]({animation})\n"
     )
-    console.print(f"report: {report}", highlight=False)
+    console.print(f"report: {report} and {html.html}", highlight=False)
 
 
 def _evaluate(
@@ -250,9 +255,32 @@ def _evaluate(
             summary = run_eval(config, progress)
     except ActionReasoningError as error:
         _fail(error)
+    except KeyboardInterrupt:
+        err_console.print(f"interrupted: {RESUME_HINT}", highlight=False)
+        raise typer.Exit(code=130) from None
     console.print(_summary_table(summary))
     console.print(f"wall time {summary.wall_time_s:.1f} s; results in {out}/", highlight=False)
     return summary
+
+
+def _comparison(table: ComparisonTable) -> Table:
+    """Table I for the terminal: one cell per pattern with its three means and successes."""
+    shown = Table(
+        title="rotation error (°), centre offset (cm), IoU (%): means over successful trials",
+        caption=f"details in table.md; {AVERAGE}: mean over the patterns",
+    )
+    shown.add_column("Method")
+    columns = [*table.patterns, AVERAGE]
+    for pattern in columns:
+        shown.add_column(pattern_title(pattern), justify="right")
+    for row in table.rows:
+        cells = []
+        for pattern in columns:
+            values = [table.cell(row, pattern, metric) for metric, *_ in COLUMNS]
+            text = " ".join(f"[bold]{v}[/]" if best else v for v, best in values)
+            cells.append(f"{text}\n{table.success_cell(row, pattern)} ok")
+        shown.add_row(row, *cells)
+    return shown
 
 
 @app.command("report")
@@ -270,7 +298,14 @@ def report_command(
         report = build_report(runs, out, gifs=gif)
     except ActionReasoningError as error:
         _fail(error)
-    console.print(Markdown(to_markdown(report.table)))
+    console.print(_comparison(report.table))
+    for group in report.groups:
+        if group.repeated:
+            console.print(
+                f"{group.label} on {group.pattern}: {group.repeated} trials appear in more than "
+                "one directory (same seed and index, so the same trial); each counted once",
+                highlight=False,
+            )
     if gif and not report.gifs:
         console.print("no GIFs: no run kept snapshots (eval --snapshots)", highlight=False)
     written = [*report.tables, *(p for p, _ in (*report.plots, *report.grids, *report.gifs))]

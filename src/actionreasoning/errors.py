@@ -27,6 +27,10 @@ class ToolError(ActionReasoningError):
     """A tool was called with arguments that name nothing in the world (bad brick id, ...)."""
 
 
+class EngineError(ActionReasoningError):
+    """A worker process or Ray task running trials died; finished trials are kept."""
+
+
 class LLMError(ActionReasoningError):
     """A language model could not give a valid answer: the server failed or timed out, or
     every repair of its output was refused. ``reason`` is the trial's failure code."""

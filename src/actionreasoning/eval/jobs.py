@@ -13,12 +13,15 @@ import socket
 import time
 from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 
-from actionreasoning.errors import ConfigError
+from actionreasoning.errors import ConfigError, EngineError
 from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.snapshots import SnapshotRecorder
 from actionreasoning.eval.trial import SuccessRule, TrialSpec, run_trial
+
+RESUME_HINT = "the finished trials are saved: run the same command to run the rest"
 
 
 @dataclass(frozen=True)
@@ -67,16 +70,22 @@ def run_in_processes(jobs: Sequence[TrialJob], workers: int) -> Iterator[TrialOu
     """Jobs in ``workers`` fresh processes, yielded as they finish (not in trial order)."""
     # spawn, not fork: a worker must not inherit this process's simulator clients or threads.
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-        pending: set[Future[TrialOutput]] = {pool.submit(execute, job) for job in jobs}
-        try:
-            while pending:
-                done, pending = wait(pending, return_when=FIRST_COMPLETED)
-                for future in sorted(done, key=lambda f: f.result().result.trial):
-                    yield future.result()
-        finally:
-            for future in pending:
-                future.cancel()
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=context)
+    pending: set[Future[TrialOutput]] = {pool.submit(execute, job) for job in jobs}
+    try:
+        while pending:
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for future in sorted(done, key=lambda f: f.result().result.trial):
+                yield future.result()
+    except BrokenProcessPool as error:
+        raise EngineError(f"a worker process died ({error}); {RESUME_HINT}") from error
+    finally:
+        if pending:  # stopped early (Ctrl-C, an error): drop the trials in flight at once
+            pool.shutdown(wait=False, cancel_futures=True)
+            for child in multiprocessing.active_children():
+                child.terminate()
+        else:
+            pool.shutdown()
 
 
 def _probe(address: str, timeout_s: float = 5.0) -> None:
@@ -108,6 +117,11 @@ def run_on_ray(jobs: Sequence[TrialJob], address: str) -> Iterator[TrialOutput]:
         pending = [task.remote(job) for job in jobs]
         while pending:
             done, pending = ray.wait(pending, num_returns=1)
-            yield ray.get(done[0])
+            try:
+                output = ray.get(done[0])
+            except ray.exceptions.RayError as error:
+                summary = str(error).strip().splitlines()[0]
+                raise EngineError(f"a Ray task failed ({summary}); {RESUME_HINT}") from error
+            yield output
     finally:
         ray.shutdown()

@@ -35,6 +35,7 @@ class Report:
     """The files a report wrote, by kind."""
 
     directory: Path
+    groups: list[Group]
     table: Table
     tables: list[Path] = field(default_factory=list)
     plots: list[tuple[Path, str]] = field(default_factory=list)
@@ -52,7 +53,7 @@ def build_report(directories: Sequence[Path], out: Path, gifs: bool = False) -> 
     groups = load_groups(directories)
     out.mkdir(parents=True, exist_ok=True)
     table = comparison_table(groups)
-    report = Report(directory=out, table=table)
+    report = Report(directory=out, groups=groups, table=table)
     for name, text in (
         ("table.md", to_markdown(table)),
         ("table.csv", to_csv(table)),

@@ -27,6 +27,7 @@ class Group:
     directories: tuple[Path, ...]
     results: tuple[TrialResult, ...]
     summary: RunSummary
+    repeated: int = 0  # trials found in two directories (same seed and index), counted once
 
     def snapshot_dir(self, trial: int) -> Path | None:
         """Where the pictures of ``trial`` are, if its run kept them."""
@@ -56,7 +57,8 @@ def load_groups(directories: Sequence[Path]) -> list[Group]:
             found.setdefault((method_label(result), result.pattern), []).append((directory, result))
     groups = []
     for (label, pattern), members in found.items():
-        results = tuple(sorted((r for _, r in members), key=lambda r: (r.seed, r.trial)))
+        unique = {(r.seed, r.trial): r for _, r in reversed(members)}  # the first one kept
+        results = tuple(unique[key] for key in sorted(unique))
         groups.append(
             Group(
                 label=label,
@@ -64,6 +66,7 @@ def load_groups(directories: Sequence[Path]) -> list[Group]:
                 directories=tuple(dict.fromkeys(d for d, _ in members)),
                 results=results,
                 summary=summarize(results, wall_time_s=0.0),
+                repeated=len(members) - len(results),
             )
         )
     return groups

@@ -100,9 +100,9 @@ def success_rates(groups: Sequence[Group], path: Path) -> Path:
     axis.set_xticks(range(len(cols)), [pattern_title(p) for p in cols])
     axis.set_ylim(0, 112)
     axis.set_ylabel("success (%)")
-    axis.legend(fontsize=8, loc="lower right")
+    figure.legend(loc="lower center", ncol=min(len(rows), 3), fontsize=8, frameon=False)
     axis.set_title("Success rate per pattern")
-    figure.tight_layout()
+    figure.tight_layout(rect=(0, 0.1, 1, 1))
     figure.savefig(path)
     return path
 
@@ -129,8 +129,9 @@ def llm_cost(groups: Sequence[Group], path: Path) -> Path | None:
         zip(usage.items(), _colours(len(usage)), strict=True)
     ):
         shift = x + (r - (len(usage) - 1) / 2) * width
-        prompt = [row.get(a, LLMUsage()).prompt_tokens / bricks[label] for a in agents]
-        completion = [row.get(a, LLMUsage()).completion_tokens / bricks[label] for a in agents]
+        per_brick = max(bricks[label], 1)
+        prompt = [row.get(a, LLMUsage()).prompt_tokens / per_brick for a in agents]
+        completion = [row.get(a, LLMUsage()).completion_tokens / per_brick for a in agents]
         tokens.bar(shift, prompt, width * 0.95, color=colour, alpha=0.55, label=f"{label} prompt")
         tokens.bar(
             shift,
