@@ -67,6 +67,10 @@ class FaultHandler(BaseHTTPRequestHandler):
 
     def do_POST(self) -> None:
         body = json.loads(self.rfile.read(int(self.headers["Content-Length"])))
+        echo = f"you sent {self.headers.get('Authorization')} from {self.headers.get('Host')}"
+        if self.server.fault == "echo_refuse":  # refuses every request, quoting the key
+            self._send(400, json.dumps({"error": {"message": echo}}).encode())
+            return
         if "probe" in json.dumps(body.get("response_format", {})):
             self._send(200, completion('{"ok": true}'))
             return
@@ -83,6 +87,9 @@ class FaultHandler(BaseHTTPRequestHandler):
         elif fault == "slow":
             time.sleep(3.0)
             self._send(200, completion("{}"))
+        elif fault == "echo":  # an answer quoting the key, then a garbled body quoting it
+            body = completion(echo) if self.server.agent_requests == 1 else echo.encode()
+            self._send(200, body)
         else:
             self._send(200, completion(HOSTILE))
 

@@ -10,6 +10,7 @@ from typing import Annotated
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from actionreasoning.agents.memory import TaskMemory
@@ -69,7 +70,7 @@ class Fallback(StrEnum):
 
 
 def _fail(error: ActionReasoningError) -> None:
-    err_console.print(f"[bold red]error:[/] {error}", highlight=False, soft_wrap=True)
+    err_console.print(f"[bold red]error:[/] {escape(str(error))}", highlight=False, soft_wrap=True)
     raise typer.Exit(code=2)
 
 
@@ -219,7 +220,7 @@ def demo(
         + "![build](snapshots/trial_000/final_build.png)\n"
         + f"![the build, stage by stage]({animation})\n"
     )
-    console.print(f"report: {report} and {html.html}", highlight=False)
+    console.print(f"report: {report} and {html.html}", highlight=False, markup=False)
 
 
 def _evaluate(
@@ -259,7 +260,9 @@ def _evaluate(
         err_console.print(f"interrupted: {RESUME_HINT}", highlight=False)
         raise typer.Exit(code=130) from None
     console.print(_summary_table(summary))
-    console.print(f"wall time {summary.wall_time_s:.1f} s; results in {out}/", highlight=False)
+    console.print(
+        f"wall time {summary.wall_time_s:.1f} s; results in {out}/", highlight=False, markup=False
+    )
     return summary
 
 
@@ -309,7 +312,9 @@ def report_command(
     if gif and not report.gifs:
         console.print("no GIFs: no run kept snapshots (eval --snapshots)", highlight=False)
     written = [*report.tables, *(p for p, _ in (*report.plots, *report.grids, *report.gifs))]
-    console.print(f"{len(written) + 1} files in {out}/; open {report.html}", highlight=False)
+    console.print(
+        f"{len(written) + 1} files in {out}/; open {report.html}", highlight=False, markup=False
+    )
 
 
 @app.command("prompt")

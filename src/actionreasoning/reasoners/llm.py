@@ -50,9 +50,16 @@ class LLMReasoner:
         messages: list[Message] = [{"role": "user", "content": request.prompt}]
         usage, repairs, tool_turns = LLMUsage(), [], 0
         while True:
-            reply = self.backend.complete(
-                ChatRequest(messages=tuple(messages), schema_name=request.spec.key, schema=schema)
-            )
+            try:
+                reply = self.backend.complete(
+                    ChatRequest(
+                        messages=tuple(messages), schema_name=request.spec.key, schema=schema
+                    )
+                )
+            except LLMError as error:  # keep what this step cost and why it was repaired
+                raise LLMError(
+                    error.reason, error.detail, tuple(repairs), usage + error.usage
+                ) from None
             usage += reply.usage
             messages.append({"role": "assistant", "content": reply.content})
             try:

@@ -3,7 +3,9 @@
 Uses the official ``openai`` client with its own retries (connection errors, 408, 409, 429
 and 5xx, with exponential backoff and Retry-After) and a per-request timeout. The base URL
 comes from ``--base-url`` or ``OPENAI_BASE_URL``, the key from ``OPENAI_API_KEY``; the key is
-given to the client only and never stored, logged or written anywhere.
+given to the client only and never stored, logged or written anywhere. Whatever the server
+sends back (answers, error messages) has the key cut out before anything else sees it, in
+case a server echoes it; a password in the base URL is never shown.
 
 Structured output: the strictest ``response_format`` the server accepts is chosen once per
 run by :meth:`OpenAIChat.negotiate`. A server refuses a format with 400 or 422, or, as
@@ -12,10 +14,12 @@ llama-cpp-python's does, with a 500 whose message names ``response_format``.
 
 from __future__ import annotations
 
+import base64
 import os
 import time
 from dataclasses import dataclass
 from typing import Any
+from urllib.parse import urlsplit
 
 import openai
 from openai.types.chat import ChatCompletion
@@ -37,6 +41,19 @@ _PROBE_SCHEMA = {
     "required": ["ok"],
     "additionalProperties": False,
 }
+
+
+REDACTED = "[redacted]"
+
+
+def _url_secrets(url: str | None) -> tuple[str, ...]:
+    """The password of a base URL like ``http://user:password@host/v1``, raw and as the
+    HTTP Basic credential the client sends for it."""
+    parts = urlsplit(url or "")
+    if not parts.password:
+        return ()
+    basic = base64.b64encode(f"{parts.username or ''}:{parts.password}".encode()).decode()
+    return (parts.password, basic)
 
 
 class _FormatRefused(Exception):
@@ -67,14 +84,22 @@ class OpenAIChat:
         self.label = f"openai:{model}"
         self.mode = mode
         base_url = options.base_url or os.environ.get("OPENAI_BASE_URL")
+        key = os.environ.get("OPENAI_API_KEY")
+        self._secrets = (key, *_url_secrets(base_url)) if key else _url_secrets(base_url)
         self.client = openai.OpenAI(
             base_url=base_url,
             # A local server takes any key; the client insists on one.
-            api_key=os.environ.get("OPENAI_API_KEY") or "no-key",
+            api_key=key or "no-key",
             timeout=options.timeout_s,
             max_retries=options.max_retries,
         )
-        self.where = str(self.client.base_url)
+        self.where = self.redact(str(self.client.base_url))
+
+    def redact(self, text: str) -> str:
+        """``text`` with the API key and any base-URL password cut out."""
+        for secret in self._secrets:
+            text = text.replace(secret, REDACTED)
+        return text
 
     def complete(self, request: ChatRequest) -> ChatReply:
         """One completion in this backend's structured-output mode."""
@@ -92,10 +117,10 @@ class OpenAIChat:
         latency = time.perf_counter() - started
         if not completion.choices:
             raise LLMError("llm_bad_response", f"{self.where} answered with no choices")
-        content = completion.choices[0].message.content or ""
+        content = self.redact(completion.choices[0].message.content or "")
         usage = completion.usage
         return ChatReply(
-            model=completion.model or self.model,
+            model=self.redact(completion.model or self.model),
             content=content,
             usage=LLMUsage(
                 calls=1,
@@ -137,7 +162,7 @@ class OpenAIChat:
         except openai.APIStatusError as error:
             if error.status_code in (400, 422) or "response_format" in str(error.message):
                 raise _FormatRefused(
-                    f"HTTP {error.status_code} {str(error.message)[:200]}"
+                    f"HTTP {error.status_code} {self.redact(str(error.message))[:200]}"
                 ) from None
             raise LLMError(
                 "llm_server_error",
@@ -146,7 +171,8 @@ class OpenAIChat:
             ) from None
         except (openai.APIError, ValueError) as error:  # a body that is not JSON, ...
             raise LLMError(
-                "llm_bad_response", f"{self.where} sent an unreadable answer ({error})"[:300]
+                "llm_bad_response",
+                self.redact(f"{self.where} sent an unreadable answer ({error})")[:300],
             ) from None
         if not isinstance(completion, ChatCompletion):
             raise LLMError("llm_bad_response", f"{self.where} did not send a chat completion")
