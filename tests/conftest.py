@@ -37,6 +37,21 @@ SMALL_PATTERN = {
 }
 
 
+HOSTILE_CASES: dict[str, int] = {}
+
+
+def count_hostile_cases(kind: str) -> None:
+    """Count one hostile model output tried against ``kind`` (printed after the run)."""
+    HOSTILE_CASES[kind] = HOSTILE_CASES.get(kind, 0) + 1
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    """How many hostile outputs the property tests tried, all found safe if they passed."""
+    if HOSTILE_CASES:
+        counts = ", ".join(f"{n} against the {kind}" for kind, n in HOSTILE_CASES.items())
+        terminalreporter.write_line(f"hostile model outputs tried: {counts}")
+
+
 def cli(
     *args: str, cwd: Path | None = None, timeout: float = 600
 ) -> subprocess.CompletedProcess[str]:

@@ -8,6 +8,11 @@ from pathlib import Path
 import pytest
 from conftest import assert_clean_error, cli
 
+from actionreasoning.eval.run import RunConfig
+from actionreasoning.eval.trial import Method
+from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.scene_spec import SceneSpec
+
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "patterns"
 
 
@@ -29,6 +34,41 @@ BAD_PATTERNS = {
         "bricks:\n  - {position: [0, 0, 0.03], yaw_deg: 0}\n",
         "brick 0",
     ),
+    "wrong_type.json": (
+        '{"name": "x", "brick_size": "big", "bricks": [{"position": [0, 0, 0.03]}]}',
+        "brick_size: Input should be a valid tuple",
+    ),
+    "no_name.json": ('{"brick_size": [0.2, 0.095, 0.06], "bricks": []}', "name: Field required"),
+    "no_bricks.json": (
+        '{"name": "x", "brick_size": [0.2, 0.095, 0.06], "bricks": []}',
+        "bricks: List should have at least 1 item",
+    ),
+    "negative_size.json": (
+        '{"name": "x", "brick_size": [0.2, -0.095, 0.06], "bricks": [{"position": [0, 0, 0.03]}]}',
+        "brick_size[1]: Input should be greater than 0",
+    ),
+    "yaw_text.json": (
+        '{"name": "x", "brick_size": [0.2, 0.095, 0.06], '
+        '"bricks": [{"position": [0, 0, 0.03], "yaw_deg": "ninety"}]}',
+        "bricks[0].yaw_deg: Input should be a valid number",
+    ),
+    "infinite.json": (
+        '{"name": "x", "brick_size": [0.2, 0.095, 0.06], "bricks": [{"position": [0, 0, 1e400]}]}',
+        "bricks[0].position[2]: Input should be a finite number",
+    ),
+    "overlapping.json": (
+        '{"name": "x", "brick_size": [0.2, 0.095, 0.06], '
+        '"bricks": [{"position": [0, 0, 0.03]}, {"position": [0.05, 0, 0.03]}]}',
+        "bricks 0 and 1 overlap",
+    ),
+    "below_ground.json": (
+        '{"name": "x", "brick_size": [0.2, 0.095, 0.06], "bricks": [{"position": [0, 0, -0.02]}]}',
+        "brick 0 is below the ground",
+    ),
+    "broken.yaml": ("name: x\nbrick_size: [0.2, 0.095\n", "not valid YAML"),
+    "empty.json": ("", "not valid JSON"),
+    "a_list.json": ("[1, 2]", "top level must be a mapping, not list"),
+    "binary.json": ("\udcff\udcfe garbage", "cannot read pattern file"),
 }
 
 
@@ -36,7 +76,7 @@ BAD_PATTERNS = {
 def test_bad_pattern_files_are_refused_in_one_line(tmp_path: Path, name: str) -> None:
     text, needle = BAD_PATTERNS[name]
     path = tmp_path / name
-    path.write_text(text)
+    path.write_bytes(text.encode("utf-8", "surrogateescape"))  # binary.json: bytes 0xff 0xfe
     result = cli("eval", "--pattern", str(path), "--trials", "1", "--out", str(tmp_path / "o"))
     assert_clean_error(result, name, needle)
     assert not (tmp_path / "o" / "results.jsonl").exists()
@@ -111,3 +151,33 @@ def test_classical_eval_end_to_end(tmp_path: Path) -> None:
     assert "| classical |" in (out / "summary.md").read_text()
     again = cli("eval", "--trials", "1", "--out", str(out))
     assert_clean_error(again, "holds a different run", "method 'classical' there, 'agents' now")
+
+
+BAD_FILES = {
+    "recording_garbage": ("rec.jsonl", "garbage\n", "rec.jsonl:1: not a JSON line"),
+    "recording_headless": ("rec.jsonl", '{"kind": "header"}\n', "is not a recording"),
+    "run_json_damaged": ("o/run.json", "not json", "run.json is damaged"),
+    "results_damaged": ("o/results.jsonl", "{}\n", "line 1 is not a trial result"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_FILES))
+def test_broken_recordings_and_run_files_are_refused_in_one_line(tmp_path: Path, case: str) -> None:
+    name, text, needle = BAD_FILES[case]
+    (tmp_path / "o").mkdir()
+    (tmp_path / name).write_text(text)
+    if name == "o/results.jsonl":  # the default run's own manifest: only the line is bad
+        default = RunConfig(
+            method=Method.AGENTS,
+            pattern_name="pyramid",
+            goal=load_pattern("pyramid", SceneSpec()),
+            trials=1,
+            seed=0,
+            out=tmp_path / "o",
+        )
+        (tmp_path / "o" / "run.json").write_text(default.manifest().model_dump_json())
+    if name == "o/run.json":  # a directory holding results, whose run.json is broken
+        (tmp_path / "o" / "results.jsonl").write_text("{}\n")
+    llm = ["--llm", f"replay:{tmp_path / name}"] if name == "rec.jsonl" else []
+    result = cli("eval", *llm, "--trials", "1", "--out", str(tmp_path / "o"))
+    assert_clean_error(result, needle)

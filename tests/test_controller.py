@@ -81,8 +81,9 @@ def test_a_guarded_set_down_stops_when_the_brick_touches(scene: Scene, arm: Kine
     controller = WaypointController(scene, arm)
     (x, y, _), quat = scene.brick_pose(0)
     pick_up(controller, 0, quat_yaw(quat), lift_to_m=0.15)
-    below_ground = Pose(position_m=(x, y, -0.02), quat_xyzw=top_down_quat(quat_yaw(quat)))
-    report = controller.execute(Waypoint(pose=below_ground, path="linear", stop_on_contact=0))
+    # 5 mm lower than where the brick meets the ground (and above the 2 cm safety floor).
+    too_low = Pose(position_m=(x, y, 0.025), quat_xyzw=top_down_quat(quat_yaw(quat)))
+    report = controller.execute(Waypoint(pose=too_low, path="linear", stop_on_contact=0))
     assert report.stopped_on_contact
     (_, _, z), _ = scene.brick_pose(0)
     assert z == pytest.approx(0.03, abs=2e-3)  # resting on the ground, still held

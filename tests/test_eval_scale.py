@@ -165,3 +165,39 @@ def test_ctrl_c_stops_workers_at_once_and_keeps_whole_lines(
     )
     finished = sorted_lines(out)
     assert finished and set(finished) <= set(serial)
+
+
+def children(pid: int) -> set[int]:
+    """Processes whose parent is ``pid`` (from /proc)."""
+    found = set()
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            found.add(int(stat.parent.name))
+    return found
+
+
+@pytest.mark.slow
+def test_workers_end_when_their_run_is_killed(pattern: Path, tmp_path: Path) -> None:
+    command = [sys.executable, "-m", "actionreasoning", *eval_args(pattern, tmp_path / "run")]
+    process = subprocess.Popen(
+        [*command, "--workers", "2"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
+    deadline = time.monotonic() + 120
+    while len(workers := children(process.pid)) < 2:
+        assert process.poll() is None and time.monotonic() < deadline, "no workers started"
+        time.sleep(0.05)
+    time.sleep(2.0)  # into their first trials
+    process.kill()
+    process.wait()
+    deadline = time.monotonic() + 15
+    while alive := {w for w in workers if Path(f"/proc/{w}").exists()}:
+        # A reaped zombie has no /proc entry; an orphan is reaped by init once it exits.
+        zombies = {w for w in alive if " Z " in Path(f"/proc/{w}/stat").read_text()}
+        if alive == zombies:
+            break
+        assert time.monotonic() < deadline, f"workers {alive} outlived their run"
+        time.sleep(0.1)

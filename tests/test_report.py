@@ -128,8 +128,9 @@ def test_a_directory_without_results_is_refused(tmp_path: Path) -> None:
     assert_clean_error(cli("report", str(tmp_path)), "holds no results.jsonl")
 
 
-def test_llm_cost_per_agent_is_plotted_where_a_model_was_called(tmp_path: Path) -> None:
-    """A run whose results carry usage per agent (as an LLM run writes them) gets the plot."""
+def test_llm_cost_and_the_failure_taxonomy_are_reported(tmp_path: Path) -> None:
+    """A run whose results carry usage per agent (as an LLM run writes them) gets the plot;
+    failures are counted by reason with an example trial."""
     from test_run_dir import result
 
     from actionreasoning.records import LLMUsage
@@ -141,12 +142,18 @@ def test_llm_cost_per_agent_is_plotted_where_a_model_was_called(tmp_path: Path) 
         "placement": LLMUsage(calls=4, prompt_tokens=20000, completion_tokens=900, latency_s=90.0),
     }
     lines = [
-        result(trial).model_copy(update={"llm": "openai:gemma", "llm_usage_by_agent": usage})
-        for trial in range(2)
+        result(trial, success=trial == 0).model_copy(
+            update={"llm": "openai:gemma", "llm_usage_by_agent": usage}
+        )
+        for trial in range(3)
     ]
     (run / "results.jsonl").write_text("".join(r.model_dump_json() + "\n" for r in lines))
     outcome = cli("report", str(run), "--out", str(tmp_path / "report"))
     assert outcome.returncode == 0, outcome.stderr
     image = iio.imread(tmp_path / "report" / "llm_cost.png")
     assert image.shape[1] > 500 and image.std() > 10
-    assert "| agents (openai:gemma) |" in (tmp_path / "report" / "table.md").read_text()
+    table = (tmp_path / "report" / "table.md").read_text()
+    assert "| agents (openai:gemma) | 1/3 | 1/3 |" in table
+    assert "| agents (openai:gemma) | pyramid | `misplaced` | 2 | trial 1: brick 3 |" in table
+    html = (tmp_path / "report" / "report.html").read_text()
+    assert "<code>misplaced</code></td><td>2</td><td>trial 1: brick 3</td>" in html

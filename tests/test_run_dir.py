@@ -22,6 +22,7 @@ MANIFEST = RunManifest(
     llm="builtin",
     llm_limits={"tool_turns": 2, "repairs": 2, "fallback": False},
     success_rule="rule",
+    budget={"max_steps": 400000, "max_wall_s": 3600.0},
 )
 
 

@@ -29,6 +29,7 @@ from actionreasoning.reasoners.factory import LLMConfig, check_backend
 from actionreasoning.reasoners.llm import LLMLimits
 from actionreasoning.reasoners.openai_chat import ServerOptions
 from actionreasoning.sim.perceive import perceive
+from actionreasoning.sim.scene import TrialBudget
 from actionreasoning.world.geometry import quat_yaw
 from actionreasoning.world.models import Progress as BuildProgress
 from actionreasoning.world.patterns import load_pattern
@@ -140,6 +141,12 @@ def eval_command(
     workers: Annotated[
         int, typer.Option(min=1, help="Trials in parallel, one worker process each.")
     ] = 1,
+    max_steps: Annotated[
+        int, typer.Option(min=1, help="Simulation steps a trial may take (1/480 s each).")
+    ] = TrialBudget().max_steps,
+    max_trial_s: Annotated[
+        float, typer.Option(min=0.0, help="Wall-clock seconds a trial may take.")
+    ] = TrialBudget().max_wall_s,
     ray: Annotated[
         str | None,
         typer.Option(
@@ -187,6 +194,7 @@ def eval_command(
         transcripts=transcripts,
         workers=workers,
         ray=ray,
+        budget=TrialBudget(max_steps=max_steps, max_wall_s=max_trial_s),
     )
 
 
@@ -235,6 +243,7 @@ def _evaluate(
     transcripts: bool = False,
     workers: int = 1,
     ray: str | None = None,
+    budget: TrialBudget = TrialBudget(),
 ) -> RunSummary:
     """Load the pattern, run the trials with progress, print the table; errors end the command."""
     try:
@@ -250,6 +259,7 @@ def _evaluate(
             transcripts=transcripts,
             workers=workers,
             ray=ray,
+            budget=budget,
         )
         check_engine(config)
         with ConsoleProgress(console, f"{method} / {pattern}") as progress:

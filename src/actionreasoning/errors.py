@@ -27,6 +27,16 @@ class ToolError(ActionReasoningError):
     """A tool was called with arguments that name nothing in the world (bad brick id, ...)."""
 
 
+class TrialAborted(ActionReasoningError):
+    """A trial stopped to stay safe or within its budget; ``reason`` is its failure code:
+    ``safety_limit``, ``step_budget``, ``time_budget`` or ``physics_blowup``."""
+
+    def __init__(self, reason: str, detail: str) -> None:
+        super().__init__(f"{reason}: {detail}")
+        self.reason = reason
+        self.detail = detail
+
+
 class EngineError(ActionReasoningError):
     """A worker process or Ray task running trials died; finished trials are kept."""
 

@@ -19,7 +19,13 @@ from actionreasoning.agents.reasoner import AgentRequest, Reasoner
 from actionreasoning.agents.spec import AgentSpec
 from actionreasoning.agents.transcript import AgentCall, GateRecord, Outcome, ToolRecord
 from actionreasoning.agents.world import World
-from actionreasoning.errors import ActionReasoningError, LLMError, ToolError, UnreachableError
+from actionreasoning.errors import (
+    ActionReasoningError,
+    LLMError,
+    ToolError,
+    TrialAborted,
+    UnreachableError,
+)
 from actionreasoning.records import Failure, LLMUsage
 from actionreasoning.tools.base import ToolContext, ToolModel
 from actionreasoning.tools.registry import call_tool
@@ -39,13 +45,15 @@ class TrialStopped(ActionReasoningError):
 
 
 #: The errors that end a build (rather than the program), and how to say so.
-BUILD_STOPPERS = (TrialStopped, UnreachableError, ToolError)
+BUILD_STOPPERS = (TrialStopped, UnreachableError, ToolError, TrialAborted)
 
 
 def failure_of(error: Exception, agent: str | None) -> Failure:
     """The failure record of an error in BUILD_STOPPERS raised while ``agent`` was acting."""
     if isinstance(error, TrialStopped):
         return error.failure
+    if isinstance(error, TrialAborted):
+        return Failure(reason=error.reason, agent=agent, detail=error.detail)
     reason = "unreachable" if isinstance(error, UnreachableError) else "tool_error"
     return Failure(reason=reason, agent=agent, detail=str(error))
 

@@ -8,6 +8,7 @@ every failed check with its value and threshold, for the agent's next attempt.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from actionreasoning.tools.collision import CollisionReport
@@ -27,6 +28,10 @@ class Check:
 
     @property
     def passed(self) -> bool:
+        """Whether the inequality holds; a value or threshold that is not finite (a NaN from
+        a broken measurement, say) never passes."""
+        if not (math.isfinite(self.value) and math.isfinite(self.threshold)):
+            return False
         return self.value <= self.threshold if self.at_most else self.value >= self.threshold
 
     def describe(self) -> str:

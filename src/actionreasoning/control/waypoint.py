@@ -18,6 +18,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy.spatial.transform import Rotation, Slerp
 
+from actionreasoning.control.safety import Obstacle, SafetyLimits, check_motion
 from actionreasoning.errors import UnreachableError
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.robot_model import FINGER_MAX_M, FINGER_MIN_M
@@ -25,6 +26,10 @@ from actionreasoning.sim.scene import Scene
 from actionreasoning.world.models import Pose
 
 LINEAR_STEP_M = 0.01
+#: How far the hand reaches sideways past a brick it passes over, and how close a brick's
+#: centre is to the tool centre point when the brick is the one in the hand.
+HAND_RADIUS_M = 0.05
+HELD_DISTANCE_M = 0.06
 #: Peak over mean speed of the minimum-jerk profile: durations derived from speed limits
 #: use it so that the limits hold at the peak.
 MIN_JERK_PEAK = 1.875
@@ -97,11 +102,16 @@ class WaypointController:
     """Drives the scene's arm through waypoints."""
 
     def __init__(
-        self, scene: Scene, arm: KinematicArm, limits: ControllerLimits = ControllerLimits()
+        self,
+        scene: Scene,
+        arm: KinematicArm,
+        limits: ControllerLimits = ControllerLimits(),
+        safety: SafetyLimits = SafetyLimits(),
     ) -> None:
         self.scene = scene
         self.arm = arm
         self.limits = limits
+        self.safety = safety
 
     def solve(self, pose: Pose, seed_rad: np.ndarray | None = None) -> np.ndarray:
         """Arm joints for a tool pose; raises :class:`UnreachableError` if IK misses it."""
@@ -135,14 +145,22 @@ class WaypointController:
         return knots
 
     def execute(self, waypoint: Waypoint, settle: bool = True) -> ExecutionReport:
-        """Move to the waypoint, apply its gripper command, and report the measured result."""
+        """Move to the waypoint, apply its gripper command, and report the measured result.
+
+        The planned path is checked against the safety limits first; a violation raises
+        ``TrialAborted`` before the arm moves. After the move the scene is checked for a
+        physics blow-up.
+        """
         knots = self.plan(waypoint)
-        ticks, stopped = self._move(knots, waypoint)
+        total = self._duration(knots, waypoint)
+        self._check_safety(knots, waypoint, total)
+        ticks, stopped = self._move(knots, waypoint, total)
         converged = True
         if settle:
             extra, converged = self._settle(self.scene.arm_targets)
             ticks += extra
         ticks += self._actuate_gripper(waypoint.gripper, waypoint.gripper_opening_m)
+        self.scene.check_physics()
         position, quat = self.scene.tcp_pose()
         relative = Rotation.from_quat(quat).inv() * Rotation.from_quat(waypoint.pose.quat_xyzw)
         return ExecutionReport(
@@ -153,8 +171,8 @@ class WaypointController:
             orientation_error_deg=float(np.degrees(relative.magnitude())),
         )
 
-    def _move(self, knots: list[np.ndarray], waypoint: Waypoint) -> tuple[int, bool]:
-        """Interpolate through the knots; a guarded move stops where its brick touches down."""
+    def _duration(self, knots: list[np.ndarray], waypoint: Waypoint) -> int:
+        """K_t: the waypoint's own, or the least that keeps the speed limits."""
         lim = self.limits
         if waypoint.ticks is not None:
             total = waypoint.ticks
@@ -165,7 +183,33 @@ class WaypointController:
         else:
             angle = float(np.max(np.abs(knots[-1] - knots[0])))
             total = self.scene.ticks_for(MIN_JERK_PEAK * angle / lim.max_joint_speed_radps)
-        total = max(total, self.scene.ticks_for(lim.min_duration_s), len(knots) - 1)
+        return max(total, self.scene.ticks_for(lim.min_duration_s), len(knots) - 1)
+
+    def _check_safety(self, knots: list[np.ndarray], waypoint: Waypoint, ticks: int) -> None:
+        """The tool path the move will follow, against the safety limits."""
+        if waypoint.path == "joint":
+            samples = [knots[0] + s * (knots[-1] - knots[0]) for s in np.linspace(0, 1, 17)]
+        else:
+            samples = knots
+        path = [self.arm.forward(q)[0] for q in samples]
+        size = self.scene.spec.brick_size_m
+        radius = math.hypot(size[0], size[1]) / 2.0 + HAND_RADIUS_M
+        obstacles = []
+        for brick in range(len(self.scene.bricks)):
+            center, _ = self.scene.brick_pose(brick)
+            if math.dist(center, path[0]) > HELD_DISTANCE_M:  # not the brick in the hand
+                obstacles.append(Obstacle(brick, center, radius, center[2] + size[2] / 2.0))
+        check_motion(
+            path,
+            ticks * self.scene.physics.time_step_s,
+            MIN_JERK_PEAK,
+            obstacles,
+            free=waypoint.path == "joint",
+            limits=self.safety,
+        )
+
+    def _move(self, knots: list[np.ndarray], waypoint: Waypoint, total: int) -> tuple[int, bool]:
+        """Interpolate through the knots; a guarded move stops where its brick touches down."""
         path = np.array(knots)
         along = np.linspace(0.0, 1.0, len(knots))
         for tick in range(1, total + 1):

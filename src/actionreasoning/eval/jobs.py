@@ -9,7 +9,9 @@ the same code serves a worker on this machine and a Ray task on another.
 from __future__ import annotations
 
 import multiprocessing
+import os
 import socket
+import threading
 import time
 from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -21,6 +23,7 @@ from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.snapshots import SnapshotRecorder
 from actionreasoning.eval.trial import SuccessRule, TrialSpec, run_trial
 
+PARENT_POLL_S = 0.5
 RESUME_HINT = "the finished trials are saved: run the same command to run the rest"
 
 
@@ -66,11 +69,28 @@ def run_serial(jobs: Sequence[TrialJob]) -> Iterator[TrialOutput]:
         yield execute(job)
 
 
+def _exit_with_parent(parent: int) -> None:
+    """In a worker: end at once if the run's process dies (SIGKILL leaves no time to stop
+    its workers, which would otherwise finish their trial for nobody and wait forever)."""
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True).start()
+
+
 def run_in_processes(jobs: Sequence[TrialJob], workers: int) -> Iterator[TrialOutput]:
     """Jobs in ``workers`` fresh processes, yielded as they finish (not in trial order)."""
     # spawn, not fork: a worker must not inherit this process's simulator clients or threads.
     context = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=context)
+    pool = ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=context,
+        initializer=_exit_with_parent,
+        initargs=(os.getpid(),),
+    )
     pending: set[Future[TrialOutput]] = {pool.submit(execute, job) for job in jobs}
     try:
         while pending:

@@ -35,6 +35,7 @@ from actionreasoning.eval.snapshots import save_files
 from actionreasoning.eval.summary import RunSummary, describe_rule, summarize, summary_markdown
 from actionreasoning.eval.trial import Method, SuccessRule, TrialSpec
 from actionreasoning.reasoners.factory import LLMConfig, prepare
+from actionreasoning.sim.scene import TrialBudget
 from actionreasoning.world.models import GoalPattern
 
 
@@ -54,6 +55,7 @@ class RunConfig:
     workers: int = 1
     ray: str | None = None
     rule: SuccessRule = SuccessRule()
+    budget: TrialBudget = TrialBudget()
 
     def manifest(self) -> RunManifest:
         """What a resumed run must share with this one."""
@@ -68,6 +70,7 @@ class RunConfig:
             if reasoned
             else {},
             success_rule=describe_rule(self.rule),
+            budget=asdict(self.budget),
         )
 
 
@@ -104,6 +107,7 @@ def run_eval(config: RunConfig, observer: RunObserver | None = None) -> RunSumma
                 run_seed=config.seed,
                 trial=trial,
                 llm=llm,
+                budget=config.budget,
             ),
             rule=config.rule,
             snapshots=config.snapshots,

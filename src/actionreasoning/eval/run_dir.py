@@ -34,6 +34,7 @@ class RunManifest(BaseModel):
     llm: str
     llm_limits: dict[str, int | bool]
     success_rule: str
+    budget: dict[str, float]
 
 
 def digest(text: str) -> str:

@@ -20,7 +20,9 @@ class SimWorld:
         self.collisions = CollisionChecker(controller.arm)
 
     def observe(self, progress: Progress) -> WorldState:
-        """Measure the world now."""
+        """Measure the world now (the moment before every agent call: the trial's wall-time
+        budget is checked here)."""
+        self.controller.scene.check_wall_time()
         return perceive(self.controller.scene, self.goal, progress)
 
     def tools(self, state: WorldState) -> ToolContext:

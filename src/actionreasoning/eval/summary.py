@@ -10,6 +10,7 @@ from pydantic import BaseModel, ConfigDict
 
 from actionreasoning.eval.results import LLMUsage, TrialResult
 from actionreasoning.eval.trial import SuccessRule
+from actionreasoning.records import FAILURE_CODES
 
 METRICS = ("rotation_error_deg", "center_offset_cm", "iou", "symmetric_rotation_error_deg")
 
@@ -147,9 +148,10 @@ def summary_markdown(summary: RunSummary) -> str:
         "",
     ]
     if summary.failures:
-        lines += ["| Failure reason | Trials | Example trial |", "|---|---|---|"]
+        lines += ["| Failure reason | Meaning | Trials | Example trial |", "|---|---|---|---|"]
         lines += [
-            f"| `{reason}` | {count} | {summary.failure_examples[reason]} |"
+            f"| `{reason}` | {FAILURE_CODES.get(reason, '')} | {count} | "
+            f"{summary.failure_examples[reason]} |"
             for reason, count in summary.failures.items()
         ]
     else:

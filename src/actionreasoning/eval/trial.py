@@ -15,13 +15,13 @@ from actionreasoning.agents.single_agent import SingleAgent
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.control.classical import StageEvent, run_classical
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
-from actionreasoning.errors import UnreachableError
+from actionreasoning.errors import TrialAborted, UnreachableError
 from actionreasoning.eval.metrics import brick_metrics
 from actionreasoning.eval.results import BrickResult, Failure, LLMUsage, TrialMetrics, TrialResult
 from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.reasoners.factory import LLMConfig, make_reasoner
 from actionreasoning.sim.kinematics import KinematicArm
-from actionreasoning.sim.scene import Scene
+from actionreasoning.sim.scene import Scene, TrialBudget
 from actionreasoning.world.geometry import Vec3, top_down_quat
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import GoalPattern, Pose
@@ -76,6 +76,7 @@ class TrialSpec:
     trial: int
     llm: LLMConfig = LLMConfig()
     scene: SceneSpec = SceneSpec()
+    budget: TrialBudget = TrialBudget()
 
 
 def trial_seed(run_seed: int, trial: int) -> int:
@@ -95,7 +96,7 @@ def trial_world(spec: TrialSpec) -> Iterator[tuple[Scene, KinematicArm, int]]:
         arm = KinematicArm()
         cleanup.callback(arm.close)
         ready = arm.solve(READY_POSE.position_m, READY_POSE.quat_xyzw).joints_rad
-        scene = Scene(spec.scene, poses, ready)
+        scene = Scene(spec.scene, poses, ready, budget=spec.budget)
         cleanup.callback(scene.close)
         scene.step(scene.ticks_for(SPAWN_SETTLE_S))
         yield scene, arm, seed
@@ -124,7 +125,11 @@ def run_trial(
             outcome = _run_classical(controller, spec.goal, stage)
         else:
             outcome = _run_agents(controller, spec, stage)
-        scene.step(scene.ticks_for(FINAL_SETTLE_S))
+        try:
+            scene.step(scene.ticks_for(FINAL_SETTLE_S))
+            scene.check_physics()
+        except TrialAborted as error:
+            outcome.failure = outcome.failure or Failure(reason=error.reason, detail=error.detail)
         stage(-1, "final")
         return TrialRun(_measure(spec, seed, scene, rule, outcome), tuple(outcome.transcript))
 
@@ -138,6 +143,8 @@ def _run_classical(
         controller.execute(Waypoint(pose=READY_POSE, gripper=GripperCommand.OPEN))
     except UnreachableError as error:
         failure = Failure(reason="unreachable", detail=str(error))
+    except TrialAborted as error:
+        failure = Failure(reason=error.reason, detail=error.detail)
     return BuildResult(placements={t.index: t.index for t in goal.targets}, failure=failure)
 
 

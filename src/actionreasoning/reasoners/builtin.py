@@ -203,7 +203,12 @@ class BuiltinReasoner:
                 rationale=release.rationale,
             )
         x, y, z = here.position_m
-        up = Pose(position_m=(x, y, z + RETREAT_M), quat_xyzw=here.quat_xyzw)
+        # Up to the ready height at least: the next joint move to a brick sags mid-way, and
+        # unlike the six agents the single agent checks no clearance on the way.
+        up = Pose(
+            position_m=(x, y, max(z + RETREAT_M, self.ready.position_m[2])),
+            quat_xyzw=here.quat_xyzw,
+        )
         return SingleAgentAnswer(
             step=step, waypoint=_proposal(up, path="linear"), rationale="straight up"
         )

@@ -12,6 +12,7 @@ threshold stops stale fingertip contacts from dragging a brick as the fingers op
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -19,6 +20,7 @@ import numpy as np
 import pybullet as p
 import pybullet_data
 
+from actionreasoning.errors import TrialAborted
 from actionreasoning.sim.robot_model import (
     ARM_JOINTS,
     FINGER_LEFT,
@@ -58,6 +60,20 @@ class PhysicsConfig:
 
 
 @dataclass(frozen=True)
+class TrialBudget:
+    """What a trial may spend: simulation steps and wall-clock seconds."""
+
+    max_steps: int = 400_000
+    max_wall_s: float = 3600.0
+
+
+#: Wall time is looked at every this many steps (and before every agent call).
+WALL_CHECK_TICKS = 240
+#: A brick farther than this from the base (m, along any axis) was flung away.
+WORLD_HALF_SIZE_M = 3.0
+
+
+@dataclass(frozen=True)
 class FingerContact:
     """Contact between one finger pad and one brick, summed over contact points (N)."""
 
@@ -74,9 +90,12 @@ class Scene:
         brick_poses: Sequence[Pose],
         ready_joints_rad: Sequence[float],
         physics: PhysicsConfig = PhysicsConfig(),
+        budget: TrialBudget = TrialBudget(),
     ) -> None:
         self.spec = spec
         self.physics = physics
+        self.budget = budget
+        self._deadline = time.monotonic() + budget.max_wall_s
         self.client = p.connect(p.DIRECT)
         self._setup_physics()
         self.robot = load_robot(self.client)
@@ -215,10 +234,32 @@ class Scene:
         return max(1, round(seconds / self.physics.time_step_s))
 
     def step(self, ticks: int = 1) -> None:
-        """Advance the simulation by ``ticks`` fixed time steps."""
+        """Advance the simulation by ``ticks`` fixed time steps, within the trial's budget."""
         for _ in range(ticks):
             p.stepSimulation(physicsClientId=self.client)
-        self.ticks += ticks
+            self.ticks += 1
+            if self.ticks > self.budget.max_steps:
+                raise TrialAborted("step_budget", f"{self.budget.max_steps} simulation steps spent")
+            if self.ticks % WALL_CHECK_TICKS == 0:
+                self.check_wall_time()
+
+    def check_wall_time(self) -> None:
+        """Raise ``TrialAborted("time_budget", ...)`` once the trial's wall time is spent."""
+        if time.monotonic() > self._deadline:
+            raise TrialAborted("time_budget", f"{self.budget.max_wall_s:g} s of wall time spent")
+
+    def check_physics(self) -> None:
+        """Raise ``TrialAborted("physics_blowup", ...)`` if the state is not finite or a
+        brick was flung out of the world."""
+        joints, speeds = self.arm_joints()
+        if not (np.all(np.isfinite(joints)) and np.all(np.isfinite(speeds))):
+            raise TrialAborted("physics_blowup", "the arm's joint state is not finite")
+        for brick in range(len(self.bricks)):
+            position, quat = self.brick_pose(brick)
+            inside = all(abs(v) <= WORLD_HALF_SIZE_M for v in position) and position[2] > -0.5
+            if not (np.all(np.isfinite([*position, *quat])) and inside):
+                where = ", ".join(f"{v:.3f}" for v in position)
+                raise TrialAborted("physics_blowup", f"brick {brick} was flung to ({where}) m")
 
     # --- measurement ------------------------------------------------------------------
     @property

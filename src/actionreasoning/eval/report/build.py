@@ -107,20 +107,6 @@ def write_html(report: Report, groups: Sequence[Group], directories: Sequence[Pa
     environment = Environment(
         loader=PackageLoader("actionreasoning.eval.report"), autoescape=select_autoescape()
     )
-    failures = []
-    for group in groups:
-        for reason, count in group.summary.failures.items():
-            example = next(r for r in group.results if r.failure and r.failure.reason == reason)
-            failures.append(
-                {
-                    "label": group.label,
-                    "pattern": pattern_title(group.pattern),
-                    "reason": reason,
-                    "count": count,
-                    "trial": example.trial,
-                    "detail": example.failure.detail if example.failure else "",
-                }
-            )
     page = environment.get_template("report.html.j2").render(
         title="actionreasoning report",
         runs=[str(d) for d in directories],
@@ -145,7 +131,7 @@ def write_html(report: Report, groups: Sequence[Group], directories: Sequence[Pa
             }
             for row in table.rows
         ],
-        failures=failures,
+        failures=table.failures,
         plots=[{"data": _data_uri(p), "caption": c} for p, c in report.plots],
         grids=[{"data": _data_uri(p), "caption": c} for p, c in report.grids],
         gifs=[{"data": _data_uri(p), "caption": c} for p, c in report.gifs],

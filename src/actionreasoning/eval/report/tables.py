@@ -29,6 +29,18 @@ def pattern_title(pattern: str) -> str:
 
 
 @dataclass(frozen=True)
+class FailureRow:
+    """How often one method failed one way on one pattern, with the first such trial."""
+
+    label: str
+    pattern: str
+    reason: str
+    count: int
+    trial: int
+    detail: str
+
+
+@dataclass(frozen=True)
 class Table:
     """Cell values (None where a method has no successful trial on a pattern)."""
 
@@ -37,6 +49,7 @@ class Table:
     values: dict[tuple[str, str, str], float | None]  # (row, pattern or Average, metric)
     success: dict[tuple[str, str], tuple[int, int]]  # (row, pattern) -> (successes, trials);
     # (row, Average): summed over the patterns
+    failures: list[FailureRow]
 
     def best(self, pattern: str, metric: str) -> float | None:
         """The best value of a column, for bold type."""
@@ -84,7 +97,30 @@ def comparison_table(groups: Sequence[Group]) -> Table:
                 success[(row, pattern)] = (group.summary.successes, group.summary.trials)
         counts = [success[(row, p)] for p in cols if (row, p) in success]
         success[(row, AVERAGE)] = (sum(c[0] for c in counts), sum(c[1] for c in counts))
-    return Table(rows=rows, patterns=cols, values=values, success=success)
+    return Table(
+        rows=rows, patterns=cols, values=values, success=success, failures=_failures(groups)
+    )
+
+
+def _failures(groups: Sequence[Group]) -> list[FailureRow]:
+    """The failure taxonomy: per method and pattern, each reason code with an example."""
+    rows = []
+    for group in groups:
+        for reason, count in group.summary.failures.items():
+            example = next(
+                r for r in group.results if r.failure is not None and r.failure.reason == reason
+            )
+            rows.append(
+                FailureRow(
+                    label=group.label,
+                    pattern=pattern_title(group.pattern),
+                    reason=reason,
+                    count=count,
+                    trial=example.trial,
+                    detail=example.failure.detail if example.failure else "",
+                )
+            )
+    return rows
 
 
 def to_markdown(table: Table) -> str:
@@ -112,6 +148,19 @@ def to_markdown(table: Table) -> str:
     ]
     for row in table.rows:
         lines.append(f"| {row} | " + " | ".join(table.success_cell(row, p) for p in groups) + " |")
+    lines.append("")
+    if table.failures:
+        lines += [
+            "| Method | Pattern | Failure reason | Trials | Example |",
+            "|---|---|---|---|---|",
+            *(
+                f"| {f.label} | {f.pattern} | `{f.reason}` | {f.count} | "
+                f"trial {f.trial}: {f.detail.replace('|', '/')} |"
+                for f in table.failures
+            ),
+        ]
+    else:
+        lines.append("No trial failed.")
     return "\n".join(lines) + "\n"
 
 
