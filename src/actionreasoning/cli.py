@@ -22,7 +22,7 @@ from actionreasoning.eval.progress import ConsoleProgress
 from actionreasoning.eval.report.build import build_report
 from actionreasoning.eval.report.tables import AVERAGE, COLUMNS, pattern_title
 from actionreasoning.eval.report.tables import Table as ComparisonTable
-from actionreasoning.eval.run import RunConfig, check_engine, run_eval
+from actionreasoning.eval.run import RunConfig, run_eval
 from actionreasoning.eval.summary import RunSummary
 from actionreasoning.eval.trial import Method, TrialSpec, trial_world
 from actionreasoning.reasoners.factory import LLMConfig, check_backend
@@ -261,7 +261,6 @@ def _evaluate(
             ray=ray,
             budget=budget,
         )
-        check_engine(config)
         with ConsoleProgress(console, f"{method} / {pattern}") as progress:
             summary = run_eval(config, progress)
     except ActionReasoningError as error:

@@ -53,10 +53,12 @@ def check_motion(
     duration_s: float,
     peak_factor: float,
     obstacles: Sequence[Obstacle],
-    free: bool,
     limits: SafetyLimits,
 ) -> None:
-    """Raise ``TrialAborted("safety_limit", ...)`` if the tool path breaks a limit."""
+    """Raise ``TrialAborted("safety_limit", ...)`` if the tool path breaks a limit.
+
+    ``obstacles`` are the bricks to clear in transit: those of a free move, none for a
+    straight (linear) one."""
     points = np.asarray(path, dtype=float)
     if not np.all(np.isfinite(points)):
         _refuse("the planned tool path is not finite")
@@ -75,8 +77,7 @@ def check_motion(
             f"the tool would reach {speed:.2f} m/s over {length:.3f} m in {duration_s:.3f} s, "
             f"above the {limits.max_tcp_speed_mps} m/s limit"
         )
-    if free:
-        _check_transit(points, obstacles, limits)
+    _check_transit(points, obstacles, limits)
 
 
 def _check_transit(points: np.ndarray, obstacles: Sequence[Obstacle], limits: SafetyLimits) -> None:

@@ -23,6 +23,7 @@ from actionreasoning.errors import UnreachableError
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.robot_model import FINGER_MAX_M, FINGER_MIN_M
 from actionreasoning.sim.scene import Scene
+from actionreasoning.world.geometry import Vec3
 from actionreasoning.world.models import Pose
 
 LINEAR_STEP_M = 0.01
@@ -192,21 +193,21 @@ class WaypointController:
         else:
             samples = knots
         path = [self.arm.forward(q)[0] for q in samples]
+        obstacles = self._obstacles(path[0]) if waypoint.path == "joint" else []
+        check_motion(
+            path, ticks * self.scene.physics.time_step_s, MIN_JERK_PEAK, obstacles, self.safety
+        )
+
+    def _obstacles(self, start: Vec3) -> list[Obstacle]:
+        """Every brick a free move must pass above in transit: all but the one in the hand."""
         size = self.scene.spec.brick_size_m
         radius = math.hypot(size[0], size[1]) / 2.0 + HAND_RADIUS_M
         obstacles = []
         for brick in range(len(self.scene.bricks)):
             center, _ = self.scene.brick_pose(brick)
-            if math.dist(center, path[0]) > HELD_DISTANCE_M:  # not the brick in the hand
+            if math.dist(center, start) > HELD_DISTANCE_M:
                 obstacles.append(Obstacle(brick, center, radius, center[2] + size[2] / 2.0))
-        check_motion(
-            path,
-            ticks * self.scene.physics.time_step_s,
-            MIN_JERK_PEAK,
-            obstacles,
-            free=waypoint.path == "joint",
-            limits=self.safety,
-        )
+        return obstacles
 
     def _move(self, knots: list[np.ndarray], waypoint: Waypoint, total: int) -> tuple[int, bool]:
         """Interpolate through the knots; a guarded move stops where its brick touches down."""

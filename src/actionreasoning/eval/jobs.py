@@ -44,12 +44,10 @@ class TrialOutput:
     result: TrialResult
     transcript: str = ""
     pictures: dict[str, bytes] = field(default_factory=dict)
-    wall_time_s: float = 0.0
 
 
 def execute(job: TrialJob) -> TrialOutput:
     """Run one trial (in whatever process this is) and collect its outputs."""
-    started = time.perf_counter()
     recorder = SnapshotRecorder() if job.snapshots else None
     run = run_trial(job.spec, job.rule, recorder)
     transcript = (
@@ -59,7 +57,6 @@ def execute(job: TrialJob) -> TrialOutput:
         result=run.result,
         transcript=transcript,
         pictures=recorder.files if recorder is not None else {},
-        wall_time_s=time.perf_counter() - started,
     )
 
 

@@ -116,10 +116,10 @@ def run_eval(config: RunConfig, observer: RunObserver | None = None) -> RunSumma
         for trial in range(config.trials)
         if trial not in done
     ]
-    if observer is not None:
-        observer.started(config.trials, [r for r in finished if r.trial < config.trials])
-    started = time.perf_counter()
     results = [r for r in finished if r.trial < config.trials]
+    if observer is not None:
+        observer.started(config.trials, list(results))
+    started = time.perf_counter()
     with (config.out / RESULTS_FILE).open("ab", buffering=0) as sink:
         for output in _engine(config, jobs):
             _write_outputs(config, output)

@@ -9,7 +9,7 @@ from enum import StrEnum
 
 import numpy as np
 
-from actionreasoning.agents.calls import BuildResult
+from actionreasoning.agents.calls import BuildResult, failure_of
 from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.single_agent import SingleAgent
 from actionreasoning.agents.transcript import AgentCall
@@ -129,7 +129,7 @@ def run_trial(
             scene.step(scene.ticks_for(FINAL_SETTLE_S))
             scene.check_physics()
         except TrialAborted as error:
-            outcome.failure = outcome.failure or Failure(reason=error.reason, detail=error.detail)
+            outcome.failure = outcome.failure or failure_of(error, None)
         stage(-1, "final")
         return TrialRun(_measure(spec, seed, scene, rule, outcome), tuple(outcome.transcript))
 
@@ -141,10 +141,8 @@ def _run_classical(
     try:
         run_classical(controller, goal, lambda event: stage(event.brick, event.stage))
         controller.execute(Waypoint(pose=READY_POSE, gripper=GripperCommand.OPEN))
-    except UnreachableError as error:
-        failure = Failure(reason="unreachable", detail=str(error))
-    except TrialAborted as error:
-        failure = Failure(reason=error.reason, detail=error.detail)
+    except (UnreachableError, TrialAborted) as error:
+        failure = failure_of(error, None)
     return BuildResult(placements={t.index: t.index for t in goal.targets}, failure=failure)
 
 

@@ -75,7 +75,7 @@ def build_report(directories: Sequence[Path], out: Path, gifs: bool = False) -> 
             report.grids.append((grid, f"Stages on {pattern_title(pattern)}"))
     if gifs:
         report.gifs = _gifs(groups, out / "gifs")
-    report.html = write_html(report, groups, directories)
+    report.html = write_html(report, directories)
     return report
 
 
@@ -100,7 +100,7 @@ def _data_uri(path: Path) -> str:
     return f"data:image/{kind};base64," + base64.b64encode(path.read_bytes()).decode()
 
 
-def write_html(report: Report, groups: Sequence[Group], directories: Sequence[Path]) -> Path:
+def write_html(report: Report, directories: Sequence[Path]) -> Path:
     """The self-contained page of the report."""
     table = report.table
     column_groups = [*table.patterns, AVERAGE]
