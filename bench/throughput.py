@@ -31,7 +31,8 @@ from actionreasoning.world.scene_spec import SceneSpec
 def steps_per_second(spec: TrialSpec, steps: int) -> float:
     """Raw physics steps per second of a trial's scene, best of three."""
     best = 0.0
-    with trial_world(spec) as (scene, _, _):
+    with trial_world(spec) as made:
+        scene = made.scene
         for _ in range(3):
             started = time.perf_counter()
             scene.step(steps)

@@ -23,6 +23,7 @@ from actionreasoning.world.geometry import top_down_quat
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import BrickState, Pose, RobotState, WorldState
 from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.physics import PRECISE
 from actionreasoning.world.scene_spec import SceneSpec
 
 #: Three bricks: two side by side and one on top; a short end-to-end build.
@@ -94,7 +95,8 @@ def arm() -> Iterator[KinematicArm]:
 def scene(arm: KinematicArm) -> Iterator[Scene]:
     spec = SceneSpec()
     ready = arm.solve(READY_POSE.position_m, READY_POSE.quat_xyzw).joints_rad
-    scene = Scene(spec, sample_pick_poses(np.random.default_rng(7), 6, spec), ready)
+    # Precise physics: the tools are tested where the pads deliver the commanded force.
+    scene = Scene(spec, sample_pick_poses(np.random.default_rng(7), 6, spec), ready, PRECISE)
     yield scene
     scene.close()
 

@@ -181,9 +181,10 @@ def test_no_waypoint_reaches_the_arm_without_validation_and_its_gate(
     """Hostile answers through the real agents, validators, gates and controller: the build
     stops with a typed failure and, unless an answer was accepted, the arm never moved."""
     count_hostile_cases("agents with a real scene")
-    with trial_world(trial) as (scene, arm, _):
+    with trial_world(trial) as made:
+        scene = made.scene
         ticks, bricks = scene.ticks, [scene.brick_pose(i)[0] for i in range(len(scene.bricks))]
-        world = SimWorld(WaypointController(scene, arm), trial.goal)
+        world = SimWorld(WaypointController(scene, made.arm), trial.goal, made.sensor)
         reasoner = LLMReasoner(HostileChat(replies), LLMLimits(tool_turns=1, repairs=1))
         result = Orchestrator(world, reasoner).build(trial.goal)
         assert result.failure is not None and result.failure.reason in FAILURE_CODES

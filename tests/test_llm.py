@@ -170,8 +170,8 @@ def test_a_tool_call_goes_to_the_world_and_its_result_back_to_the_model(
     limits = LLMLimits(tool_turns=1, repairs=0)
     reasoner = LLMReasoner(RecordingChat(chat, recording, mode), limits)
     ran: list[str] = []
-    with trial_world(spec) as (scene, arm, _):
-        world = SimWorld(WaypointController(scene, arm), goal)
+    with trial_world(spec) as made:
+        world = SimWorld(WaypointController(made.scene, made.arm), goal, made.sensor)
         state = world.observe(Progress(step="pre_grasp"))
         context = world.tools(state)
 

@@ -19,7 +19,6 @@ from actionreasoning.eval.trial import READY_POSE, Method, TrialSpec, trial_worl
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
-from actionreasoning.world.tolerances import Tolerances
 
 
 @pytest.fixture
@@ -45,8 +44,10 @@ class Scripted:
 
 def build(goal, reasoner, world=SimWorld):
     spec = TrialSpec(method=Method.AGENTS, pattern_name="small", goal=goal, run_seed=4, trial=0)
-    with trial_world(spec) as (scene, arm, _):
-        result = Orchestrator(world(WaypointController(scene, arm), goal), reasoner).build(goal)
+    with trial_world(spec) as made:
+        scene = made.scene
+        controller = WaypointController(scene, made.arm)
+        result = Orchestrator(world(controller, goal, made.sensor), reasoner).build(goal)
         scene.step(scene.ticks_for(1.0))
         final = [scene.brick_pose(i)[0] for i in range(len(scene.bricks))]
     return result, final
@@ -120,7 +121,7 @@ def test_a_slip_in_the_lift_puts_the_brick_back_and_grasps_it_again(small_goal) 
     assert slipped.outcome == "regrasp"
     (sigma4,) = slipped.gates
     failed = {check.name: check.value for check in sigma4.checks if not check.passed}
-    assert failed["slid_in_hand_m"] > Tolerances().eps_g_m
+    assert failed  # a 40 kg brick is not held: too little pad force for it, or it slides
     assert all(call.outcome == "accepted" for call in others)
     # The re-grasp starts at Ag1 with sigma_4's feedback, and the same brick is picked up.
     again = result.transcript[result.transcript.index(slipped) + 1]
@@ -128,7 +129,7 @@ def test_a_slip_in_the_lift_puts_the_brick_back_and_grasps_it_again(small_goal) 
     assert again.answer["brick_id"] == slipped.brick
     pre_grasps = [r for r in reasoner.requests if r.spec.key == "pre_grasp"]
     assert pre_grasps[1].memory.last_feedback.startswith("sigma4_lift failed: ")
-    assert "slid_in_hand_m" in pre_grasps[1].memory.last_feedback
+    assert any(name in pre_grasps[1].memory.last_feedback for name in failed)
     for target, brick in result.placements.items():
         assert center_offset_cm(final[brick], small_goal.targets[target].pose.position_m) < 0.1
 

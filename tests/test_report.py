@@ -18,7 +18,8 @@ CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
-    """Two methods on the small pattern, with snapshots."""
+    """Two methods on the small pattern, with snapshots, under precise physics (where the
+    classical script succeeds too, so every cell of the table has figures)."""
     root = tmp_path_factory.mktemp("runs")
     pattern = root / "small.json"
     pattern.write_text(json.dumps(SMALL_PATTERN))
@@ -27,7 +28,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
         out = root / method
         result = cli(
             "eval", "--method", method, "--pattern", str(pattern), "--trials", trials,
-            "--out", str(out), "--snapshots",
+            "--out", str(out), "--snapshots", "--physics", "precise",
         )  # fmt: skip
         assert result.returncode == 0, result.stderr
         made.append(out)
@@ -51,8 +52,8 @@ def summary_of(run: Path) -> dict:
 def test_the_tables_hold_each_runs_figures(runs: list[Path], report: Path) -> None:
     rows = list(csv.DictReader((report / "table.csv").open()))
     assert [(r["method"], r["pattern"].endswith("small.json") or r["pattern"]) for r in rows] == [
-        ("classical", True), ("classical", "Average"),
-        ("agents (builtin)", True), ("agents (builtin)", "Average"),
+        ("classical, precise", True), ("classical, precise", "Average"),
+        ("agents (builtin), precise", True), ("agents (builtin), precise", "Average"),
     ]  # fmt: skip
     for run, row in zip(runs, rows[::2], strict=True):
         summary = summary_of(run)
@@ -65,8 +66,8 @@ def test_the_tables_hold_each_runs_figures(runs: list[Path], report: Path) -> No
                 summary["successful"][metric]["mean"]
             )
     markdown = (report / "table.md").read_text()
-    assert "| small: Rot. Err ↓ |" in markdown and "| agents (builtin) |" in markdown
-    assert "| classical | 2/2 | 2/2 |" in markdown
+    assert "| small: Rot. Err ↓ |" in markdown and "| agents (builtin), precise |" in markdown
+    assert "| classical, precise | 2/2 | 2/2 |" in markdown
     latex = (report / "table.tex").read_text()
     assert r"\multicolumn{3}{c}{\textbf{small}}" in latex and latex.count(r"\\") == 4
 
@@ -112,7 +113,7 @@ def test_the_html_page_renders_in_chromium(runs: list[Path], report: Path) -> No
         shown = page.locator("img").first.bounding_box()
         browser.close()
     classical = summary_of(runs[0])["successful"]
-    assert [row[0] for row in cells] == ["classical", "agents (builtin)"]
+    assert [row[0] for row in cells] == ["classical, precise", "agents (builtin), precise"]
     assert cells[0][1:4] == [
         f"{classical['rotation_error_deg']['mean']:.3f}",
         f"{classical['center_offset_cm']['mean']:.3f}",
@@ -153,7 +154,9 @@ def test_llm_cost_and_the_failure_taxonomy_are_reported(tmp_path: Path) -> None:
     image = iio.imread(tmp_path / "report" / "llm_cost.png")
     assert image.shape[1] > 500 and image.std() > 10
     table = (tmp_path / "report" / "table.md").read_text()
-    assert "| agents (openai:gemma) | 1/3 | 1/3 |" in table
-    assert "| agents (openai:gemma) | pyramid | `misplaced` | 2 | trial 1: brick 3 |" in table
+    assert "| agents (openai:gemma), precise | 1/3 | 1/3 |" in table
+    assert (
+        "| agents (openai:gemma), precise | pyramid | `misplaced` | 2 | trial 1: brick 3 |" in table
+    )
     html = (tmp_path / "report" / "report.html").read_text()
     assert "<code>misplaced</code></td><td>2</td><td>trial 1: brick 3</td>" in html

@@ -13,6 +13,8 @@ from actionreasoning.eval.progress import ConsoleProgress
 from actionreasoning.eval.results import TrialMetrics, TrialResult
 from actionreasoning.eval.run_dir import RunManifest, append_result, open_run, read_results
 from actionreasoning.records import Failure
+from actionreasoning.world.noise import LEVELS
+from actionreasoning.world.physics import PAPER, PRECISE
 
 MANIFEST = RunManifest(
     method="agents",
@@ -23,6 +25,8 @@ MANIFEST = RunManifest(
     llm_limits={"tool_turns": 2, "repairs": 2, "fallback": False},
     success_rule="rule",
     budget={"max_steps": 400000, "max_wall_s": 3600.0},
+    physics=PAPER,
+    noise=LEVELS["none"],
 )
 
 
@@ -108,3 +112,13 @@ def test_plain_lines_when_not_a_terminal(capsys: pytest.CaptureFixture[str]) -> 
     assert capsys.readouterr().out.splitlines() == [
         "[1/2, 1 ok] trial 0: ok; 0.010 cm, 0.020 deg, IoU 0.990"
     ]
+
+
+def test_a_resume_under_other_conditions_is_refused_naming_the_field(tmp_path: Path) -> None:
+    open_run(tmp_path, MANIFEST)
+    (tmp_path / "results.jsonl").write_text(result(0).model_dump_json() + "\n")
+    with pytest.raises(ConfigError, match=r"physics\.name 'paper' there, 'precise' now"):
+        open_run(tmp_path, MANIFEST.model_copy(update={"physics": PRECISE}))
+    with pytest.raises(ConfigError, match=r"noise\.perception\.position_std_m 0\.0 there"):
+        open_run(tmp_path, MANIFEST.model_copy(update={"noise": LEVELS["medium"]}))
+    assert open_run(tmp_path, MANIFEST) == [result(0)]

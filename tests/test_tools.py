@@ -14,12 +14,13 @@ from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.errors import ToolError
 from actionreasoning.sim.collision import CollisionChecker
 from actionreasoning.sim.kinematics import KinematicArm
-from actionreasoning.sim.perceive import perceive
+from actionreasoning.sim.perceive import Sensor
 from actionreasoning.sim.scene import Scene
 from actionreasoning.tools.base import ToolContext
 from actionreasoning.tools.registry import TOOLS, call_tool
 from actionreasoning.world.geometry import top_down_quat, yaw_quat
 from actionreasoning.world.models import BrickState, Pose, RobotState, WorldState
+from actionreasoning.world.noise import LEVELS
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
 
@@ -212,15 +213,19 @@ def test_contact_and_slip_of_a_brick_held_in_the_real_gripper(
     arm: KinematicArm, scene: Scene
 ) -> None:
     controller = WaypointController(scene, arm)
-    pick_yaw, _ = ClassicalController(controller).grasp_yaws(0, GOAL.targets[0].pose)
+    sensor = Sensor(scene, LEVELS["none"], trial_seed=0)
+    pick_yaw, _ = ClassicalController(controller, sensor).grasp_yaws(
+        *sensor.brick_pose(0), GOAL.targets[0].pose
+    )
     pick_up(controller, 0, pick_yaw, lift_to_m=0.3)
-    state = perceive(scene, GOAL)
+    state = sensor.perceive(GOAL)
     assert state.brick(0).status == "grasped"
     forces = run(arm, state, "finger_contacts", brick_id=0)
     assert forces.held
     assert forces.normal_n == pytest.approx((110.0, 110.0), rel=0.15)
     assert forces.friction_coefficient == pytest.approx(1.2 * 0.8)
-    assert forces.friction_margin_n > 50.0
+    assert forces.friction_margin_n > 100.0
+    assert forces.required_normal_n == pytest.approx(1.5 * 9.81 / (2 * 1.2 * 0.8))
     slip = run(arm, state, "slip_estimate", brick_id=0)
     assert slip.relative_speed_mps < 1e-3
     assert max(abs(v) for v in slip.offset_in_gripper_m) < 2e-3  # centred between the pads

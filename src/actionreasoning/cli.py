@@ -28,11 +28,12 @@ from actionreasoning.eval.trial import Method, TrialSpec, trial_world
 from actionreasoning.reasoners.factory import LLMConfig, check_backend
 from actionreasoning.reasoners.llm import LLMLimits
 from actionreasoning.reasoners.openai_chat import ServerOptions
-from actionreasoning.sim.perceive import perceive
 from actionreasoning.sim.scene import TrialBudget
 from actionreasoning.world.geometry import quat_yaw
 from actionreasoning.world.models import Progress as BuildProgress
+from actionreasoning.world.noise import load_noise
 from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.physics import load_physics
 from actionreasoning.world.scene_spec import SceneSpec
 from actionreasoning.world.tolerances import Tolerances
 
@@ -57,6 +58,20 @@ LLMOption = Annotated[
 BaseUrlOption = Annotated[
     str | None,
     typer.Option(help="Base URL of an OpenAI-compatible server (default: OPENAI_BASE_URL)."),
+]
+PhysicsOption = Annotated[
+    str,
+    typer.Option(
+        help="Physics profile: 'paper' (PyBullet's defaults, the paper's condition), 'precise' "
+        "(tuned until nothing slips) or a profile file (JSON/YAML, see README)."
+    ),
+]
+NoiseOption = Annotated[
+    str,
+    typer.Option(
+        help="Perturbations drawn from each trial's seed: none, low, medium, high (perception "
+        "noise and per-brick friction, mass and size; see README) or a noise file."
+    ),
 ]
 TimeoutOption = Annotated[
     float, typer.Option(min=0.1, help="Seconds to wait for one answer of the model server.")
@@ -119,6 +134,8 @@ def eval_command(
     trials: Annotated[int, typer.Option(min=1, help="Number of trials.")] = 10,
     seed: Annotated[int, typer.Option(help="Run seed; trial k uses a seed from (seed, k).")] = 0,
     llm: LLMOption = "builtin",
+    physics: PhysicsOption = "paper",
+    noise: NoiseOption = "none",
     base_url: BaseUrlOption = None,
     record: Annotated[
         Path | None,
@@ -142,7 +159,8 @@ def eval_command(
         int, typer.Option(min=1, help="Trials in parallel, one worker process each.")
     ] = 1,
     max_steps: Annotated[
-        int, typer.Option(min=1, help="Simulation steps a trial may take (1/480 s each).")
+        int,
+        typer.Option(min=1, help="Simulation steps a trial may take (of the profile's time step)."),
     ] = TrialBudget().max_steps,
     max_trial_s: Annotated[
         float, typer.Option(min=0.0, help="Wall-clock seconds a trial may take.")
@@ -195,6 +213,8 @@ def eval_command(
         workers=workers,
         ray=ray,
         budget=TrialBudget(max_steps=max_steps, max_wall_s=max_trial_s),
+        physics=physics,
+        noise=noise,
     )
 
 
@@ -206,6 +226,8 @@ def demo(
     out: Annotated[Path, typer.Option(help="Output directory for the report.")] = Path("demo"),
     pattern: PatternOption = "pyramid",
     seed: Annotated[int, typer.Option(help="Seed of the demo trial.")] = 0,
+    physics: PhysicsOption = "paper",
+    noise: NoiseOption = "none",
 ) -> None:
     """Build a pattern once with the six agents and write a report with pictures of every stage.
 
@@ -217,7 +239,17 @@ def demo(
             (out / name).unlink(missing_ok=True)
         for folder in ("snapshots", "report"):
             shutil.rmtree(out / folder, ignore_errors=True)
-    _evaluate(Method.AGENTS, pattern, 1, seed, out, llm=LLMConfig(), snapshots=True)
+    _evaluate(
+        Method.AGENTS,
+        pattern,
+        1,
+        seed,
+        out,
+        llm=LLMConfig(),
+        snapshots=True,
+        physics=physics,
+        noise=noise,
+    )
     html = build_report([out], out / "report", gifs=True)
     animation = html.gifs[0][0].relative_to(out)
     report = out / "report.md"
@@ -244,8 +276,11 @@ def _evaluate(
     workers: int = 1,
     ray: str | None = None,
     budget: TrialBudget = TrialBudget(),
+    physics: str = "paper",
+    noise: str = "none",
 ) -> RunSummary:
-    """Load the pattern, run the trials with progress, print the table; errors end the command."""
+    """Load the pattern and conditions, run the trials with progress, print the table; errors
+    end the command."""
     try:
         config = RunConfig(
             method=method,
@@ -260,8 +295,11 @@ def _evaluate(
             workers=workers,
             ray=ray,
             budget=budget,
+            physics=load_physics(physics),
+            noise=load_noise(noise),
         )
-        with ConsoleProgress(console, f"{method} / {pattern}") as progress:
+        title = f"{method} / {pattern} / {config.physics.name} / noise {config.noise.name}"
+        with ConsoleProgress(console, title) as progress:
             summary = run_eval(config, progress)
     except ActionReasoningError as error:
         _fail(error)
@@ -336,16 +374,27 @@ def prompt_command(
     ],
     pattern: PatternOption = "pyramid",
     seed: Annotated[int, typer.Option(help="Run seed; the scene is that of trial 0.")] = 0,
+    physics: PhysicsOption = "paper",
+    noise: NoiseOption = "none",
 ) -> None:
     """Print the prompt agent N would be sent at its first step, to read and tune it."""
     try:
         goal = load_pattern(pattern, SceneSpec())
+        profile, level = load_physics(physics), load_noise(noise)
     except ActionReasoningError as error:
         _fail(error)
     spec = agent_specs()[agent - 1] if agent else single_agent_spec()
-    trial = TrialSpec(method=Method.AGENTS, pattern_name=pattern, goal=goal, run_seed=seed, trial=0)
-    with trial_world(trial) as (scene, _, _):
-        state = perceive(scene, goal, BuildProgress(step=spec.key))
+    trial = TrialSpec(
+        method=Method.AGENTS,
+        pattern_name=pattern,
+        goal=goal,
+        run_seed=seed,
+        trial=0,
+        physics=profile,
+        noise=level,
+    )
+    with trial_world(trial) as world:
+        state = world.sensor.perceive(goal, BuildProgress(step=spec.key))
     memory = TaskMemory(step=spec.key if agent else SINGLE_AGENT_START)
     print(render_prompt(spec, state, memory, Tolerances()), end="")
 

@@ -89,12 +89,12 @@ class Orchestrator:
     ) -> None:
         self.world = world
         self.reasoner = reasoner
-        self.tol = tolerances
+        self.tol = tolerances.under(world.sensing)
         self.budgets = budgets
         self.on_stage = on_stage
         self.specs = {spec.key: spec for spec in agent_specs()}
         self.result = BuildResult()
-        self.calls = AgentCaller(world, reasoner, tolerances, self.result)
+        self.calls = AgentCaller(world, reasoner, self.tol, self.result)
         self.memory = TaskMemory()
 
     # --- the pipeline -------------------------------------------------------------------
@@ -264,13 +264,11 @@ class Orchestrator:
             raise _Refused("the answer needs a waypoint")
         waypoint = _checked(answer.waypoint, path="linear")
         start = state.robot.ee_pose
-        grasped = self.calls.measure(state, "slip_estimate", brick_id=brick).offset_in_gripper_m
         self.world.move(waypoint)
         after = self.world.observe(Progress(current_brick=brick, step="lift"))
         slip = self.calls.measure(after, "slip_estimate", brick_id=brick)
         pads = self.calls.measure(after, "finger_contacts", brick_id=brick)
-        slid = math.dist(grasped, slip.offset_in_gripper_m)
-        verdict = self.calls.judge(gates.sigma4_lift(slip, slid, pads, self.tol))
+        verdict = self.calls.judge(gates.sigma4_lift(slip, pads, self.tol))
         if verdict.passed:
             return
         # sigma_4 = 0: put the brick back down, let go, and start again at Ag1.

@@ -50,7 +50,7 @@ class SingleAgent:
         self.spec = single_agent_spec()
         self.on_stage = on_stage
         self.result = BuildResult()
-        self.calls = AgentCaller(world, reasoner, tolerances, self.result)
+        self.calls = AgentCaller(world, reasoner, tolerances.under(world.sensing), self.result)
         self.memory = TaskMemory(step=SINGLE_AGENT_START)
 
     def build(self, goal: GoalPattern) -> BuildResult:

@@ -10,7 +10,7 @@ from typing import Protocol
 
 from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.tools.base import ToolContext
-from actionreasoning.world.models import Progress, WorldState
+from actionreasoning.world.models import Progress, Sensing, WorldState
 
 
 @dataclass(frozen=True)
@@ -25,6 +25,9 @@ class Motion:
 
 class World(Protocol):
     """The orchestrator's view of the robot and the scene."""
+
+    #: How noisy the measurements are and how far catalogue values may be off.
+    sensing: Sensing
 
     def observe(self, progress: Progress) -> WorldState:
         """Measure the world now."""

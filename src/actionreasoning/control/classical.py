@@ -14,7 +14,8 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
-from actionreasoning.world.geometry import Vec3, quat_yaw, top_down_quat
+from actionreasoning.sim.perceive import Sensor
+from actionreasoning.world.geometry import QuatXYZW, Vec3, quat_yaw, top_down_quat
 from actionreasoning.world.models import GoalPattern, Pose
 
 
@@ -40,13 +41,19 @@ class StageEvent:
 class ClassicalController:
     """Runs the fixed script brick by brick."""
 
-    def __init__(self, controller: WaypointController, script: ClassicalScript = ClassicalScript()):
+    def __init__(
+        self,
+        controller: WaypointController,
+        sensor: Sensor,
+        script: ClassicalScript = ClassicalScript(),
+    ) -> None:
         self.controller = controller
+        self.sensor = sensor
         self.script = script
 
-    def grasp_yaws(self, brick: int, target: Pose) -> tuple[float, float]:
-        """Gripper yaw at pick and at place (rad), the pair with the smaller wrist angles."""
-        position, quat = self.controller.scene.brick_pose(brick)
+    def grasp_yaws(self, position: Vec3, quat: QuatXYZW, target: Pose) -> tuple[float, float]:
+        """Gripper yaw at pick and at place (rad) for a brick measured at ``position``,
+        ``quat``: the pair with the smaller wrist angles."""
         brick_yaw = quat_yaw(quat)
         turn = quat_yaw(target.quat_xyzw) - brick_yaw
         pick_yaw = min(
@@ -65,8 +72,8 @@ class ClassicalController:
     def place_brick(self, brick: int, target: Pose) -> Iterator[str]:
         """Pick brick ``brick`` and put it on ``target``; yields each finished stage's name."""
         s, run = self.script, self.controller.execute
-        position, _ = self.controller.scene.brick_pose(brick)
-        pick_yaw, place_yaw = self.grasp_yaws(brick, target)
+        position, quat = self.sensor.brick_pose(brick)
+        pick_yaw, place_yaw = self.grasp_yaws(position, quat, target)
         transfer = self.controller.scene.ticks_for(s.transfer_s)
         vertical = self.controller.scene.ticks_for(s.vertical_s)
         px, py, pz = position
@@ -136,11 +143,12 @@ class ClassicalController:
 
 def run_classical(
     controller: WaypointController,
+    sensor: Sensor,
     goal: GoalPattern,
     on_stage: Callable[[StageEvent], None] | None = None,
 ) -> None:
     """Build ``goal`` with the classical script: brick k goes to target k."""
-    script = ClassicalController(controller)
+    script = ClassicalController(controller, sensor)
     for target in goal.targets:
         for stage in script.place_brick(target.index, target.pose):
             if on_stage is not None:

@@ -48,6 +48,10 @@ class TrialResult(_Record):
 
     method: str
     pattern: str
+    #: The physics profile and noise level (names; run.json has their values). Lines
+    #: written before conditions existed ran under today's "precise" without noise.
+    physics: str = "precise"
+    noise: str = "none"
     seed: int
     trial: int
     trial_seed: int

@@ -37,6 +37,8 @@ from actionreasoning.eval.trial import Method, SuccessRule, TrialSpec
 from actionreasoning.reasoners.factory import LLMConfig, prepare
 from actionreasoning.sim.scene import TrialBudget
 from actionreasoning.world.models import GoalPattern
+from actionreasoning.world.noise import LEVELS, NoiseLevel
+from actionreasoning.world.physics import PAPER, PhysicsProfile
 
 
 @dataclass(frozen=True)
@@ -56,6 +58,8 @@ class RunConfig:
     ray: str | None = None
     rule: SuccessRule = SuccessRule()
     budget: TrialBudget = TrialBudget()
+    physics: PhysicsProfile = PAPER
+    noise: NoiseLevel = LEVELS["none"]
 
     def manifest(self) -> RunManifest:
         """What a resumed run must share with this one."""
@@ -71,6 +75,8 @@ class RunConfig:
             else {},
             success_rule=describe_rule(self.rule),
             budget=asdict(self.budget),
+            physics=self.physics,
+            noise=self.noise,
         )
 
 
@@ -108,6 +114,8 @@ def run_eval(config: RunConfig, observer: RunObserver | None = None) -> RunSumma
                 trial=trial,
                 llm=llm,
                 budget=config.budget,
+                physics=config.physics,
+                noise=config.noise,
             ),
             rule=config.rule,
             snapshots=config.snapshots,
@@ -134,6 +142,8 @@ def run_eval(config: RunConfig, observer: RunObserver | None = None) -> RunSumma
         config.rule,
         llm_mode=mode,
         resumed_trials=len(results) - len(jobs),
+        physics=config.physics,
+        noise=config.noise,
     )
     (config.out / "summary.json").write_text(summary.model_dump_json(indent=2) + "\n")
     (config.out / "summary.md").write_text(summary_markdown(summary))

@@ -11,12 +11,14 @@ from __future__ import annotations
 import hashlib
 import os
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
 from actionreasoning.errors import ConfigError
 from actionreasoning.eval.results import TrialResult
+from actionreasoning.world.noise import NoiseLevel
+from actionreasoning.world.physics import PhysicsProfile
 
 RESULTS_FILE = "results.jsonl"
 MANIFEST_FILE = "run.json"
@@ -35,6 +37,8 @@ class RunManifest(BaseModel):
     llm_limits: dict[str, int | bool]
     success_rule: str
     budget: dict[str, float]
+    physics: PhysicsProfile
+    noise: NoiseLevel
 
 
 def digest(text: str) -> str:
@@ -61,18 +65,31 @@ def open_run(out: Path, manifest: RunManifest) -> list[TrialResult]:
     try:
         previous = RunManifest.model_validate_json(stored.read_text())
     except ValidationError as error:
-        raise ConfigError(f"{stored} is damaged ({error.errors()[0]['msg']})") from error
+        first = error.errors()[0]
+        where = ".".join(str(part) for part in first["loc"])
+        raise ConfigError(
+            f"{stored} is damaged or from an earlier version ({where}: {first['msg']}): "
+            "choose another --out"
+        ) from error
     if previous != manifest:
-        differences = ", ".join(
-            f"{name} {getattr(previous, name)!r} there, {getattr(manifest, name)!r} now"
-            for name in RunManifest.model_fields
-            if getattr(previous, name) != getattr(manifest, name)
-        )
+        differences = ", ".join(_differences(previous.model_dump(), manifest.model_dump()))
         raise ConfigError(
             f"--out {out} holds a different run ({differences}): choose another --out, "
             "or repeat that run's options to resume it"
         )
     return read_results(results, repair=True)
+
+
+def _differences(there: dict[str, Any], now: dict[str, Any], prefix: str = "") -> list[str]:
+    """Every field (nested ones dotted: ``physics.time_step_s``) that differs, with both values."""
+    found = []
+    for name in dict.fromkeys([*there, *now]):
+        old, new = there.get(name), now.get(name)
+        if isinstance(old, dict) and isinstance(new, dict):
+            found += _differences(old, new, f"{prefix}{name}.")
+        elif old != new:
+            found.append(f"{prefix}{name} {old!r} there, {new!r} now")
+    return found
 
 
 def read_results(path: Path, repair: bool = False) -> list[TrialResult]:

@@ -6,7 +6,7 @@ from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.agents.world import Motion
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
 from actionreasoning.sim.collision import CollisionChecker
-from actionreasoning.sim.perceive import perceive
+from actionreasoning.sim.perceive import Sensor
 from actionreasoning.tools.base import ToolContext
 from actionreasoning.world.models import GoalPattern, Pose, Progress, WorldState
 
@@ -14,16 +14,18 @@ from actionreasoning.world.models import GoalPattern, Pose, Progress, WorldState
 class SimWorld:
     """Observe, run tools, move and grip in a PyBullet scene."""
 
-    def __init__(self, controller: WaypointController, goal: GoalPattern) -> None:
+    def __init__(self, controller: WaypointController, goal: GoalPattern, sensor: Sensor) -> None:
         self.controller = controller
         self.goal = goal
+        self.sensor = sensor
+        self.sensing = sensor.sensing
         self.collisions = CollisionChecker(controller.arm)
 
     def observe(self, progress: Progress) -> WorldState:
         """Measure the world now (the moment before every agent call: the trial's wall-time
         budget is checked here)."""
         self.controller.scene.check_wall_time()
-        return perceive(self.controller.scene, self.goal, progress)
+        return self.sensor.perceive(self.goal, progress)
 
     def tools(self, state: WorldState) -> ToolContext:
         """Tools on the kinematic copy of the arm, for a measured state."""

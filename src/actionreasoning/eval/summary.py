@@ -11,6 +11,8 @@ from pydantic import BaseModel, ConfigDict
 from actionreasoning.eval.results import LLMUsage, TrialResult
 from actionreasoning.eval.trial import SuccessRule
 from actionreasoning.records import FAILURE_CODES
+from actionreasoning.world.noise import NoiseLevel
+from actionreasoning.world.physics import PhysicsProfile
 
 METRICS = ("rotation_error_deg", "center_offset_cm", "iou", "symmetric_rotation_error_deg")
 
@@ -32,6 +34,8 @@ class RunSummary(BaseModel):
     method: str
     pattern: str
     llm: str
+    physics: PhysicsProfile | None = None
+    noise: NoiseLevel | None = None
     seed: int
     trials: int
     successes: int
@@ -75,6 +79,8 @@ def summarize(
     rule: SuccessRule = SuccessRule(),
     llm_mode: str | None = None,
     resumed_trials: int = 0,
+    physics: PhysicsProfile | None = None,
+    noise: NoiseLevel | None = None,
 ) -> RunSummary:
     """Means and standard deviations over successful trials (the paper's protocol) and all."""
     if not results:
@@ -90,6 +96,8 @@ def summarize(
         method=first.method,
         pattern=first.pattern,
         llm=first.llm,
+        physics=physics,
+        noise=noise,
         seed=first.seed,
         trials=len(results),
         successes=len(ok),
@@ -124,7 +132,9 @@ def summary_markdown(summary: RunSummary) -> str:
     """A Table-I style markdown report of one run."""
     s = summary.successful
     lines = [
-        f"# {summary.method} on {summary.pattern}",
+        f"# {summary.method} on {summary.pattern}"
+        + (f" under {summary.physics.name} physics" if summary.physics else "")
+        + (f", noise {summary.noise.name}" if summary.noise else ""),
         "",
         f"Reasoning backend: `{summary.llm}` · seed {summary.seed} · {summary.trials} trials · "
         f"wall time {summary.wall_time_s:.1f} s"
@@ -134,6 +144,7 @@ def summary_markdown(summary: RunSummary) -> str:
             else ""
         ),
         "",
+        *_condition_lines(summary),
         "Means ± standard deviations over successful trials (per-brick values averaged per trial).",
         "",
         "| Method | Rot. Err (°) ↓ | Ctr. Off. (cm) ↓ | IoU (%) ↑ | Sym. Rot. Err (°) ↓ "
@@ -159,6 +170,16 @@ def summary_markdown(summary: RunSummary) -> str:
     if summary.llm_usage.calls:
         lines += ["", *_llm_lines(summary)]
     return "\n".join(lines) + "\n"
+
+
+def _condition_lines(summary: RunSummary) -> list[str]:
+    """The physics profile and noise level the run ran under, one line each."""
+    lines = []
+    if summary.physics is not None:
+        lines.append(f"Physics `{summary.physics.describe()}`.")
+    if summary.noise is not None:
+        lines.append(f"Noise `{summary.noise.describe()}`.")
+    return [" ".join(lines), ""] if lines else []
 
 
 def _llm_lines(summary: RunSummary) -> list[str]:

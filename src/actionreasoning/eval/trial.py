@@ -21,11 +21,14 @@ from actionreasoning.eval.results import BrickResult, Failure, LLMUsage, TrialMe
 from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.reasoners.factory import LLMConfig, make_reasoner
 from actionreasoning.sim.kinematics import KinematicArm
+from actionreasoning.sim.perceive import Sensor
 from actionreasoning.sim.scene import Scene, TrialBudget
 from actionreasoning.world.geometry import Vec3, top_down_quat
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import GoalPattern, Pose
-from actionreasoning.world.scene_spec import SceneSpec
+from actionreasoning.world.noise import LEVELS, NoiseLevel, vary_bricks
+from actionreasoning.world.physics import PAPER, PhysicsProfile
+from actionreasoning.world.scene_spec import BrickBody, SceneSpec
 
 #: Where the arm waits between bricks and at the end: above the middle of the workspace.
 READY_POSE = Pose(position_m=(0.45, -0.25, 0.40), quat_xyzw=top_down_quat(0.0))
@@ -77,6 +80,8 @@ class TrialSpec:
     llm: LLMConfig = LLMConfig()
     scene: SceneSpec = SceneSpec()
     budget: TrialBudget = TrialBudget()
+    physics: PhysicsProfile = PAPER
+    noise: NoiseLevel = LEVELS["none"]
 
 
 def trial_seed(run_seed: int, trial: int) -> int:
@@ -87,19 +92,41 @@ def trial_seed(run_seed: int, trial: int) -> int:
 StageHook = Callable[[Scene, StageEvent], None]
 
 
+@dataclass(frozen=True)
+class TrialWorld:
+    """A trial's scene (after the spawn settle), the arm model, the seed and the sensor."""
+
+    scene: Scene
+    arm: KinematicArm
+    seed: int
+    sensor: Sensor
+
+
 @contextmanager
-def trial_world(spec: TrialSpec) -> Iterator[tuple[Scene, KinematicArm, int]]:
-    """The trial's scene after the spawn settle, the arm model and the trial seed."""
+def trial_world(spec: TrialSpec) -> Iterator[TrialWorld]:
+    """The trial's world under its physics profile and perturbations, closed on exit."""
     seed = trial_seed(spec.run_seed, spec.trial)
-    poses = sample_pick_poses(np.random.default_rng(seed), len(spec.goal.targets), spec.scene)
+    count = len(spec.goal.targets)
+    nominal = BrickBody(
+        size_m=spec.scene.brick_size_m,
+        mass_kg=spec.scene.brick_mass_kg,
+        lateral_friction=spec.physics.brick_lateral_friction,
+    )
+    bodies = vary_bricks(spec.noise.variation, nominal, count, seed)
+    poses = [
+        pose.model_copy(update={"position_m": (*pose.position_m[:2], body.size_m[2] / 2.0)})
+        for pose, body in zip(
+            sample_pick_poses(np.random.default_rng(seed), count, spec.scene), bodies, strict=True
+        )
+    ]
     with ExitStack() as cleanup:
         arm = KinematicArm()
         cleanup.callback(arm.close)
         ready = arm.solve(READY_POSE.position_m, READY_POSE.quat_xyzw).joints_rad
-        scene = Scene(spec.scene, poses, ready, budget=spec.budget)
+        scene = Scene(spec.scene, poses, ready, spec.physics, spec.budget, bodies)
         cleanup.callback(scene.close)
         scene.step(scene.ticks_for(SPAWN_SETTLE_S))
-        yield scene, arm, seed
+        yield TrialWorld(scene=scene, arm=arm, seed=seed, sensor=Sensor(scene, spec.noise, seed))
 
 
 @dataclass(frozen=True)
@@ -114,17 +141,18 @@ def run_trial(
     spec: TrialSpec, rule: SuccessRule = SuccessRule(), on_stage: StageHook | None = None
 ) -> TrialRun:
     """Run one trial start to finish; failures become a ``failure`` record, never a crash."""
-    with trial_world(spec) as (scene, arm, seed):
-        controller = WaypointController(scene, arm)
+    with trial_world(spec) as world:
+        scene, seed = world.scene, world.seed
+        controller = WaypointController(scene, world.arm)
 
         def stage(brick: int, name: str) -> None:
             if on_stage is not None:
                 on_stage(scene, StageEvent(brick=brick, stage=name))
 
         if spec.method is Method.CLASSICAL:
-            outcome = _run_classical(controller, spec.goal, stage)
+            outcome = _run_classical(controller, world.sensor, spec.goal, stage)
         else:
-            outcome = _run_agents(controller, spec, stage)
+            outcome = _run_agents(controller, world.sensor, spec, stage)
         try:
             scene.step(scene.ticks_for(FINAL_SETTLE_S))
             scene.check_physics()
@@ -135,11 +163,14 @@ def run_trial(
 
 
 def _run_classical(
-    controller: WaypointController, goal: GoalPattern, stage: Callable[[int, str], None]
+    controller: WaypointController,
+    sensor: Sensor,
+    goal: GoalPattern,
+    stage: Callable[[int, str], None],
 ) -> BuildResult:
     failure = None
     try:
-        run_classical(controller, goal, lambda event: stage(event.brick, event.stage))
+        run_classical(controller, sensor, goal, lambda event: stage(event.brick, event.stage))
         controller.execute(Waypoint(pose=READY_POSE, gripper=GripperCommand.OPEN))
     except (UnreachableError, TrialAborted) as error:
         failure = failure_of(error, None)
@@ -147,10 +178,13 @@ def _run_classical(
 
 
 def _run_agents(
-    controller: WaypointController, spec: TrialSpec, stage: Callable[[int, str], None]
+    controller: WaypointController,
+    sensor: Sensor,
+    spec: TrialSpec,
+    stage: Callable[[int, str], None],
 ) -> BuildResult:
-    """The six gated agents, or the merged single agent, with the built-in reasoner."""
-    world = SimWorld(controller, spec.goal)
+    """The six gated agents, or the merged single agent, with the spec's reasoner."""
+    world = SimWorld(controller, spec.goal, sensor)
     reasoner = make_reasoner(spec.llm, READY_POSE)
     runner = (
         SingleAgent(world, reasoner, on_stage=stage)
@@ -209,6 +243,8 @@ def _measure(
     return TrialResult(
         method=str(spec.method),
         pattern=spec.pattern_name,
+        physics=spec.physics.name,
+        noise=spec.noise.name,
         seed=spec.run_seed,
         trial=spec.trial,
         trial_seed=seed,

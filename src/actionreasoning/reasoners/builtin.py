@@ -28,7 +28,7 @@ from actionreasoning.agents.outputs import (
 )
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.agents.spec import SINGLE_AGENT_START
-from actionreasoning.world.geometry import quat_yaw, top_down_quat, wrap_angle
+from actionreasoning.world.geometry import quat_yaw, top_down_quat
 from actionreasoning.world.models import Pose
 
 LIFT_CLEARANCE_M = 0.12
@@ -129,15 +129,14 @@ class BuiltinReasoner:
         tool_rot = Rotation.from_quat(tool.quat_xyzw)
         in_hand = tool_rot.inv() * Rotation.from_quat(brick.pose.quat_xyzw)
         offset = tool_rot.inv().apply(np.subtract(brick.pose.position_m, tool.position_m))
-        # Keep only the brick's yaw about z in the target, so the tool stays top-down.
+        # The whole measured pose in the hand, tilt too: a brick that rolled in the hand is
+        # set down level by tilting the tool, not pressed flat from a corner.
         slot_rot = Rotation.from_quat(target.pose.quat_xyzw) * in_hand.inv()
-        yaw = quat_yaw(tuple(slot_rot.as_quat()))
-        slot_rot = Rotation.from_quat(top_down_quat(wrap_angle(yaw)))
         position = np.asarray(target.pose.position_m) - slot_rot.apply(offset)
         slot = Pose(position_m=tuple(position), quat_xyzw=tuple(slot_rot.as_quat()))
         return PlacementAnswer(
             waypoint=_proposal(slot),
-            rationale="tool pose that puts the measured brick-in-hand on its target",
+            rationale="tool pose that puts the brick, as measured in the hand, level on its target",
         )
 
     def _release(self, request: AgentRequest) -> AgentAnswer:

@@ -1,12 +1,21 @@
-"""perceive(): the one function that turns the simulator into a WorldState."""
+"""What the robot measures: the simulator seen through its sensors, as a WorldState.
+
+A :class:`Sensor` adds the trial's perception noise to every brick position and yaw and
+to the pad forces it reports, each observation a new draw from the trial's own generator
+(no draw at all where the noise is zero). The agents and the classical script read the
+world only through it; metrics and pictures read the true poses from the scene.
+"""
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
+from scipy.spatial.transform import Rotation
+
 from actionreasoning.sim.robot_model import FINGER_MAX_M, FINGER_MIN_M, FINGER_PAD_BELOW_TCP_M
 from actionreasoning.sim.scene import Scene
-from actionreasoning.world.geometry import tilt_deg
+from actionreasoning.world.geometry import QuatXYZW, Vec3, tilt_deg
 from actionreasoning.world.models import (
     BrickState,
     BrickStatus,
@@ -14,62 +23,108 @@ from actionreasoning.world.models import (
     Pose,
     Progress,
     RobotState,
+    Sensing,
     WorldState,
 )
+from actionreasoning.world.noise import PERCEPTION_STREAM, NoiseLevel
 
 GRASP_CONTACT_N = 1.0
 TOPPLED_TILT_DEG = 20.0
 
 
-def perceive(scene: Scene, goal: GoalPattern, progress: Progress = Progress()) -> WorldState:
-    """Measure the scene: robot, every brick with its status, the goal and the progress."""
-    joints, _ = scene.arm_joints()
-    left, right = scene.finger_positions()
-    tcp_position, tcp_quat = scene.tcp_pose()
-    contacts = [scene.finger_contacts(i) for i in range(len(scene.bricks))]
-    held = [c[0].normal_n > GRASP_CONTACT_N and c[1].normal_n > GRASP_CONTACT_N for c in contacts]
-    normal, tangential = (0.0, 0.0), (0.0, 0.0)
-    if any(held):
-        left_c, right_c = contacts[held.index(True)]
-        normal = (left_c.normal_n, right_c.normal_n)
-        tangential = (left_c.tangential_n, right_c.tangential_n)
-    linear, angular = scene.tcp_velocity()
-    robot = RobotState(
-        ee_pose=Pose(position_m=tcp_position, quat_xyzw=tcp_quat),
-        joint_positions_rad=tuple(float(q) for q in joints),
-        # The pads' joint limits bound the gap; the solver can overshoot them by microns.
-        gripper_width_m=min(max(left + right, 2 * FINGER_MIN_M), 2 * FINGER_MAX_M),
-        finger_depth_m=FINGER_PAD_BELOW_TCP_M,
-        finger_forces_n=normal,
-        finger_tangential_n=tangential,
-        finger_friction=scene.physics.finger_friction,
-        ee_linear_velocity_mps=linear,
-        ee_angular_velocity_radps=angular,
-    )
-    bricks = []
-    for i in range(len(scene.bricks)):
-        position, quat = scene.brick_pose(i)
-        linear, angular = scene.brick_velocity(i)
-        status = _status(scene, i, position, quat, held[i], progress)
-        bricks.append(
-            BrickState(
-                id=i,
-                size_m=scene.spec.brick_size_m,
-                mass_kg=scene.spec.brick_mass_kg,
-                friction=scene.spec.brick_friction,
-                pose=Pose(position_m=position, quat_xyzw=quat),
-                linear_velocity_mps=linear,
-                angular_velocity_radps=angular,
-                status=status,
-            )
+class Sensor:
+    """The scene's measurements with the trial's perception noise."""
+
+    def __init__(self, scene: Scene, noise: NoiseLevel, trial_seed: int) -> None:
+        self.scene = scene
+        self.noise = noise
+        self._rng = np.random.default_rng([trial_seed, PERCEPTION_STREAM])
+        perception, variation = noise.perception, noise.variation
+        self.sensing = Sensing(
+            position_std_m=perception.position_std_m,
+            yaw_std_deg=perception.yaw_std_deg,
+            force_rel_std=perception.force_rel_std,
+            mass_tolerance=variation.mass_rel,
+            friction_tolerance=variation.friction_rel,
         )
-    return WorldState(
-        time_s=scene.time_s, robot=robot, bricks=tuple(bricks), goal=goal, progress=progress
-    )
+
+    def brick_pose(self, brick: int) -> tuple[Vec3, QuatXYZW]:
+        """Measured position and orientation of a brick (noise on position and yaw)."""
+        position, quat = self.scene.brick_pose(brick)
+        noise = self.noise.perception
+        if noise.position_std_m > 0.0:
+            shift = self._rng.normal(0.0, noise.position_std_m, size=3)
+            position = tuple(float(v) for v in np.add(position, shift))  # type: ignore[assignment]
+        if noise.yaw_std_deg > 0.0:
+            turn = Rotation.from_euler("z", self._rng.normal(0.0, noise.yaw_std_deg), degrees=True)
+            quat = tuple(float(q) for q in (turn * Rotation.from_quat(quat)).as_quat())  # type: ignore[assignment]
+        return position, quat
+
+    def _forces(self, values: tuple[float, float]) -> tuple[float, float]:
+        rel = self.noise.perception.force_rel_std
+        if rel == 0.0:
+            return values
+        factors = 1.0 + self._rng.normal(0.0, rel, size=2)
+        return (max(0.0, values[0] * factors[0]), max(0.0, values[1] * factors[1]))
+
+    def perceive(self, goal: GoalPattern, progress: Progress = Progress()) -> WorldState:
+        """Measure the scene: robot, every brick with its status, the goal and the progress."""
+        scene = self.scene
+        joints, _ = scene.arm_joints()
+        left, right = scene.finger_positions()
+        tcp_position, tcp_quat = scene.tcp_pose()
+        contacts = [scene.finger_contacts(i) for i in range(len(scene.bricks))]
+        held = [
+            c[0].normal_n > GRASP_CONTACT_N and c[1].normal_n > GRASP_CONTACT_N for c in contacts
+        ]
+        normal, tangential = (0.0, 0.0), (0.0, 0.0)
+        if any(held):
+            left_c, right_c = contacts[held.index(True)]
+            normal = self._forces((left_c.normal_n, right_c.normal_n))
+            tangential = self._forces((left_c.tangential_n, right_c.tangential_n))
+        linear, angular = scene.tcp_velocity()
+        physics = scene.physics
+        robot = RobotState(
+            ee_pose=Pose(position_m=tcp_position, quat_xyzw=tcp_quat),
+            joint_positions_rad=tuple(float(q) for q in joints),
+            # The pads' joint limits bound the gap; the solver can overshoot them by microns.
+            gripper_width_m=min(max(left + right, 2 * FINGER_MIN_M), 2 * FINGER_MAX_M),
+            finger_depth_m=FINGER_PAD_BELOW_TCP_M,
+            finger_forces_n=normal,
+            finger_tangential_n=tangential,
+            finger_friction=physics.pad_friction,
+            grip_force_limit_n=physics.grip_force_n,
+            ee_linear_velocity_mps=linear,
+            ee_angular_velocity_radps=angular,
+        )
+        bricks = []
+        for i in range(len(scene.bricks)):
+            position, quat = self.brick_pose(i)
+            linear, angular = scene.brick_velocity(i)
+            bricks.append(
+                BrickState(
+                    id=i,
+                    size_m=scene.bodies[i].size_m,
+                    mass_kg=scene.spec.brick_mass_kg,
+                    friction=physics.brick_lateral_friction,
+                    pose=Pose(position_m=position, quat_xyzw=quat),
+                    linear_velocity_mps=linear,
+                    angular_velocity_radps=angular,
+                    status=_status(scene, i, position, quat, held[i], progress),
+                )
+            )
+        return WorldState(
+            time_s=scene.time_s,
+            robot=robot,
+            bricks=tuple(bricks),
+            goal=goal,
+            progress=progress,
+            sensing=self.sensing,
+        )
 
 
 def _status(
-    scene: Scene, brick: int, position, quat, held: bool, progress: Progress
+    scene: Scene, brick: int, position: Vec3, quat: QuatXYZW, held: bool, progress: Progress
 ) -> BrickStatus:
     if held:
         return "grasped"
@@ -83,6 +138,6 @@ def _status(
     in_pick_area = (
         spec.pick_radius_m[0] - 0.05 <= radius <= spec.pick_radius_m[1] + 0.05
         and spec.pick_azimuth_deg[0] - 5.0 <= azimuth <= spec.pick_azimuth_deg[1] + 5.0
-        and position[2] < spec.brick_size_m[2]
+        and position[2] < scene.bodies[brick].size_m[2]
     )
     return "in_pick_area" if in_pick_area else "dropped"

@@ -1,13 +1,12 @@
 """The PyBullet world: ground, arm with gripper, and bricks, in DIRECT (headless) mode.
 
-Physics settings are measured with ``bench/grip_slip.py`` at our brick size (README,
-Benchmarks). At PyBullet's default 50 solver iterations a held 1.5 kg brick rolls in the
-hand; at 150 it keeps its orientation but creeps along the pads in a fast transfer
-(about 5 mm at 1/240 s, 3 mm at 1/480 s), and a brick resting on the ground drifts about
-0.02 mm/s. Friction anchors on the bricks, with a 1/480 s step, stop both (0.02 mm in the
-hand, 0.001 mm in 10 s at rest); the pads' contacts are dropped for one step when the
-gripper opens, or a released brick stays stuck to a pad. A 2 mm contact breaking
-threshold stops stale fingertip contacts from dragging a brick as the fingers open.
+Every setting comes from the trial's :class:`PhysicsProfile` (``world/physics.py``). Under
+``paper`` (PyBullet's defaults) a held 1.5 kg brick rolls and creeps in the hand and the
+pads deliver about 40 N of the 110 N commanded; under ``precise`` (measured with
+``bench/grip_slip.py``) friction anchors with a 1/480 s step and 150 solver iterations stop
+both. With anchors on, the pads' contacts are dropped for one step when the gripper
+opens, or a released brick stays stuck to a pad. ``deterministicOverlappingPairs`` is on
+under every profile: it makes a trial repeatable and changes no contact property.
 """
 
 from __future__ import annotations
@@ -32,7 +31,8 @@ from actionreasoning.sim.robot_model import (
 )
 from actionreasoning.world.geometry import QuatXYZW, Vec3
 from actionreasoning.world.models import Pose
-from actionreasoning.world.scene_spec import SceneSpec
+from actionreasoning.world.physics import PAPER, PhysicsProfile
+from actionreasoning.world.scene_spec import BrickBody, SceneSpec
 
 BRICK_COLORS = (
     (0.80, 0.30, 0.22, 1.0),
@@ -42,21 +42,6 @@ BRICK_COLORS = (
     (0.75, 0.35, 0.30, 1.0),
     (0.65, 0.30, 0.15, 1.0),
 )
-
-
-@dataclass(frozen=True)
-class PhysicsConfig:
-    """Simulator settings; the defaults hold a 1.5 kg brick without slip."""
-
-    time_step_s: float = 1.0 / 480.0
-    solver_iterations: int = 150
-    contact_breaking_threshold_m: float = 0.002
-    finger_friction: float = 1.2
-    spinning_friction: float = 0.001
-    friction_anchors: bool = True
-    grip_force_n: float = 110.0
-    finger_speed_mps: float = 0.10
-    arm_force_nm: float = 300.0
 
 
 @dataclass(frozen=True)
@@ -89,11 +74,18 @@ class Scene:
         spec: SceneSpec,
         brick_poses: Sequence[Pose],
         ready_joints_rad: Sequence[float],
-        physics: PhysicsConfig = PhysicsConfig(),
+        physics: PhysicsProfile = PAPER,
         budget: TrialBudget = TrialBudget(),
+        bodies: Sequence[BrickBody] | None = None,
     ) -> None:
         self.spec = spec
         self.physics = physics
+        nominal = BrickBody(
+            size_m=spec.brick_size_m,
+            mass_kg=spec.brick_mass_kg,
+            lateral_friction=physics.brick_lateral_friction,
+        )
+        self.bodies = tuple(bodies) if bodies is not None else (nominal,) * len(brick_poses)
         self.budget = budget
         self._deadline = time.monotonic() + budget.max_wall_s
         self.client = p.connect(p.DIRECT)
@@ -122,7 +114,7 @@ class Scene:
         p.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=cid)
         self.ground = p.loadURDF("plane.urdf", physicsClientId=cid)
         p.changeDynamics(
-            self.ground, -1, lateralFriction=self.spec.ground_friction, physicsClientId=cid
+            self.ground, -1, lateralFriction=cfg.ground_lateral_friction, physicsClientId=cid
         )
 
     def _setup_gripper(self) -> None:
@@ -131,8 +123,8 @@ class Scene:
             p.changeDynamics(
                 self.robot,
                 finger,
-                lateralFriction=cfg.finger_friction,
-                spinningFriction=cfg.spinning_friction,
+                lateralFriction=cfg.pad_friction,
+                spinningFriction=cfg.pad_spinning_friction,
                 rollingFriction=0.0,
                 physicsClientId=cid,
             )
@@ -153,8 +145,8 @@ class Scene:
         p.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=200, physicsClientId=cid)
 
     def _spawn_brick(self, index: int, pose: Pose) -> int:
-        cid, spec = self.client, self.spec
-        half = [s / 2.0 for s in spec.brick_size_m]
+        cid, body_spec = self.client, self.bodies[index]
+        half = [s / 2.0 for s in body_spec.size_m]
         shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
         visual = p.createVisualShape(
             p.GEOM_BOX,
@@ -163,7 +155,7 @@ class Scene:
             physicsClientId=cid,
         )
         body = p.createMultiBody(
-            baseMass=spec.brick_mass_kg,
+            baseMass=body_spec.mass_kg,
             baseCollisionShapeIndex=shape,
             baseVisualShapeIndex=visual,
             basePosition=pose.position_m,
@@ -173,9 +165,9 @@ class Scene:
         p.changeDynamics(
             body,
             -1,
-            lateralFriction=spec.brick_friction,
-            spinningFriction=self.physics.spinning_friction,
-            rollingFriction=0.0,
+            lateralFriction=body_spec.lateral_friction,
+            spinningFriction=self.physics.brick_spinning_friction,
+            rollingFriction=self.physics.brick_rolling_friction,
             frictionAnchor=int(self.physics.friction_anchors),
             physicsClientId=cid,
         )

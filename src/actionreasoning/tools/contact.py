@@ -5,12 +5,16 @@ Forces are what the simulator measured on the finger pads (N); velocities are wo
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from pydantic import Field
 from scipy.spatial.transform import Rotation
 
 from actionreasoning.tools.base import ToolContext, ToolModel, tool
 from actionreasoning.tools.geometry import BrickQuery, brick_state
+
+GRAVITY_MPS2 = 9.81
 
 
 class ContactForces(ToolModel):
@@ -22,7 +26,12 @@ class ContactForces(ToolModel):
     tangential_n: tuple[float, float] = Field(description="Friction force on each pad.")
     friction_coefficient: float = Field(description="Pad friction x brick friction.")
     friction_margin_n: float = Field(
-        description="Smallest (mu * normal - tangential) over the pads; < 0 means sliding."
+        description="mu x (sum of normal forces) - (sum of friction forces): the friction the "
+        "grasp has left; < 0 means the brick slides."
+    )
+    required_normal_n: float = Field(
+        description="Normal force per pad whose friction just carries the brick's weight, "
+        "m g / (2 mu), from its catalogue mass and friction; a grasp needs a safety factor more."
     )
 
 
@@ -54,7 +63,8 @@ def finger_contacts(context: ToolContext, query: BrickQuery) -> ContactForces:
         normal_n=normal,
         tangential_n=tangential,
         friction_coefficient=mu,
-        friction_margin_n=min(mu * n - t for n, t in zip(normal, tangential, strict=True)),
+        friction_margin_n=mu * sum(normal) - sum(tangential),
+        required_normal_n=brick.mass_kg * GRAVITY_MPS2 / (2.0 * mu) if mu > 0 else math.inf,
     )
 
 

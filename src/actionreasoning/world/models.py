@@ -42,17 +42,20 @@ class RobotState(_Model):
         (0.0, 0.0), description="Friction (tangential) force on each pad from the held brick."
     )
     finger_friction: float = Field(1.2, description="Friction coefficient of the finger pads.")
+    grip_force_limit_n: float = Field(110.0, description="Largest grip force per pad.")
     ee_linear_velocity_mps: Vec3 = (0.0, 0.0, 0.0)
     ee_angular_velocity_radps: Vec3 = (0.0, 0.0, 0.0)
 
 
 class BrickState(_Model):
-    """One brick as measured by the simulator."""
+    """One brick as measured by the robot's sensors."""
 
     id: int
     size_m: Vec3
-    mass_kg: float
-    friction: float
+    mass_kg: float = Field(description="Catalogue mass; see sensing.mass_tolerance.")
+    friction: float = Field(
+        description="Catalogue lateral friction coefficient; see sensing.friction_tolerance."
+    )
     pose: Pose
     linear_velocity_mps: Vec3 = (0.0, 0.0, 0.0)
     angular_velocity_radps: Vec3 = (0.0, 0.0, 0.0)
@@ -84,6 +87,16 @@ class Progress(_Model):
     step: str | None = None
 
 
+class Sensing(_Model):
+    """How far measurements and catalogue values may be from the truth (sensor datasheet)."""
+
+    position_std_m: float = Field(0.0, description="Noise (std) of a brick position, per axis.")
+    yaw_std_deg: float = Field(0.0, description="Noise (std) of a brick yaw.")
+    force_rel_std: float = Field(0.0, description="Relative noise (std) of the pad forces.")
+    mass_tolerance: float = Field(0.0, description="A brick's mass is within +- this share.")
+    friction_tolerance: float = Field(0.0, description="Its friction is within +- this share.")
+
+
 class WorldState(_Model):
     """The serialized world S_t handed to reasoners."""
 
@@ -92,6 +105,7 @@ class WorldState(_Model):
     bricks: tuple[BrickState, ...]
     goal: GoalPattern
     progress: Progress = Progress()
+    sensing: Sensing = Sensing()
 
     def brick(self, brick_id: int) -> BrickState:
         """The brick with ``brick_id`` (KeyError if there is none)."""

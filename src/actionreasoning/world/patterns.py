@@ -19,15 +19,14 @@ each problem is a one-line :class:`PatternError` naming the file or built-in and
 from __future__ import annotations
 
 import itertools
-import json
 import math
 from pathlib import Path
 from typing import Annotated, Any
 
-import yaml
-from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, Strict
 
 from actionreasoning.errors import PatternError
+from actionreasoning.world.config_files import parse_model, read_mapping
 from actionreasoning.world.geometry import yaw_quat
 from actionreasoning.world.models import GoalPattern, Pose, TargetBrick
 from actionreasoning.world.scene_spec import SceneSpec
@@ -43,12 +42,6 @@ OVERLAP_TOL_M = 1e-3  # z-overlap allowed between bricks, and how far below grou
 
 #: Built-ins: bricks per layer (each layer a row centred over the one below) and the gap.
 _BUILTINS = {"pyramid": ((3, 2, 1), 0.05), "grid": ((3, 3), 0.02)}
-
-_PARSERS = {
-    ".json": ("JSON", json.loads),
-    ".yaml": ("YAML", yaml.safe_load),
-    ".yml": ("YAML", yaml.safe_load),
-}
 
 Finite = Annotated[float, Strict()]
 Positive = Annotated[float, Strict(), Field(gt=0.0)]
@@ -102,7 +95,7 @@ def load_pattern(name_or_path: str | Path, spec: SceneSpec) -> GoalPattern:
         pattern = builtin_pattern(name_or_path, spec)
     else:
         source, gap = str(name_or_path), None
-        pattern = _parse(_read_mapping(Path(name_or_path)), source)
+        pattern = _parse(read_mapping(Path(name_or_path), "pattern file", PatternError), source)
     blocks = _place(pattern, spec)
     _validate(source, blocks, spec)
     targets = tuple(
@@ -116,39 +109,8 @@ def load_pattern(name_or_path: str | Path, spec: SceneSpec) -> GoalPattern:
     )
 
 
-def _one_line(text: object) -> str:
-    return " ".join(str(text).split())
-
-
-def _read_mapping(path: Path) -> dict[str, Any]:
-    """The top-level mapping of a JSON or YAML file."""
-    suffix = path.suffix.lower()
-    if suffix not in _PARSERS:
-        raise PatternError(f"{path}: unknown extension '{suffix}' (use .json, .yaml or .yml)")
-    kind, parse = _PARSERS[suffix]
-    try:
-        data = parse(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as exc:  # first: UnicodeDecodeError is a ValueError
-        reason = _one_line(getattr(exc, "strerror", None) or exc)
-        raise PatternError(f"{path}: cannot read pattern file ({reason})") from exc
-    except (ValueError, yaml.YAMLError) as exc:
-        raise PatternError(f"{path}: not valid {kind} ({_one_line(exc)})") from exc
-    if not isinstance(data, dict):
-        raise PatternError(f"{path}: top level must be a mapping, not {type(data).__name__}")
-    return data
-
-
 def _parse(data: dict[str, Any], source: str) -> PatternFile:
-    """Validate raw data; the first pydantic error becomes a one-line PatternError."""
-    try:
-        return PatternFile.model_validate(data)
-    except ValidationError as exc:
-        errors = exc.errors()
-        first = errors[0]
-        field = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in first["loc"])
-        more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
-        message = f"{field.lstrip('.') or 'pattern'}: {_one_line(first['msg'])}{more}"
-        raise PatternError(f"{source}: {message}") from exc
+    return parse_model(PatternFile, data, source, PatternError)
 
 
 def _place(pattern: PatternFile, spec: SceneSpec) -> list[BrickBox]:

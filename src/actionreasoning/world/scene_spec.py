@@ -43,6 +43,16 @@ class WorkspaceBox(BaseModel):
         )
 
 
+class BrickBody(BaseModel):
+    """The physical properties of one spawned brick."""
+
+    model_config = ConfigDict(frozen=True)
+
+    size_m: Vec3
+    mass_kg: float
+    lateral_friction: float
+
+
 class SceneSpec(BaseModel):
     """Everything that defines a scene apart from the goal pattern and the seed."""
 
@@ -50,8 +60,6 @@ class SceneSpec(BaseModel):
 
     brick_size_m: Vec3 = (0.20, 0.095, 0.06)
     brick_mass_kg: float = 1.5
-    brick_friction: float = 0.8
-    ground_friction: float = 0.8
     build_radius_m: float = 0.58
     build_azimuth_deg: float = 40.0
     pick_radius_m: tuple[float, float] = (0.44, 0.72)

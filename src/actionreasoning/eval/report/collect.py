@@ -39,8 +39,12 @@ class Group:
 
 
 def method_label(result: TrialResult) -> str:
-    """How a table row names a method: with its reasoning backend where it has one."""
-    return result.method if result.llm == "none" else f"{result.method} ({result.llm})"
+    """How a table row names a method: with its reasoning backend where it has one, its
+    physics profile and, where there is any, its noise level. Runs whose labels differ are
+    never pooled."""
+    name = result.method if result.llm == "none" else f"{result.method} ({result.llm})"
+    noise = "" if result.noise == "none" else f", noise {result.noise}"
+    return f"{name}, {result.physics}{noise}"
 
 
 def load_groups(directories: Sequence[Path]) -> list[Group]:

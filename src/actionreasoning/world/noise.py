@@ -1,0 +1,126 @@
+"""Perturbations of a trial, drawn from its seed: perception noise and physical variation.
+
+Perception noise is what the robot's sensors add to every measurement the agents and the
+classical script read (brick positions and yaws, pad forces); the metrics always use the
+true poses. Physical variation makes each brick of a trial a little different (friction,
+mass, size) from the catalogue values the agents are told. Named levels (``--noise
+none|low|medium|high``) and a file form (JSON/YAML, the fields of :class:`NoiseLevel`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from actionreasoning.errors import ConfigError
+from actionreasoning.world.config_files import parse_model, read_mapping
+from actionreasoning.world.scene_spec import BrickBody
+
+
+class _Level(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+
+
+class PerceptionNoise(_Level):
+    """Gaussian noise on each measurement, drawn anew at every observation."""
+
+    position_std_m: float = Field(0.0, ge=0.0, le=0.05, description="Per axis, brick centres.")
+    yaw_std_deg: float = Field(0.0, ge=0.0, le=10.0, description="Brick yaw about world z.")
+    force_rel_std: float = Field(0.0, ge=0.0, le=0.5, description="Pad forces, relative.")
+
+
+class PhysicalVariation(_Level):
+    """Uniform per-brick deviations from the catalogue values, drawn once per trial."""
+
+    friction_rel: float = Field(0.0, ge=0.0, le=0.9, description="Lateral friction, +- share.")
+    mass_rel: float = Field(0.0, ge=0.0, le=0.9, description="Mass, +- share.")
+    size_m: float = Field(0.0, ge=0.0, le=0.01, description="Each edge, +- metres.")
+
+
+class NoiseLevel(_Level):
+    """A named perturbation level."""
+
+    name: str = Field(min_length=1, max_length=64)
+    perception: PerceptionNoise = PerceptionNoise()
+    variation: PhysicalVariation = PhysicalVariation()
+
+    def describe(self) -> str:
+        """One line for headings."""
+        p, v = self.perception, self.variation
+        return (
+            f"{self.name}: perception {p.position_std_m * 1000:g} mm, {p.yaw_std_deg:g} deg, "
+            f"{p.force_rel_std:.0%} force; bricks +-{v.friction_rel:.0%} friction, "
+            f"+-{v.mass_rel:.0%} mass, +-{v.size_m * 1000:g} mm size"
+        )
+
+
+LEVELS = {
+    level.name: level
+    for level in (
+        NoiseLevel(name="none"),
+        NoiseLevel(
+            name="low",
+            perception=PerceptionNoise(position_std_m=0.001, yaw_std_deg=0.5, force_rel_std=0.05),
+            variation=PhysicalVariation(friction_rel=0.10, mass_rel=0.10, size_m=0.001),
+        ),
+        NoiseLevel(
+            name="medium",
+            perception=PerceptionNoise(position_std_m=0.002, yaw_std_deg=1.0, force_rel_std=0.10),
+            variation=PhysicalVariation(friction_rel=0.20, mass_rel=0.20, size_m=0.002),
+        ),
+        NoiseLevel(
+            name="high",
+            perception=PerceptionNoise(position_std_m=0.004, yaw_std_deg=2.0, force_rel_std=0.20),
+            variation=PhysicalVariation(friction_rel=0.35, mass_rel=0.35, size_m=0.003),
+        ),
+    )
+}
+
+#: Independent streams of a trial's seed: layout uses the seed itself.
+VARIATION_STREAM = 1
+PERCEPTION_STREAM = 2
+
+
+def load_noise(name_or_path: str | Path) -> NoiseLevel:
+    """A named level, or a noise file (JSON/YAML), validated."""
+    if isinstance(name_or_path, str) and name_or_path in LEVELS:
+        return LEVELS[name_or_path]
+    path = Path(name_or_path)
+    if not path.exists() and path.suffix == "":
+        raise ConfigError(
+            f"unknown noise level '{name_or_path}' (known: {', '.join(LEVELS)}, "
+            "or a .json/.yaml file)"
+        )
+    level = parse_model(
+        NoiseLevel, read_mapping(path, "noise file", ConfigError), str(path), ConfigError
+    )
+    if level.name in LEVELS and level != LEVELS[level.name]:
+        raise ConfigError(
+            f"{path}: name: '{level.name}' is a built-in level with other values; "
+            "give this level a name of its own"
+        )
+    return level
+
+
+def vary_bricks(
+    variation: PhysicalVariation, nominal: BrickBody, count: int, trial_seed: int
+) -> list[BrickBody]:
+    """``count`` bricks, each deviating from ``nominal`` by a draw from the trial's seed."""
+    rng = np.random.default_rng([trial_seed, VARIATION_STREAM])
+    bodies = []
+    for _ in range(count):
+        size, mass, friction = rng.uniform(-1.0, 1.0, size=(3,)), *rng.uniform(-1.0, 1.0, size=2)
+        bodies.append(
+            BrickBody(
+                size_m=tuple(
+                    float(s + d * variation.size_m)
+                    for s, d in zip(nominal.size_m, size, strict=True)
+                ),  # type: ignore[arg-type]
+                mass_kg=nominal.mass_kg * (1.0 + mass * variation.mass_rel),
+                lateral_friction=nominal.lateral_friction
+                * (1.0 + friction * variation.friction_rel),
+            )
+        )
+    return bodies
