@@ -110,6 +110,8 @@ def test_classical_eval_end_to_end(tmp_path: Path) -> None:
         "3",
         "--out",
         str(out),
+        "--physics",
+        "precise",
     )
     assert result.returncode == 0, result.stderr
     lines = (out / "results.jsonl").read_text().splitlines()
@@ -129,6 +131,7 @@ def test_classical_eval_end_to_end(tmp_path: Path) -> None:
     ):
         assert field in record
     assert record["method"] == "classical" and record["pattern"] == "grid"
+    assert (record["physics"], record["noise"]) == ("precise", "none")
     assert len(record["bricks"]) == 6
     brick = record["bricks"][0]
     for field in (
@@ -143,13 +146,14 @@ def test_classical_eval_end_to_end(tmp_path: Path) -> None:
         "iou",
     ):
         assert field in brick
-    # The grid is built: every brick ends near its target (the script is open loop, so only
+    # Under precise physics the grid is built: every brick ends near its target (the script
+    # is open loop, so only
     # centimetre accuracy is asserted; the measured figures are in the README).
     assert all(b["center_offset_cm"] < 2.0 and b["iou"] > 0.8 for b in record["bricks"])
     summary = json.loads((out / "summary.json").read_text())
     assert summary["trials"] == 1
     assert "| classical |" in (out / "summary.md").read_text()
-    again = cli("eval", "--trials", "1", "--out", str(out))
+    again = cli("eval", "--trials", "1", "--out", str(out), "--physics", "precise")
     assert_clean_error(again, "holds a different run", "method 'classical' there, 'agents' now")
 
 

@@ -29,7 +29,7 @@ def pattern(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def eval_args(pattern: Path, out: Path, *extra: str) -> list[str]:
     return [
         "eval", "--method", "classical", "--pattern", str(pattern), "--trials", TRIALS,
-        "--seed", "5", "--out", str(out), *extra,
+        "--seed", "5", "--out", str(out), "--physics", "precise", *extra,
     ]  # fmt: skip
 
 

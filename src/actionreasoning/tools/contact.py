@@ -13,6 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from actionreasoning.tools.base import ToolContext, ToolModel, tool
 from actionreasoning.tools.geometry import BrickQuery, brick_state
+from actionreasoning.world.geometry import axis_angle_deg
 
 GRAVITY_MPS2 = 9.81
 
@@ -45,6 +46,11 @@ class SlipEstimate(ToolModel):
     relative_angular_speed_radps: float
     offset_in_gripper_m: tuple[float, float, float] = Field(
         description="Brick centre in the tool frame (x along the pads, y across, z down)."
+    )
+    tilt_in_hand_deg: float = Field(
+        0.0,
+        description="How far the brick has rolled in the hand: the angle between its z axis "
+        "and the tool's (0 to 90).",
     )
 
 
@@ -84,6 +90,7 @@ def slip_estimate(context: ToolContext, query: BrickQuery) -> SlipEstimate:
         relative_speed_mps=float(np.linalg.norm(relative)),
         relative_angular_speed_radps=float(np.linalg.norm(spin)),
         offset_in_gripper_m=tuple(float(v) for v in offset),  # type: ignore[arg-type]
+        tilt_in_hand_deg=axis_angle_deg(brick.pose.quat_xyzw, tool.quat_xyzw),
     )
 
 

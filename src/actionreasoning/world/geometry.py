@@ -36,6 +36,13 @@ def tilt_deg(quat_xyzw: QuatXYZW) -> float:
     return math.degrees(math.acos(float(np.clip(abs(up[2]), 0.0, 1.0))))
 
 
+def axis_angle_deg(a_xyzw: QuatXYZW, b_xyzw: QuatXYZW) -> float:
+    """Angle (deg) between the z axes of two orientations, either way up (0 to 90)."""
+    za = Rotation.from_quat(a_xyzw).apply([0.0, 0.0, 1.0])
+    zb = Rotation.from_quat(b_xyzw).apply([0.0, 0.0, 1.0])
+    return math.degrees(math.acos(float(np.clip(abs(np.dot(za, zb)), 0.0, 1.0))))
+
+
 def wrap_angle(angle_rad: float) -> float:
     """Wrap an angle into [-pi, pi)."""
     return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
