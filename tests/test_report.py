@@ -79,9 +79,9 @@ def test_plots_grids_and_gifs_are_real_pictures(report: Path) -> None:
         assert image.shape[0] > 200 and image.shape[1] > 300 and image.std() > 10
     gifs = sorted((report / "gifs").glob("*.gif"))
     assert [g.name for g in gifs] == [
-        "agents_builtin_small_trial_000.gif",
-        "classical_small_trial_000.gif",
-        "classical_small_trial_001.gif",
+        "agents_builtin_precise_small_trial_000.gif",
+        "classical_precise_small_trial_000.gif",
+        "classical_precise_small_trial_001.gif",
     ]
     frames = iio.imread(gifs[0], index=None)
     assert len(frames) == 3 * 7 + 1  # every stage of every brick, then the final frame
