@@ -18,6 +18,7 @@ from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.eval.trial import READY_POSE, Method, TrialSpec, trial_world
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.physics import PRECISE
 from actionreasoning.world.scene_spec import SceneSpec
 
 
@@ -43,7 +44,16 @@ class Scripted:
 
 
 def build(goal, reasoner, world=SimWorld):
-    spec = TrialSpec(method=Method.AGENTS, pattern_name="small", goal=goal, run_seed=4, trial=0)
+    # Precise physics: the paths under test (refusal, re-grasp, raise) are caused on purpose,
+    # in a world where nothing else slips.
+    spec = TrialSpec(
+        method=Method.AGENTS,
+        pattern_name="small",
+        goal=goal,
+        run_seed=4,
+        trial=0,
+        physics=PRECISE,
+    )
     with trial_world(spec) as made:
         scene = made.scene
         controller = WaypointController(scene, made.arm)
