@@ -4,7 +4,7 @@
     .venv/bin/python bench/grip_slip.py --quick    # 110 N, 150 iterations (4 settings), 1 seed
     .venv/bin/python bench/grip_slip.py --sweep-s 1.0   # faster sweeps (harder on the grip)
 
-Settings, each ``dataclasses.replace(PhysicsConfig(), ...)`` (other fields at their defaults):
+Settings, each the ``precise`` profile with some fields replaced (``PRECISE.model_copy``):
 time step {1/240, 1/480} s x solver iterations {50, 150} x finger friction anchor {off, on}, all
 at 110 N per finger (8 settings); plus, at the defaults (1/480 s, 150 iterations, anchor on),
 grip force 60 N and 150 N (2 settings). Each seed spawns one 0.20 x 0.095 x 0.06 m, 1.5 kg
@@ -26,7 +26,7 @@ import argparse
 import itertools
 import math
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import partial
 
 import numpy as np
@@ -38,17 +38,18 @@ from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointC
 from actionreasoning.errors import UnreachableError
 from actionreasoning.eval.trial import READY_POSE, SPAWN_SETTLE_S
 from actionreasoning.sim.kinematics import KinematicArm
-from actionreasoning.sim.scene import PhysicsConfig, Scene
+from actionreasoning.sim.scene import Scene
 from actionreasoning.world.geometry import quat_yaw, top_down_quat
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import Pose
+from actionreasoning.world.physics import PRECISE, PhysicsProfile
 from actionreasoning.world.scene_spec import SceneSpec
 
 TIME_STEPS = (240, 480)  # steps per second: dt = 1/240 s, 1/480 s
 ITERATIONS = (50, 150)
 ANCHORS = (False, True)
 BASE_FORCE_N = 110.0
-EXTRA_FORCES_N = (60.0, 150.0)  # at the PhysicsConfig defaults otherwise
+EXTRA_FORCES_N = (60.0, 150.0)  # at the precise profile otherwise
 QUICK_ITERATIONS = 150
 COLUMNS = (
     "dt",
@@ -114,7 +115,7 @@ class ProbedScene(Scene):
                 self.probe.sample()
 
 
-def run_once(arm: KinematicArm, physics: PhysicsConfig, seed: int, sweep_s: float) -> list[float]:
+def run_once(arm: KinematicArm, physics: PhysicsProfile, seed: int, sweep_s: float) -> list[float]:
     """End mm, end deg, peak mm, peak deg, peak TCP m/s, min finger N, lost, dropped."""
     spec = SceneSpec()
     poses = sample_pick_poses(np.random.default_rng(seed), 1, spec)
@@ -158,7 +159,7 @@ def settings(quick: bool) -> list[tuple[int, int, bool, float]]:
             if not quick or iterations == QUICK_ITERATIONS]  # fmt: skip
     if quick:
         return grid
-    base = PhysicsConfig()
+    base = PRECISE
     rate, iterations = round(1.0 / base.time_step_s), base.solver_iterations
     extra = [(rate, iterations, base.friction_anchors, f) for f in EXTRA_FORCES_N]
     return grid + extra
@@ -178,8 +179,10 @@ def main() -> None:
         table.add_column(col, justify="right")
     arm, start = KinematicArm(), time.perf_counter()
     for rate, iterations, anchor, force in settings(args.quick):
-        physics = replace(PhysicsConfig(), time_step_s=1.0 / rate, solver_iterations=iterations,
-                          friction_anchors=anchor, grip_force_n=force)  # fmt: skip
+        physics = PRECISE.model_copy(update={
+            "time_step_s": 1.0 / rate, "solver_iterations": iterations,
+            "friction_anchors": anchor, "grip_force_n": force,
+        })  # fmt: skip
         setting = (f"1/{rate}", str(iterations), "on" if anchor else "off", f"{force:.0f}")
         try:
             r = np.array([run_once(arm, physics, seed, args.sweep_s) for seed in seeds])

@@ -9,6 +9,7 @@ import numpy as np
 import pybullet as p
 import pybullet_data
 import pytest
+from conftest import assert_clean_error, cli
 
 from actionreasoning.eval.trial import Method, TrialSpec, run_trial, trial_world
 from actionreasoning.sim.robot_model import FINGER_LEFT, FINGER_RIGHT
@@ -16,7 +17,6 @@ from actionreasoning.world.noise import LEVELS, NoiseLevel, vary_bricks
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PAPER, PROFILES, PhysicsProfile
 from actionreasoning.world.scene_spec import BrickBody, SceneSpec
-from tests.conftest import SMALL_PATTERN, assert_clean_error, cli
 
 NOMINAL = BrickBody(size_m=(0.2, 0.095, 0.06), mass_kg=1.5, lateral_friction=0.5)
 
@@ -115,11 +115,9 @@ def test_perception_noise_is_seeded_and_drawn_anew_per_observation() -> None:
 
 @pytest.mark.slow
 def test_the_same_seed_gives_the_same_line_under_noise_and_metrics_use_true_poses(
-    tmp_path: Path,
+    small_pattern: Path,
 ) -> None:
-    pattern = tmp_path / "small.json"
-    pattern.write_text(json.dumps(SMALL_PATTERN))
-    goal = load_pattern(pattern, SceneSpec())
+    goal = load_pattern(small_pattern, SceneSpec())
     truth: dict[int, tuple[float, ...]] = {}
 
     def at_the_end(scene, event) -> None:

@@ -28,7 +28,7 @@ from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import GoalPattern, Pose
 from actionreasoning.world.noise import LEVELS, NoiseLevel, vary_bricks
 from actionreasoning.world.physics import PAPER, PhysicsProfile
-from actionreasoning.world.scene_spec import BrickBody, SceneSpec
+from actionreasoning.world.scene_spec import SceneSpec
 
 #: Where the arm waits between bricks and at the end: above the middle of the workspace.
 READY_POSE = Pose(position_m=(0.45, -0.25, 0.40), quat_xyzw=top_down_quat(0.0))
@@ -107,11 +107,7 @@ def trial_world(spec: TrialSpec) -> Iterator[TrialWorld]:
     """The trial's world under its physics profile and perturbations, closed on exit."""
     seed = trial_seed(spec.run_seed, spec.trial)
     count = len(spec.goal.targets)
-    nominal = BrickBody(
-        size_m=spec.scene.brick_size_m,
-        mass_kg=spec.scene.brick_mass_kg,
-        lateral_friction=spec.physics.brick_lateral_friction,
-    )
+    nominal = spec.scene.brick_body(spec.physics.brick_lateral_friction)
     bodies = vary_bricks(spec.noise.variation, nominal, count, seed)
     poses = [
         pose.model_copy(update={"position_m": (*pose.position_m[:2], body.size_m[2] / 2.0)})

@@ -80,11 +80,7 @@ class Scene:
     ) -> None:
         self.spec = spec
         self.physics = physics
-        nominal = BrickBody(
-            size_m=spec.brick_size_m,
-            mass_kg=spec.brick_mass_kg,
-            lateral_friction=physics.brick_lateral_friction,
-        )
+        nominal = spec.brick_body(physics.brick_lateral_friction)
         self.bodies = tuple(bodies) if bodies is not None else (nominal,) * len(brick_poses)
         self.budget = budget
         self._deadline = time.monotonic() + budget.max_wall_s

@@ -7,13 +7,14 @@ the caller passes (a :class:`PatternError` for patterns, a :class:`ConfigError` 
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
 import yaml
 from pydantic import BaseModel, ValidationError
 
-from actionreasoning.errors import ActionReasoningError
+from actionreasoning.errors import ActionReasoningError, ConfigError
 
 M = TypeVar("M", bound=BaseModel)
 
@@ -61,3 +62,27 @@ def parse_model(
         raise error(
             f"{source}: {field.lstrip('.') or 'file'}: {one_line(first['msg'])}{more}"
         ) from exc
+
+
+def load_named(name_or_path: str | Path, builtins: Mapping[str, M], model: type[M], what: str) -> M:
+    """A built-in ``what`` (e.g. "physics profile") by name, or a file of ``model``.
+
+    A file may not reuse a built-in's name with other values: runs are told apart by name.
+    """
+    if isinstance(name_or_path, str) and name_or_path in builtins:
+        return builtins[name_or_path]
+    path = Path(name_or_path)
+    if not path.exists() and path.suffix == "":
+        raise ConfigError(
+            f"unknown {what} '{name_or_path}' (known: {', '.join(builtins)}, or a .json/.yaml file)"
+        )
+    kind = what.split()[-1]  # "profile", "level"
+    data = read_mapping(path, f"{what.split()[0]} file", ConfigError)
+    loaded = parse_model(model, data, str(path), ConfigError)
+    name = loaded.name  # type: ignore[attr-defined]
+    if name in builtins and loaded != builtins[name]:
+        raise ConfigError(
+            f"{path}: name: '{name}' is a built-in {kind} with other values; "
+            f"give this {kind} a name of its own"
+        )
+    return loaded

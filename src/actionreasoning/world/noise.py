@@ -14,8 +14,7 @@ from pathlib import Path
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from actionreasoning.errors import ConfigError
-from actionreasoning.world.config_files import parse_model, read_mapping
+from actionreasoning.world.config_files import load_named
 from actionreasoning.world.scene_spec import BrickBody
 
 
@@ -85,23 +84,7 @@ PERCEPTION_STREAM = 2
 
 def load_noise(name_or_path: str | Path) -> NoiseLevel:
     """A named level, or a noise file (JSON/YAML), validated."""
-    if isinstance(name_or_path, str) and name_or_path in LEVELS:
-        return LEVELS[name_or_path]
-    path = Path(name_or_path)
-    if not path.exists() and path.suffix == "":
-        raise ConfigError(
-            f"unknown noise level '{name_or_path}' (known: {', '.join(LEVELS)}, "
-            "or a .json/.yaml file)"
-        )
-    level = parse_model(
-        NoiseLevel, read_mapping(path, "noise file", ConfigError), str(path), ConfigError
-    )
-    if level.name in LEVELS and level != LEVELS[level.name]:
-        raise ConfigError(
-            f"{path}: name: '{level.name}' is a built-in level with other values; "
-            "give this level a name of its own"
-        )
-    return level
+    return load_named(name_or_path, LEVELS, NoiseLevel, "noise level")
 
 
 def vary_bricks(

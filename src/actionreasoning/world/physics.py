@@ -24,8 +24,7 @@ from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from actionreasoning.errors import ConfigError
-from actionreasoning.world.config_files import parse_model, read_mapping
+from actionreasoning.world.config_files import load_named
 
 NonNegative = Annotated[float, Field(ge=0.0)]
 
@@ -93,19 +92,4 @@ PROFILES = {profile.name: profile for profile in (PAPER, PRECISE)}
 
 def load_physics(name_or_path: str | Path) -> PhysicsProfile:
     """A built-in profile by name, or a profile file (JSON/YAML), validated."""
-    if isinstance(name_or_path, str) and name_or_path in PROFILES:
-        return PROFILES[name_or_path]
-    path = Path(name_or_path)
-    if not path.exists() and path.suffix == "":
-        raise ConfigError(
-            f"unknown physics profile '{name_or_path}' (known: {', '.join(PROFILES)}, "
-            "or a .json/.yaml file)"
-        )
-    data = read_mapping(path, "physics file", ConfigError)
-    profile = parse_model(PhysicsProfile, data, str(path), ConfigError)
-    if profile.name in PROFILES and profile != PROFILES[profile.name]:
-        raise ConfigError(
-            f"{path}: name: '{profile.name}' is a built-in profile with other values; "
-            "give this profile a name of its own"
-        )
-    return profile
+    return load_named(name_or_path, PROFILES, PhysicsProfile, "physics profile")

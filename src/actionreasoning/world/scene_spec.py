@@ -70,6 +70,12 @@ class SceneSpec(BaseModel):
     reach: ReachBand = ReachBand()
     workspace: WorkspaceBox = WorkspaceBox()
 
+    def brick_body(self, lateral_friction: float) -> BrickBody:
+        """The catalogue brick: this spec's size and mass, with the given friction."""
+        return BrickBody(
+            size_m=self.brick_size_m, mass_kg=self.brick_mass_kg, lateral_friction=lateral_friction
+        )
+
     @property
     def build_center_m(self) -> Vec3:
         """Centre of the build area on the ground."""
