@@ -35,6 +35,21 @@ def test_a_linear_waypoint_keeps_the_tool_on_the_line(scene: Scene, arm: Kinemat
         assert abs(x - 0.5) < 1e-3 and abs(y + 0.3) < 1e-3
 
 
+def test_min_ticks_slows_a_move_and_never_speeds_it_up(scene: Scene, arm: KinematicArm) -> None:
+    controller = WaypointController(scene, arm)
+    start = Pose(position_m=(0.5, -0.3, 0.30), quat_xyzw=top_down_quat(0.2))
+    end = Pose(position_m=(0.5, -0.3, 0.10), quat_xyzw=top_down_quat(0.2))
+    controller.execute(Waypoint(pose=start))
+    fastest = controller.execute(Waypoint(pose=end, path="linear"), settle=False).ticks
+    controller.execute(Waypoint(pose=start, path="linear"))
+    slow = controller.execute(Waypoint(pose=end, path="linear", min_ticks=4 * fastest), False)
+    controller.execute(Waypoint(pose=start, path="linear"))
+    asked_faster = controller.execute(Waypoint(pose=end, path="linear", min_ticks=1), False)
+    assert slow.ticks == 4 * fastest
+    assert asked_faster.ticks == fastest
+    assert slow.position_error_m < 2e-3
+
+
 def test_gripper_commands_open_and_close(scene: Scene, arm: KinematicArm) -> None:
     controller = WaypointController(scene, arm)
     here = Pose(position_m=(0.5, 0.3, 0.3), quat_xyzw=top_down_quat(0.0))

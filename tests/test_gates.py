@@ -19,6 +19,7 @@ from actionreasoning.world.models import Sensing
 from actionreasoning.world.tolerances import Tolerances
 
 TOL = Tolerances()
+NOISY = TOL.under(Sensing(position_std_m=0.002))  # two positions' noise: 8.5 mm of overlap
 W = 0.095
 
 
@@ -46,12 +47,13 @@ def pads(left: float, right: float, tangential: float = 0.0, mass_kg: float = 1.
     )
 
 
-def slip(speed: float) -> SlipEstimate:
+def slip(speed: float, tilt_deg: float = 0.0) -> SlipEstimate:
     return SlipEstimate(
         brick_id=0,
         relative_speed_mps=speed,
         relative_angular_speed_radps=0.0,
         offset_in_gripper_m=(0.0, 0.0, 0.0),
+        tilt_in_hand_deg=tilt_deg,
     )
 
 
@@ -81,12 +83,18 @@ CASES = {
     "sigma4 slipping": (sigma4_lift(slip(0.02), pads(40, 40, 10), TOL), False, "relative_speed"),
     "sigma4 friction": (sigma4_lift(slip(0.0), pads(40, 40, 30), TOL), False, "friction_margin"),
     "sigma4 dropped": (sigma4_lift(slip(0.0), pads(0, 0, 0), TOL), False, "normal_force"),
+    "sigma4 rolled": (
+        sigma4_lift(slip(0.0, tilt_deg=TOL.eps_tilt_deg + 5), pads(40, 40, 10), TOL),
+        False,
+        "tilt_in_hand_deg",
+    ),
     "sigma5 aligned": (sigma5_placement(aligned(0.001, 0.2, 0.001), TOL), True, ""),
     "sigma5 offset": (sigma5_placement(aligned(e_xy=0.004), TOL), False, "e_xy_m = 0.004"),
     "sigma5 turned": (sigma5_placement(aligned(e_theta=-1.0), TOL), False, "e_theta_deg = 1"),
     "sigma5 hovering": (sigma5_placement(aligned(d_perp=0.01), TOL), False, "d_perp_m = 0.01"),
-    "sigma6 clear": (sigma6_return(path(0.002)), True, ""),
-    "sigma6 collides": (sigma6_return(path(-0.004)), False, "clearance_m = -0.004"),
+    "sigma6 clear": (sigma6_return(path(0.002), TOL), True, ""),
+    "sigma6 collides": (sigma6_return(path(-0.004), TOL), False, "clearance_m = -0.004"),
+    "sigma6 within noise": (sigma6_return(path(-0.004), NOISY), True, ""),
 }
 
 
@@ -119,5 +127,7 @@ def test_tolerances_under_noise_widen_what_noisy_sensors_judge() -> None:
     assert noisy.eps_perp_m == pytest.approx(TOL.eps_perp_m + 0.006)
     assert noisy.eps_theta_deg == pytest.approx(TOL.eps_theta_deg + 3.0)
     assert noisy.eps_g_deg == pytest.approx(TOL.eps_g_deg + 3.0)
+    assert noisy.overlap_m == pytest.approx(3.0 * 2**0.5 * 0.002)
+    assert noisy.clear(-0.008) and not TOL.clear(-0.001) and not noisy.clear(0.05, reachable=False)
     assert noisy.c_min_m == TOL.c_min_m and noisy.v_th_mps == TOL.v_th_mps
     assert TOL.under(Sensing()) == TOL

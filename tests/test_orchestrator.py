@@ -10,7 +10,7 @@ import pybullet as p
 import pytest
 
 from actionreasoning.agents.orchestrator import Orchestrator, target_supports
-from actionreasoning.agents.outputs import PreGraspAnswer
+from actionreasoning.agents.outputs import PlacementAnswer, PreGraspAnswer
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.eval.metrics import center_offset_cm
@@ -180,5 +180,39 @@ def test_a_misaligned_set_down_is_raised_and_placed_again(small_goal) -> None:
     assert corrected.gates[0].passed
     requests = [r for r in reasoner.requests if r.spec.key == "placement"]
     assert requests[2].memory.last_feedback == misplaced.feedback
+    for target, brick in result.placements.items():
+        assert center_offset_cm(final[brick], small_goal.targets[target].pose.position_m) < 0.1
+
+
+@dataclass
+class RegraspsAtFirstSetDown(Scripted):
+    """Asks for a re-grasp at the first set-down, then answers like the built-in reasoner."""
+
+    asked: bool = False
+
+    def decide(self, request: AgentRequest) -> AgentReply:
+        first_set_down = request.spec.key == "placement" and request.memory.flags.get("placement")
+        if first_set_down and not self.asked:
+            self.asked = True
+            self.requests.append(request)
+            return AgentReply(answer=PlacementAnswer(regrasp=True, rationale="rolled in the hand"))
+        return super().decide(request)
+
+
+@pytest.mark.slow
+def test_placement_can_ask_for_a_regrasp_and_the_brick_is_grasped_again(small_goal) -> None:
+    reasoner = RegraspsAtFirstSetDown(pre_grasp=[])
+    result, final = build(small_goal, reasoner)
+    assert result.failure is None, result.failure
+    (asked,) = [call for call in result.transcript if call.outcome == "regrasp"]
+    assert asked.agent == "placement"
+    assert asked.feedback.startswith("placement asked for a re-grasp")
+    # Put back where it was picked: Ag1 picks the same brick again, from the pick area.
+    again = result.transcript[result.transcript.index(asked) + 1]
+    assert again.agent == "pre_grasp"
+    assert again.answer["brick_id"] == asked.brick
+    pre_grasps = [r for r in reasoner.requests if r.spec.key == "pre_grasp"]
+    assert pre_grasps[1].memory.last_feedback == asked.feedback
+    assert pre_grasps[1].state.brick(asked.brick).status == "in_pick_area"
     for target, brick in result.placements.items():
         assert center_offset_cm(final[brick], small_goal.targets[target].pose.position_m) < 0.1

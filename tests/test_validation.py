@@ -74,6 +74,16 @@ def test_a_nearly_unit_quaternion_is_normalised() -> None:
         ),
         ("lift", json.dumps({"rationale": "x" * 5000}), "rationale: String should have at most"),
         ("descent", json.dumps({"gripper_opening_m": 5.0}), "gripper_opening_m: Input should be"),
+        (
+            "lift",
+            json.dumps({"waypoint": {**waypoint(), "duration_s": 0}}),
+            "duration_s: Input should be greater than 0",
+        ),
+        (
+            "lift",
+            json.dumps({"waypoint": {**waypoint(), "duration_s": 1e6}}),
+            "duration_s: Input should be less than or equal to 30",
+        ),
     ],
 )
 def test_hostile_answers_are_refused_with_a_short_reason(
@@ -84,6 +94,14 @@ def test_hostile_answers_are_refused_with_a_short_reason(
     message = str(refused.value)
     assert needle in message
     assert len(message) < 400
+
+
+def test_a_chosen_duration_and_a_regrasp_survive_validation() -> None:
+    slow = {**waypoint(), "duration_s": 12.5}
+    lift = parse_answer(json.dumps({"waypoint": slow}), AGENTS["lift"], STATE)
+    regrasp = parse_answer(json.dumps({"regrasp": True}), AGENTS["placement"], STATE)
+    assert lift.waypoint.duration_s == 12.5
+    assert isinstance(regrasp, PlacementAnswer) and regrasp.regrasp and regrasp.waypoint is None
 
 
 def test_answers_keep_their_schema() -> None:

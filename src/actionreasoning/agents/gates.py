@@ -118,6 +118,7 @@ def sigma4_lift(slip: SlipEstimate, pads: ContactForces, tol: Tolerances) -> Gat
             _held(pads, tol),
             Check("relative_speed_mps", slip.relative_speed_mps, tol.v_th_mps, at_most=True),
             Check("friction_margin_n", pads.friction_margin_n, 0.0, at_most=False),
+            Check("tilt_in_hand_deg", slip.tilt_in_hand_deg, tol.eps_tilt_deg, at_most=True),
         ),
     )
 
@@ -134,6 +135,6 @@ def sigma5_placement(alignment: AlignmentErrors, tol: Tolerances) -> GateVerdict
     )
 
 
-def sigma6_return(path: CollisionReport) -> GateVerdict:
-    """Path from the slot to the ready pose collision-free (no penetration)."""
-    return GateVerdict("sigma6_return", _path_checks(path, 0.0))
+def sigma6_return(path: CollisionReport, tol: Tolerances) -> GateVerdict:
+    """Retreat from the slot collision-free: no overlap beyond what sensing noise can show."""
+    return GateVerdict("sigma6_return", _path_checks(path, 0.0 - tol.overlap_m))

@@ -4,9 +4,10 @@ Per brick: Ag1 pre-grasp -> Ag2 descent & opening -> Ag3 grasp -> Ag4 safe lift 
 Ag5 placement -> Ag6 release & return. An answer is first verified (complete, known ids,
 a target whose support is built, a reachable collision-free path); only then does the
 world move, and the gate sigma_i judges what was measured afterwards. A failed check goes
-back to the same agent as feedback, within a retry budget; sigma_4 = 0 starts the brick
-again at Ag1 (re-grasp); sigma_5 = 0 in contact raises the brick by delta_h and asks Ag5
-again. A spent budget ends the trial with a typed failure.
+back to the same agent as feedback, within a retry budget; sigma_4 = 0, or Ag5 asking for
+it, puts the brick back where it was grasped and starts again at Ag1 (re-grasp);
+sigma_5 = 0 in contact raises the brick by delta_h and asks Ag5 again. A spent budget ends
+the trial with a typed failure.
 """
 
 from __future__ import annotations
@@ -16,6 +17,9 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import partial
 from typing import Any
+
+import numpy as np
+from scipy.spatial.transform import Rotation
 
 from actionreasoning.agents import gates
 from actionreasoning.agents.calls import (
@@ -40,7 +44,14 @@ from actionreasoning.world.support import BrickBox, carriers
 from actionreasoning.world.tolerances import Tolerances
 
 SEAT_CLEARANCE_M = 0.003
+GRIPPER_OPEN_M = 0.16
+#: Mean speed of every move that puts a brick back for a re-grasp.
+PUT_BACK_SPEED_MPS = 0.05
 RETREAT_M = 0.08
+#: Where the carry ends: this far above the slot, so that the brick is measured in the
+#: hand again just before the set-down (it may have crept or rolled on the way), with room
+#: below for the ends of a brick rolled up to eps_tilt.
+HOVER_M = 0.08
 
 
 @dataclass(frozen=True)
@@ -48,7 +59,7 @@ class Budgets:
     """Retry budgets of a trial."""
 
     attempts_per_agent: int = 3
-    regrasps: int = 2
+    regrasps: int = 4
     placement_attempts: int = 4
 
 
@@ -114,23 +125,37 @@ class Orchestrator:
             self.memory = self.memory.model_copy(
                 update={"retries": {}, "flags": {}, "last_feedback": feedback}
             )
+            self._check_bricks_left()
             brick, target = self._stage("pre_grasp", partial(self._pre_grasp, supports=supports))
             grasp_pose = self._stage("descent", partial(self._descent, brick=brick))
             self._stage("grasp", partial(self._grasp, brick=brick, pose=grasp_pose))
             try:
-                self._stage("lift", partial(self._lift, brick=brick))
+                lifted = self._stage("lift", partial(self._lift, brick=brick, grasp=grasp_pose))
+                self._placement(brick, target, grasp_pose, lifted)
                 break
             except _Regrasp as regrasp:
                 feedback = str(regrasp)
         else:
-            raise TrialStopped("grasp_slip", "lift", "re-grasp budget spent")
-        self._placement(brick, target)
+            raise TrialStopped("grasp_slip", self.memory.step, "re-grasp budget spent")
         self._stage("release", partial(self._release, brick=brick))
         placed = (*self.memory.placed, PlacedBrick(brick_id=brick, target_index=target))
         self.memory = self.memory.model_copy(
             update={"placed": placed, "current_brick": None, "current_target": None}
         )
         self.result.placements[target] = brick
+
+    def _check_bricks_left(self) -> None:
+        """Stop the trial if no unused brick lies in the pick area (one fell or toppled)."""
+        state = self.world.observe(Progress(placed_ids=self._placed_ids(), step="pre_grasp"))
+        used = self._placed_ids()
+        if not any(b.status == "in_pick_area" for b in state.bricks if b.id not in used):
+            statuses = ", ".join(
+                f"brick {b.id} {b.status}" for b in state.bricks if b.id not in used
+            )
+            raise TrialStopped("no_brick_left", "pre_grasp", f"none in the pick area: {statuses}")
+
+    def _placed_ids(self) -> tuple[int, ...]:
+        return tuple(p.brick_id for p in self.memory.placed)
 
     def _stage(
         self, key: str, act: Callable[[AgentAnswer, WorldState], Any], label: str | None = None
@@ -226,7 +251,7 @@ class Orchestrator:
             opening=answer.gripper_opening_m,
             ignore=brick,
         )
-        if not path.collision_free:
+        if not self.tol.clear(path.clearance_m, path.reachable):
             raise _Refused(
                 f"descent path collides: {path.closest} ({path.clearance_m:.3f} m)", "collision"
             )
@@ -259,32 +284,67 @@ class Orchestrator:
             self.world.grip(0.16)
             raise _Refused(verdict.feedback, "grasp_failed")
 
-    def _lift(self, answer: Any, state: WorldState, brick: int) -> None:
+    def _lift(
+        self, answer: Any, state: WorldState, brick: int, grasp: WaypointProposal
+    ) -> WaypointProposal:
         if answer.waypoint is None:
             raise _Refused("the answer needs a waypoint")
         waypoint = _checked(answer.waypoint, path="linear")
-        start = state.robot.ee_pose
         self.world.move(waypoint)
         after = self.world.observe(Progress(current_brick=brick, step="lift"))
         slip = self.calls.measure(after, "slip_estimate", brick_id=brick)
         pads = self.calls.measure(after, "finger_contacts", brick_id=brick)
         verdict = self.calls.judge(gates.sigma4_lift(slip, pads, self.tol))
-        if verdict.passed:
-            return
-        # sigma_4 = 0: put the brick back down, let go, and start again at Ag1.
-        down = WaypointProposal(
-            position_m=start.position_m, quat_xyzw=start.quat_xyzw, path="linear"
-        )
-        self.world.move(down, stop_on_contact=brick)
-        self.world.grip(0.16)
-        self.world.move(waypoint)
-        raise _Regrasp(verdict.feedback)
+        if not verdict.passed:
+            self._put_back(brick, grasp, waypoint)
+            raise _Regrasp(verdict.feedback)
+        return waypoint
 
-    def _placement(self, brick: int, target: int) -> None:
-        """Ag5 twice: carry the brick over its slot, then, re-measured there, set it down."""
-        self._stage("placement", partial(self._carry_over_slot, brick=brick), label="transfer")
+    def _put_back(self, brick: int, grasp: WaypointProposal, lifted: WaypointProposal) -> None:
+        """Put the held brick back where it was grasped and let go (for a re-grasp from Ag1):
+        straight up to the lift height, over the spot, straight down until the brick rests on
+        the ground, open, and back up; gently, since the brick may hang loose. The tool is
+        placed by where the brick sits in the hand now, so that the brick's centre, not the
+        tool's, comes down where the brick was grasped (still within reach)."""
+        state = self.world.observe(Progress(current_brick=brick, step=self.memory.step))
+        tool, held = state.robot.ee_pose, state.brick(brick).pose
+        x, y, z = tool.position_m
+        in_hand = (
+            Rotation.from_quat(tool.quat_xyzw)
+            .inv()
+            .apply(np.subtract(held.position_m, tool.position_m))
+        )
+        bx, by, bz = np.subtract(
+            grasp.position_m, Rotation.from_quat(grasp.quat_xyzw).apply(in_hand)
+        )
+        height = max(z, lifted.position_m[2])
+        up = WaypointProposal(position_m=(x, y, height), quat_xyzw=tool.quat_xyzw, path="linear")
+        over = WaypointProposal(position_m=(bx, by, height), quat_xyzw=grasp.quat_xyzw)
+        down = over.model_copy(update={"position_m": (bx, by, bz), "path": "linear"})
+        for move, length in (
+            (up, height - z),
+            (over, math.dist((x, y), (bx, by))),
+            (down, height - bz),
+        ):
+            gentle = move.model_copy(update={"duration_s": max(length, 0.0) / PUT_BACK_SPEED_MPS})
+            self.world.move(gentle, stop_on_contact=brick if move is down else None)
+        self.world.grip(GRIPPER_OPEN_M)
+        self.world.move(over.model_copy(update={"path": "linear"}))
+
+    def _placement(
+        self, brick: int, target: int, grasp: WaypointProposal, lifted: WaypointProposal
+    ) -> None:
+        """Ag5 twice: carry the brick over its slot, then, re-measured there, set it down.
+
+        Either call may answer ``regrasp``: the brick is put back where it was grasped and
+        the cycle starts again at Ag1 (a brick that rolled in the hand is grasped level).
+        """
+        back = partial(self._put_back, brick, grasp, lifted)
+        self._stage(
+            "placement", partial(self._carry_over_slot, brick=brick, back=back), label="transfer"
+        )
         for _ in range(self.budgets.placement_attempts):
-            slot = self._stage("placement", partial(self._set_down, brick=brick))
+            slot = self._stage("placement", partial(self._set_down, brick=brick, back=back))
             state = self.world.observe(Progress(current_brick=brick, step="placement"))
             errors = self.calls.measure(
                 state, "alignment_errors", brick_id=brick, target_index=target
@@ -302,16 +362,42 @@ class Orchestrator:
             self.memory = self.memory.model_copy(update={"last_feedback": verdict.feedback})
         raise TrialStopped("placement_misaligned", "placement", self.memory.last_feedback)
 
-    def _carry_over_slot(self, answer: Any, state: WorldState, brick: int) -> None:
-        """Carry the brick over the proposed slot, once the way there and down is clear."""
+    def _carry_over_slot(
+        self, answer: Any, state: WorldState, brick: int, back: Callable[[], None]
+    ) -> None:
+        """Carry the brick over the proposed slot, once the way there and down is clear, and
+        lower it to HOVER_M above the slot."""
+        self._regrasp_if_asked(answer, state, brick, back)
         slot = self._slot(answer)
         above = _above(slot, state)
         transfer = self._clearance(state, above)
         self._check_descent(state, slot, start=above, path=transfer)
         self.world.move(above)
+        x, y, z = slot.position_m
+        if above.position_m[2] > z + HOVER_M:
+            self.world.move(
+                WaypointProposal(
+                    position_m=(x, y, z + HOVER_M), quat_xyzw=slot.quat_xyzw, path="linear"
+                )
+            )
 
-    def _set_down(self, answer: Any, state: WorldState, brick: int) -> WaypointProposal:
+    def _regrasp_if_asked(
+        self, answer: Any, state: WorldState, brick: int, back: Callable[[], None]
+    ) -> None:
+        """Ag5 asked for a re-grasp: put the brick back and start again at Ag1."""
+        if not answer.regrasp:
+            return
+        tilt = self.calls.measure(state, "slip_estimate", brick_id=brick).tilt_in_hand_deg
+        back()
+        raise _Regrasp(
+            f"placement asked for a re-grasp; the brick had rolled {tilt:.1f} deg in the hand"
+        )
+
+    def _set_down(
+        self, answer: Any, state: WorldState, brick: int, back: Callable[[], None]
+    ) -> WaypointProposal:
         """Set the brick down on the (re-measured) slot: over it, then straight down onto it."""
+        self._regrasp_if_asked(answer, state, brick, back)
         slot = self._slot(answer)
         above = _above(slot, state, path="linear")
         shift = self._clearance(state, above, start=state.robot.ee_pose)
@@ -343,7 +429,7 @@ class Orchestrator:
         near = WaypointProposal(position_m=(x, y, z + SEAT_CLEARANCE_M), quat_xyzw=slot.quat_xyzw)
         descent = self._clearance(state, near, start=start)
         for report in (path, descent):
-            if report is not None and not report.collision_free:
+            if report is not None and not self.tol.clear(report.clearance_m, report.reachable):
                 raise _Refused(f"path to the slot collides: {report.closest}", "collision")
 
     def _clearance(
@@ -382,7 +468,7 @@ class Orchestrator:
             opening=answer.gripper_opening_m,
             ignore=brick,
         )
-        self._gate(gates.sigma6_return(path), "collision")
+        self._gate(gates.sigma6_return(path, self.tol), "collision")
         self.world.grip(answer.gripper_opening_m)
         self.world.move(retreat)
         self.world.move(ready)
@@ -392,7 +478,7 @@ def _above(slot: WaypointProposal, state: WorldState, path: str = "joint") -> Wa
     """The tool over ``slot`` at the current height (or the slot's, if higher)."""
     x, y, z = slot.position_m
     height = max(state.robot.ee_pose.position_m[2], z)
-    return WaypointProposal(position_m=(x, y, height), quat_xyzw=slot.quat_xyzw, path=path)  # type: ignore[arg-type]
+    return slot.model_copy(update={"position_m": (x, y, height), "path": path})
 
 
 def _pose(waypoint: WaypointProposal | Pose) -> dict[str, Any]:

@@ -16,6 +16,8 @@ from actionreasoning.world.geometry import QuatXYZW, Vec3
 
 #: How far from 1 a quaternion's norm may be and still be normalised rather than refused.
 QUAT_NORM_TOLERANCE = 1e-3
+#: The longest a single move may be asked to take.
+MAX_MOVE_S = 30.0
 
 
 class _Output(BaseModel):
@@ -35,6 +37,14 @@ class WaypointProposal(_Output):
     position_m: Vec3
     quat_xyzw: QuatXYZW
     path: Literal["joint", "linear"] = "joint"
+    duration_s: float | None = Field(
+        None,
+        gt=0.0,
+        le=MAX_MOVE_S,
+        description="Least time the move takes (K_t x time step); a slower move loads the "
+        "grip less. None: as fast as the controller's speed limits allow, which is also the "
+        "fastest any move goes.",
+    )
 
 
 def unit_waypoint(waypoint: WaypointProposal, path: str | None = None) -> WaypointProposal:
@@ -45,10 +55,11 @@ def unit_waypoint(waypoint: WaypointProposal, path: str | None = None) -> Waypoi
     norm = math.sqrt(sum(q * q for q in waypoint.quat_xyzw))
     if abs(norm - 1.0) > QUAT_NORM_TOLERANCE:
         raise ValueError(f"quaternion norm {norm:.4f} is not 1")
-    return WaypointProposal(
-        position_m=waypoint.position_m,
-        quat_xyzw=tuple(q / norm for q in waypoint.quat_xyzw),  # type: ignore[arg-type]
-        path=path or waypoint.path,  # type: ignore[arg-type]
+    return waypoint.model_copy(
+        update={
+            "quat_xyzw": tuple(q / norm for q in waypoint.quat_xyzw),
+            "path": path or waypoint.path,
+        }
     )
 
 
@@ -89,9 +100,14 @@ class LiftAnswer(AgentAnswer):
 
 
 class PlacementAnswer(AgentAnswer):
-    """Agent 5: the slot pose to set the brick down at."""
+    """Agent 5: the slot pose to set the brick down at, or a re-grasp."""
 
     waypoint: WaypointProposal | None = None
+    regrasp: bool = Field(
+        False,
+        description="Put the brick back where it was grasped and grasp it again (for a brick "
+        "that rolled in the hand further than the tool can tilt to set it level).",
+    )
 
 
 class ReleaseAnswer(AgentAnswer):

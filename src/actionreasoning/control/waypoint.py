@@ -53,6 +53,9 @@ class Waypoint(BaseModel):
     gripper: GripperCommand = GripperCommand.HOLD
     path: Literal["joint", "linear"] = "joint"
     ticks: int | None = Field(None, ge=1, description="K_t; derived from the speed limits if None.")
+    min_ticks: int | None = Field(
+        None, ge=1, description="Least K_t: slower than the speed limits need, never faster."
+    )
     gripper_opening_m: float | None = Field(
         None, ge=2 * FINGER_MIN_M, le=2 * FINGER_MAX_M, description="Gap to open to (OPEN only)."
     )
@@ -184,7 +187,8 @@ class WaypointController:
         else:
             angle = float(np.max(np.abs(knots[-1] - knots[0])))
             total = self.scene.ticks_for(MIN_JERK_PEAK * angle / lim.max_joint_speed_radps)
-        return max(total, self.scene.ticks_for(lim.min_duration_s), len(knots) - 1)
+        least = max(self.scene.ticks_for(lim.min_duration_s), waypoint.min_ticks or 1)
+        return max(total, least, len(knots) - 1)
 
     def _check_safety(self, knots: list[np.ndarray], waypoint: Waypoint, ticks: int) -> None:
         """The tool path the move will follow, against the safety limits."""

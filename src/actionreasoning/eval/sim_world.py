@@ -33,10 +33,12 @@ class SimWorld:
 
     def move(self, waypoint: WaypointProposal, stop_on_contact: int | None = None) -> Motion:
         """Execute a gated waypoint and report what was measured."""
+        duration = waypoint.duration_s
         report = self.controller.execute(
             Waypoint(
                 pose=Pose(position_m=waypoint.position_m, quat_xyzw=waypoint.quat_xyzw),
                 path=waypoint.path,
+                min_ticks=None if duration is None else self.controller.scene.ticks_for(duration),
                 stop_on_contact=stop_on_contact,
             )
         )

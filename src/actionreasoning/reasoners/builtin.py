@@ -14,8 +14,9 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from actionreasoning.agents.orchestrator import target_supports
+from actionreasoning.agents.orchestrator import SEAT_CLEARANCE_M, target_supports
 from actionreasoning.agents.outputs import (
+    MAX_MOVE_S,
     AgentAnswer,
     DescentAnswer,
     GraspAnswer,
@@ -29,13 +30,18 @@ from actionreasoning.agents.outputs import (
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.agents.spec import SINGLE_AGENT_START
 from actionreasoning.world.geometry import quat_yaw, top_down_quat
-from actionreasoning.world.models import Pose
+from actionreasoning.world.models import BrickState, Pose
 
 LIFT_CLEARANCE_M = 0.12
 MIN_LIFT_M = 0.30
 RELEASE_SIDE_M = 0.005
 DESCENT_EXTRA_M = 0.01
 RETREAT_M = 0.08
+#: Mean speeds of the moves with a brick in the hand. A lift breaks the brick away from
+#: its support slowly, so that an edge still touching does not roll it in the grip; the
+#: carry is slow enough that the grip is not loaded much beyond the brick's weight.
+LIFT_SPEED_MPS = 0.02
+CARRY_SPEED_MPS = 0.10
 
 #: The single agent's cycle: the step that follows the one executed last.
 NEXT_STEP = {
@@ -74,11 +80,12 @@ class BuiltinReasoner:
             for t in state.goal.targets
             if t.index not in built and set(supports[t.index]) <= built
         )
-        brick = next(b for b in state.bricks if b.id not in used and b.status == "in_pick_area")
-        grasps = request.call_tool("grasp_candidates", {"brick_id": brick.id})
-        turn = quat_yaw(target.pose.quat_xyzw) - quat_yaw(brick.pose.quat_xyzw)
+        free = [b for b in state.bricks if b.id not in used and b.status == "in_pick_area"]
+        if not free:
+            raise ValueError("no unused brick is left in the pick area")
 
-        def wrist_load(candidate: Any) -> float:
+        def wrist_load(brick: BrickState, candidate: Any) -> float:
+            turn = quat_yaw(target.pose.quat_xyzw) - quat_yaw(brick.pose.quat_xyzw)
             place_yaw = math.radians(candidate.gripper_yaw_deg) + turn
             x, y, z = target.pose.position_m
             place = Pose(position_m=(x, y, z + 0.1), quat_xyzw=top_down_quat(place_yaw))
@@ -90,7 +97,15 @@ class BuiltinReasoner:
                 return math.inf
             return max(abs(r.joints_rad[6]) for r in reports)
 
-        best = min(grasps.candidates, key=wrist_load)
+        # The first free brick with a grasp reachable at pick and place (a brick put back
+        # for a re-grasp may lie where none is).
+        for brick in free:
+            grasps = request.call_tool("grasp_candidates", {"brick_id": brick.id})
+            load, best = min(
+                ((wrist_load(brick, c), c) for c in grasps.candidates), key=lambda pair: pair[0]
+            )
+            if math.isfinite(load):
+                break
         return PreGraspAnswer(
             brick_id=brick.id,
             target_index=target.index,
@@ -103,11 +118,16 @@ class BuiltinReasoner:
         state = request.state
         brick = state.brick(_current(request))
         opening = brick.size_m[1] + request.tolerances.delta_m + DESCENT_EXTRA_M
-        grasp = Pose(position_m=brick.pose.position_m, quat_xyzw=state.robot.ee_pose.quat_xyzw)
+        # A brick lying on the ground has its centre at half its height, whatever the noisy
+        # measurement of that height says.
+        x, y, _ = brick.pose.position_m
+        centre = (x, y, brick.size_m[2] / 2.0)
+        grasp = Pose(position_m=centre, quat_xyzw=state.robot.ee_pose.quat_xyzw)
         return DescentAnswer(
             gripper_opening_m=min(opening, 0.16),
             waypoint=_proposal(grasp, path="linear"),
-            rationale="open to width + delta and go straight down to the brick centre",
+            rationale="open to width + delta and go straight down to the brick centre, half "
+            "its height above the ground",
         )
 
     def _grasp(self, request: AgentRequest) -> AgentAnswer:
@@ -119,9 +139,38 @@ class BuiltinReasoner:
         x, y, _ = state.robot.ee_pose.position_m
         z = max(MIN_LIFT_M, max(tops) + LIFT_CLEARANCE_M)
         lift = Pose(position_m=(x, y, z), quat_xyzw=state.robot.ee_pose.quat_xyzw)
-        return LiftAnswer(waypoint=_proposal(lift, path="linear"), rationale="straight up, clear")
+        duration = min((z - state.robot.ee_pose.position_m[2]) / LIFT_SPEED_MPS, MAX_MOVE_S)
+        return LiftAnswer(
+            waypoint=_proposal(lift, path="linear", duration_s=duration),
+            rationale="straight up, clear of every brick, slowly so the brick leaves its "
+            "support level",
+        )
 
     def _placement(self, request: AgentRequest) -> AgentAnswer:
+        brick = _current(request)
+        slip = request.call_tool("slip_estimate", {"brick_id": brick})
+        limit = request.tolerances.eps_tilt_deg
+        if slip.tilt_in_hand_deg > limit:
+            return PlacementAnswer(
+                regrasp=True,
+                rationale=f"the brick rolled {slip.tilt_in_hand_deg:.1f} deg in the hand, more "
+                f"than the {limit:g} deg the tool may tilt to set it level: grasp it again",
+            )
+        slot = self._slot(request)
+        if not _way_down_clear(request, slot):
+            return PlacementAnswer(
+                regrasp=True,
+                rationale=f"with the brick rolled {slip.tilt_in_hand_deg:.1f} deg in the hand, "
+                "the tilted tool's way to the slot collides: grasp it again",
+            )
+        return PlacementAnswer(
+            waypoint=slot,
+            rationale="tool pose that puts the brick, as measured in the hand, level on its target",
+        )
+
+    @staticmethod
+    def _slot(request: AgentRequest) -> WaypointProposal:
+        """The tool pose that sets the held brick, as measured in the hand, on its target."""
         state = request.state
         brick = state.brick(_current(request))
         target = state.goal.targets[request.memory.current_target or 0]
@@ -134,10 +183,8 @@ class BuiltinReasoner:
         slot_rot = Rotation.from_quat(target.pose.quat_xyzw) * in_hand.inv()
         position = np.asarray(target.pose.position_m) - slot_rot.apply(offset)
         slot = Pose(position_m=tuple(position), quat_xyzw=tuple(slot_rot.as_quat()))
-        return PlacementAnswer(
-            waypoint=_proposal(slot),
-            rationale="tool pose that puts the brick, as measured in the hand, level on its target",
-        )
+        carry = min(math.dist(slot.position_m, tool.position_m) / CARRY_SPEED_MPS, MAX_MOVE_S)
+        return _proposal(slot, duration_s=carry)
 
     def _release(self, request: AgentRequest) -> AgentAnswer:
         brick = request.state.brick(_current(request))
@@ -151,9 +198,11 @@ class BuiltinReasoner:
         """The merged agent: the same policies, one waypoint of the cycle per call."""
         step = NEXT_STEP[request.memory.step]
         state = request.state
-        if step == "pre_grasp" and len(request.memory.placed) == len(state.goal.targets):
+        used = {p.brick_id for p in request.memory.placed}
+        left = [b for b in state.bricks if b.id not in used and b.status == "in_pick_area"]
+        if step == "pre_grasp" and (len(used) == len(state.goal.targets) or not left):
             return SingleAgentAnswer(
-                step="done", waypoint=_proposal(self.ready), rationale="all built: go ready"
+                step="done", waypoint=_proposal(self.ready), rationale="nothing left to build"
             )
         here = state.robot.ee_pose
         if step == "pre_grasp":
@@ -176,14 +225,13 @@ class BuiltinReasoner:
         if step == "grasp":
             return SingleAgentAnswer(step=step, gripper="close", rationale="close on the brick")
         if step in ("transfer", "placement"):
-            slot = self._placement(request).waypoint
-            assert slot is not None
+            slot = self._slot(request)
             x, y, z = slot.position_m
             if step == "transfer":
                 above = (x, y, max(z, here.position_m[2]))
                 return SingleAgentAnswer(
                     step=step,
-                    waypoint=WaypointProposal(position_m=above, quat_xyzw=slot.quat_xyzw),
+                    waypoint=slot.model_copy(update={"position_m": above}),
                     rationale="carry the brick above its slot",
                 )
             return SingleAgentAnswer(
@@ -213,6 +261,28 @@ class BuiltinReasoner:
         )
 
 
+def _way_down_clear(request: AgentRequest, slot: WaypointProposal) -> bool:
+    """Whether the held brick's way over the slot (at the current height) and down onto it
+    is free of collisions, as the orchestrator will check it."""
+    tool = request.state.robot.ee_pose
+    x, y, z = slot.position_m
+    above = Pose(position_m=(x, y, max(z, tool.position_m[2])), quat_xyzw=slot.quat_xyzw)
+    seat = Pose(position_m=(x, y, z + SEAT_CLEARANCE_M), quat_xyzw=slot.quat_xyzw)
+    opening = request.state.robot.gripper_width_m
+    setting_down = request.memory.flags.get("placement", False)
+    over = (
+        {"pose": above.model_dump(), "start_pose": tool.model_dump()}
+        if setting_down
+        else {"pose": above.model_dump(), "path": "joint"}
+    )
+    checks = (over, {"pose": seat.model_dump(), "start_pose": above.model_dump()})
+    reports = [
+        request.call_tool("collision_check", {**check, "gripper_opening_m": opening})
+        for check in checks
+    ]
+    return all(request.tolerances.clear(r.clearance_m, r.reachable) for r in reports)
+
+
 def _with_brick(request: AgentRequest, brick: int | None) -> AgentRequest:
     """The request with ``brick`` as the current brick of its memory."""
     memory = request.memory.model_copy(update={"current_brick": brick})
@@ -225,5 +295,10 @@ def _current(request: AgentRequest) -> int:
     return request.memory.current_brick
 
 
-def _proposal(pose: Pose, path: str = "joint") -> WaypointProposal:
-    return WaypointProposal(position_m=pose.position_m, quat_xyzw=pose.quat_xyzw, path=path)  # type: ignore[arg-type]
+def _proposal(pose: Pose, path: str = "joint", duration_s: float | None = None) -> WaypointProposal:
+    return WaypointProposal(
+        position_m=pose.position_m,
+        quat_xyzw=pose.quat_xyzw,
+        path=path,  # type: ignore[arg-type]
+        duration_s=duration_s,
+    )

@@ -8,6 +8,8 @@ sensors judge are widened by three standard deviations of that noise (:meth:`und
 
 from __future__ import annotations
 
+import math
+
 from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.world.models import Sensing
@@ -39,12 +41,28 @@ class Tolerances(BaseModel):
     v_th_mps: float = Field(
         0.005, gt=0, description="sigma_4: largest brick speed relative to the gripper."
     )
+    eps_tilt_deg: float = Field(
+        20.0,
+        gt=0,
+        description="sigma_4: largest roll of the brick in the hand; placement sets a brick "
+        "rolled this far level by tilting the tool, a brick rolled further is grasped again.",
+    )
     eps_perp_m: float = Field(
         0.002, gt=0, description="sigma_5: largest height of the brick's bottom above its seat."
     )
     eps_xy_m: float = Field(0.002, gt=0, description="sigma_5: largest planar offset.")
     eps_theta_deg: float = Field(0.5, gt=0, description="sigma_5: largest yaw error.")
     delta_h_m: float = Field(0.01, gt=0, description="sigma_5 = 0 in contact: raise by this.")
+    overlap_m: float = Field(
+        0.0,
+        ge=0,
+        description="Largest overlap of two measured bodies a path check still calls clear: "
+        "none for exact sensors; under noise, what the noise of two positions can show.",
+    )
+
+    def clear(self, clearance_m: float, reachable: bool = True) -> bool:
+        """Whether a path with this clearance counts as collision-free."""
+        return reachable and clearance_m > -self.overlap_m
 
     def under(self, sensing: Sensing) -> Tolerances:
         """These thresholds as judged through noisy sensors: each geometric one widened by
@@ -59,5 +77,6 @@ class Tolerances(BaseModel):
                 "eps_perp_m": self.eps_perp_m + position,
                 "eps_xy_m": self.eps_xy_m + position,
                 "eps_theta_deg": self.eps_theta_deg + yaw,
+                "overlap_m": self.overlap_m + math.sqrt(2.0) * position,
             }
         )
