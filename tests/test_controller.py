@@ -104,3 +104,17 @@ def test_a_guarded_set_down_stops_when_the_brick_touches(scene: Scene, arm: Kine
     assert z == pytest.approx(0.03, abs=2e-3)  # resting on the ground, still held
     assert scene.tcp_pose()[0][2] == pytest.approx(0.03, abs=3e-3)
     assert scene.support_force(0) > 2.0
+
+
+def test_a_held_brick_is_no_transit_obstacle_however_far_it_slid(
+    scene: Scene, arm: KinematicArm
+) -> None:
+    controller = WaypointController(scene, arm)
+    _, quat = scene.brick_pose(0)
+    pick_up(controller, 0, quat_yaw(quat), lift_to_m=0.30)
+    assert scene.is_held(0) and not any(scene.is_held(i) for i in range(1, len(scene.bricks)))
+    # As if it had slid 8 cm down the pads: past the distance rule, still pressed by both.
+    tcp, _ = scene.tcp_pose()
+    obstacles = controller._obstacles((tcp[0], tcp[1], tcp[2] + 0.08))
+    assert 0 not in {obstacle.brick for obstacle in obstacles}
+    assert {obstacle.brick for obstacle in obstacles} == set(range(1, len(scene.bricks)))

@@ -203,13 +203,14 @@ class WaypointController:
         )
 
     def _obstacles(self, start: Vec3) -> list[Obstacle]:
-        """Every brick a free move must pass above in transit: all but the one in the hand."""
+        """Every brick a free move must pass above in transit: all but the one in the hand
+        (near the tool centre point, or pressed by both pads however far it slid)."""
         size = self.scene.spec.brick_size_m
         radius = math.hypot(size[0], size[1]) / 2.0 + HAND_RADIUS_M
         obstacles = []
         for brick in range(len(self.scene.bricks)):
             center, _ = self.scene.brick_pose(brick)
-            if math.dist(center, start) > HELD_DISTANCE_M:
+            if math.dist(center, start) > HELD_DISTANCE_M and not self.scene.is_held(brick):
                 obstacles.append(Obstacle(brick, center, radius, center[2] + size[2] / 2.0))
         return obstacles
 

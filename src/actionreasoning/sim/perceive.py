@@ -14,7 +14,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from actionreasoning.sim.robot_model import FINGER_MAX_M, FINGER_MIN_M, FINGER_PAD_BELOW_TCP_M
-from actionreasoning.sim.scene import Scene
+from actionreasoning.sim.scene import GRASP_CONTACT_N, Scene
 from actionreasoning.world.geometry import QuatXYZW, Vec3, tilt_deg
 from actionreasoning.world.models import (
     BrickState,
@@ -28,7 +28,6 @@ from actionreasoning.world.models import (
 )
 from actionreasoning.world.noise import PERCEPTION_STREAM, NoiseLevel
 
-GRASP_CONTACT_N = 1.0
 TOPPLED_TILT_DEG = 20.0
 
 
@@ -74,9 +73,7 @@ class Sensor:
         left, right = scene.finger_positions()
         tcp_position, tcp_quat = scene.tcp_pose()
         contacts = [scene.finger_contacts(i) for i in range(len(scene.bricks))]
-        held = [
-            c[0].normal_n > GRASP_CONTACT_N and c[1].normal_n > GRASP_CONTACT_N for c in contacts
-        ]
+        held = [all(c.normal_n > GRASP_CONTACT_N for c in pads) for pads in contacts]
         normal, tangential = (0.0, 0.0), (0.0, 0.0)
         if any(held):
             left_c, right_c = contacts[held.index(True)]

@@ -34,6 +34,9 @@ from actionreasoning.world.models import Pose
 from actionreasoning.world.physics import PAPER, PhysicsProfile
 from actionreasoning.world.scene_spec import BrickBody, SceneSpec
 
+#: A pad pressing on a brick with more than this (N) is in contact with it.
+GRASP_CONTACT_N = 1.0
+
 BRICK_COLORS = (
     (0.80, 0.30, 0.22, 1.0),
     (0.85, 0.45, 0.25, 1.0),
@@ -298,6 +301,10 @@ class Scene:
         return tuple(  # type: ignore[return-value]
             self._contact(self.bricks[brick], finger) for finger in (FINGER_LEFT, FINGER_RIGHT)
         )
+
+    def is_held(self, brick: int) -> bool:
+        """Whether both finger pads press on a brick (more than GRASP_CONTACT_N each)."""
+        return all(c.normal_n > GRASP_CONTACT_N for c in self.finger_contacts(brick))
 
     def support_force(self, brick: int) -> float:
         """Total normal force (N) on a brick from everything but the robot: what carries it."""
