@@ -47,6 +47,7 @@ SEAT_CLEARANCE_M = 0.003
 GRIPPER_OPEN_M = 0.16
 #: Mean speed of every move that puts a brick back for a re-grasp.
 PUT_BACK_SPEED_MPS = 0.05
+MIN_MOVE_S = 0.1
 RETREAT_M = 0.08
 #: Where the carry ends: this far above the slot, so that the brick is measured in the
 #: hand again just before the set-down (it may have crept or rolled on the way), with room
@@ -326,7 +327,8 @@ class Orchestrator:
             (over, math.dist((x, y), (bx, by))),
             (down, height - bz),
         ):
-            gentle = move.model_copy(update={"duration_s": max(length, 0.0) / PUT_BACK_SPEED_MPS})
+            seconds = max(length / PUT_BACK_SPEED_MPS, MIN_MOVE_S)
+            gentle = move.model_copy(update={"duration_s": seconds})
             self.world.move(gentle, stop_on_contact=brick if move is down else None)
         self.world.grip(GRIPPER_OPEN_M)
         self.world.move(over.model_copy(update={"path": "linear"}))
