@@ -153,8 +153,15 @@ def test_ctrl_c_stops_workers_at_once_and_keeps_whole_lines(
     args = eval_args(pattern, out, "--workers", "2")
     args[args.index("--trials") + 1] = str(2 * int(TRIALS))
     command = [sys.executable, "-m", "actionreasoning", *args]
+    # As from a terminal: Ctrl-C at its default in the child, whatever an earlier test left
+    # in this process (an ignored SIGINT would be inherited, and the run would finish).
     process = subprocess.Popen(
-        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     results = out / "results.jsonl"
     deadline = time.monotonic() + 300
