@@ -147,16 +147,12 @@ class Orchestrator:
 
     def _check_bricks_left(self) -> None:
         """Stop the trial if no unused brick lies in the pick area (one fell or toppled)."""
-        state = self.world.observe(Progress(placed_ids=self._placed_ids(), step="pre_grasp"))
-        used = self._placed_ids()
-        if not any(b.status == "in_pick_area" for b in state.bricks if b.id not in used):
-            statuses = ", ".join(
-                f"brick {b.id} {b.status}" for b in state.bricks if b.id not in used
-            )
+        used = tuple(p.brick_id for p in self.memory.placed)
+        state = self.world.observe(Progress(placed_ids=used, step="pre_grasp"))
+        unused = [b for b in state.bricks if b.id not in used]
+        if not any(b.status == "in_pick_area" for b in unused):
+            statuses = ", ".join(f"brick {b.id} {b.status}" for b in unused)
             raise TrialStopped("no_brick_left", "pre_grasp", f"none in the pick area: {statuses}")
-
-    def _placed_ids(self) -> tuple[int, ...]:
-        return tuple(p.brick_id for p in self.memory.placed)
 
     def _stage(
         self, key: str, act: Callable[[AgentAnswer, WorldState], Any], label: str | None = None
