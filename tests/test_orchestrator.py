@@ -6,20 +6,26 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pybullet as p
 import pytest
+from scipy.spatial.transform import Rotation
 
 from actionreasoning.agents.orchestrator import Orchestrator, target_supports
 from actionreasoning.agents.outputs import PlacementAnswer, PreGraspAnswer
+from actionreasoning.agents.put_down import SET_ASIDE_MARGIN_M, SET_ASIDE_RANGE_M, levelled_offset
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.eval.metrics import center_offset_cm
 from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.eval.trial import READY_POSE, Method, TrialSpec, trial_world
 from actionreasoning.reasoners.builtin import BuiltinReasoner
+from actionreasoning.world.geometry import quat_yaw, top_down_quat
+from actionreasoning.world.models import Pose
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PRECISE
 from actionreasoning.world.scene_spec import SceneSpec
+from actionreasoning.world.support import BrickBox
 
 
 @pytest.fixture
@@ -43,7 +49,7 @@ class Scripted:
         return self.builtin.decide(request)
 
 
-def build(goal, reasoner, world=SimWorld):
+def build(goal, reasoner, world=SimWorld, before=None):
     # Precise physics: the paths under test (refusal, re-grasp, raise) are caused on purpose,
     # in a world where nothing else slips.
     spec = TrialSpec(
@@ -57,6 +63,8 @@ def build(goal, reasoner, world=SimWorld):
     with trial_world(spec) as made:
         scene = made.scene
         controller = WaypointController(scene, made.arm)
+        if before is not None:
+            before(scene)
         result = Orchestrator(world(controller, goal, made.sensor), reasoner).build(goal)
         scene.step(scene.ticks_for(1.0))
         final = [scene.brick_pose(i)[0] for i in range(len(scene.bricks))]
@@ -207,12 +215,76 @@ def test_placement_can_ask_for_a_regrasp_and_the_brick_is_grasped_again(small_go
     (asked,) = [call for call in result.transcript if call.outcome == "regrasp"]
     assert asked.agent == "placement"
     assert asked.feedback.startswith("placement asked for a re-grasp")
-    # Put back where it was picked: Ag1 picks the same brick again, from the pick area.
+    # Set aside on the ground near its slot, clear of the other bricks and targets (outside
+    # the pick area, hence "dropped"): Ag1 picks the same brick again from there.
     again = result.transcript[result.transcript.index(asked) + 1]
     assert again.agent == "pre_grasp"
     assert again.answer["brick_id"] == asked.brick
     pre_grasps = [r for r in reasoner.requests if r.spec.key == "pre_grasp"]
     assert pre_grasps[1].memory.last_feedback == asked.feedback
-    assert pre_grasps[1].state.brick(asked.brick).status == "in_pick_area"
+    aside = pre_grasps[1].state.brick(asked.brick)
+    assert aside.status == "dropped" and aside.pickable
+    slot = small_goal.targets[asked.target].pose.position_m
+    assert center_offset_cm(aside.pose.position_m, slot) < 100 * (SET_ASIDE_RANGE_M + 0.05)
+    footprint = BrickBox(0, aside.pose.position_m, quat_yaw(aside.pose.quat_xyzw), aside.size_m)
+    for target in small_goal.targets:
+        taken = BrickBox(1, target.pose.position_m, quat_yaw(target.pose.quat_xyzw), target.size_m)
+        assert footprint.footprint.distance(taken.footprint) > SET_ASIDE_MARGIN_M / 2
     for target, brick in result.placements.items():
         assert center_offset_cm(final[brick], small_goal.targets[target].pose.position_m) < 0.1
+
+
+def _lay(brick: int, position, euler_rad):
+    """A scene hook that puts ``brick`` at rest at ``position``, turned by ``euler_rad``."""
+
+    def lay(scene) -> None:
+        quat = p.getQuaternionFromEuler(euler_rad)
+        p.resetBasePositionAndOrientation(
+            scene.bricks[brick], position, quat, physicsClientId=scene.client
+        )
+        scene.step(scene.ticks_for(0.5))
+
+    return lay
+
+
+@pytest.fixture
+def one_brick_goal(small_goal):
+    return small_goal.model_copy(update={"targets": small_goal.targets[:1]})
+
+
+@pytest.mark.slow
+def test_a_brick_dropped_flat_outside_the_pick_area_is_picked_from_there(one_brick_goal) -> None:
+    reasoner = Scripted(pre_grasp=[])
+    dropped = _lay(0, (0.55, 0.0, 0.03), (0.0, 0.0, 0.4))
+    result, final = build(one_brick_goal, reasoner, before=dropped)
+    assert result.failure is None, result.failure
+    (first, *_) = [r for r in reasoner.requests if r.spec.key == "pre_grasp"]
+    assert first.state.brick(0).status == "dropped"
+    slot = one_brick_goal.targets[0].pose.position_m
+    assert center_offset_cm(final[0], slot) < 0.1
+
+
+@pytest.mark.slow
+def test_a_toppled_last_brick_ends_the_trial_with_no_brick_left(one_brick_goal) -> None:
+    on_its_side = _lay(0, (0.3, -0.45, 0.0475), (math.pi / 2, 0.0, 0.0))
+    result, _ = build(one_brick_goal, Scripted(pre_grasp=[]), before=on_its_side)
+    assert result.failure is not None
+    assert result.failure.reason == "no_brick_left"
+    assert "brick 0 toppled" in result.failure.detail
+    assert result.transcript == []
+
+
+def test_a_brick_rolled_about_the_pads_is_levelled_about_the_tool_centre_point() -> None:
+    tool_rot = Rotation.from_quat(top_down_quat(0.3))
+    tool = Pose(position_m=(0.5, -0.2, 0.3), quat_xyzw=tuple(tool_rot.as_quat()))
+    flat_offset = np.array([0.02, -0.003, 0.012])  # where the brick sat in the hand, level
+    flat_in_hand = tool_rot.inv() * Rotation.from_euler("z", 0.3)
+    for roll_deg in (-60.0, 25.0, 89.0, 150.0):  # 150: flat again, on the other face
+        roll = Rotation.from_euler("y", roll_deg, degrees=True)  # about the pad axis
+        centre = tool_rot.apply(roll.apply(flat_offset)) + tool.position_m
+        quat = (tool_rot * roll * flat_in_hand).as_quat()
+        brick = Pose(position_m=tuple(centre), quat_xyzw=tuple(quat))
+        # Past 90 deg it turns on to lie flat the other way up: half a turn from the start.
+        half_turns = Rotation.from_euler("y", 180.0 if abs(roll_deg) > 90.0 else 0.0, degrees=True)
+        expected = half_turns.apply(flat_offset)
+        assert np.allclose(levelled_offset(tool, brick), expected, atol=1e-9)

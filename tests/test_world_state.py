@@ -9,7 +9,7 @@ import numpy as np
 from actionreasoning.sim.perceive import Sensor
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.layout import sample_pick_poses
-from actionreasoning.world.models import Progress, WorldState
+from actionreasoning.world.models import BrickState, Pose, Progress, WorldState
 from actionreasoning.world.noise import LEVELS
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
@@ -48,3 +48,18 @@ def test_layout_is_deterministic_spaced_and_reachable() -> None:
         gaps = np.linalg.norm(centres[:, None] - centres[None], axis=-1) + np.eye(6)
         assert gaps.min() >= spec.pick_min_spacing_m
         assert all(spec.reach.contains(*p.position_m) for p in poses)
+
+
+def test_a_dropped_brick_can_be_picked_only_while_it_lies_on_the_ground() -> None:
+    size = (0.20, 0.095, 0.06)
+
+    def brick(z: float, status: str) -> BrickState:
+        pose = Pose(position_m=(0.5, 0.1, z), quat_xyzw=(0.0, 0.0, 0.0, 1.0))
+        return BrickState(id=0, size_m=size, mass_kg=1.5, friction=0.5, pose=pose, status=status)
+
+    assert brick(0.03, "in_pick_area").pickable
+    assert brick(0.03, "dropped").pickable
+    assert not brick(0.09, "dropped").pickable  # fell onto other bricks
+    assert not brick(0.05, "toppled").pickable
+    assert not brick(0.03, "placed").pickable
+    assert not brick(0.30, "grasped").pickable

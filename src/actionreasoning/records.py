@@ -45,7 +45,7 @@ FAILURE_CODES: dict[str, str] = {
     "descent_blocked": "the way down to the grasp is not clear (σ2)",
     "grasp_failed": "the fingers did not close on the brick with enough force (σ3)",
     "grasp_slip": "the brick slipped or rolled in the hand and the re-grasps ran out (σ4, Ag5)",
-    "no_brick_left": "no unused brick is left in the pick area (one fell or toppled)",
+    "no_brick_left": "no unused brick can be picked: each left toppled, or fell onto other bricks",
     "placement_misaligned": "the brick could not be set down within tolerance (σ5)",
     "budget_exhausted": "an agent's retries or the single agent's waypoints ran out",
     "unreachable": "a waypoint is out of the arm's reach",

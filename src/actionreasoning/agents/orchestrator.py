@@ -4,10 +4,10 @@ Per brick: Ag1 pre-grasp -> Ag2 descent & opening -> Ag3 grasp -> Ag4 safe lift 
 Ag5 placement -> Ag6 release & return. An answer is first verified (complete, known ids,
 a target whose support is built, a reachable collision-free path); only then does the
 world move, and the gate sigma_i judges what was measured afterwards. A failed check goes
-back to the same agent as feedback, within a retry budget; sigma_4 = 0, or Ag5 asking for
-it, puts the brick back where it was grasped and starts again at Ag1 (re-grasp);
-sigma_5 = 0 in contact raises the brick by delta_h and asks Ag5 again. A spent budget ends
-the trial with a typed failure.
+back to the same agent as feedback, within a retry budget. sigma_4 = 0 puts the brick back
+where it was grasped; Ag5 asking for a re-grasp sets it aside on free ground near by; either
+way the cycle starts again at Ag1. sigma_5 = 0 in contact raises the brick by delta_h and
+asks Ag5 again. A spent budget ends the trial with a typed failure.
 """
 
 from __future__ import annotations
@@ -17,9 +17,6 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import partial
 from typing import Any
-
-import numpy as np
-from scipy.spatial.transform import Rotation
 
 from actionreasoning.agents import gates
 from actionreasoning.agents.calls import (
@@ -32,6 +29,7 @@ from actionreasoning.agents.calls import (
 )
 from actionreasoning.agents.memory import PlacedBrick, TaskMemory
 from actionreasoning.agents.outputs import AgentAnswer, WaypointProposal, unit_waypoint
+from actionreasoning.agents.put_down import PutDown
 from actionreasoning.agents.reasoner import Reasoner
 from actionreasoning.agents.spec import agent_specs
 from actionreasoning.agents.transcript import Outcome
@@ -44,10 +42,6 @@ from actionreasoning.world.support import BrickBox, carriers
 from actionreasoning.world.tolerances import Tolerances
 
 SEAT_CLEARANCE_M = 0.003
-GRIPPER_OPEN_M = 0.16
-#: Mean speed of every move that puts a brick back for a re-grasp.
-PUT_BACK_SPEED_MPS = 0.05
-MIN_MOVE_S = 0.1
 RETREAT_M = 0.08
 #: Where the carry ends: this far above the slot, so that the brick is measured in the
 #: hand again just before the set-down (it may have crept or rolled on the way), with room
@@ -107,6 +101,7 @@ class Orchestrator:
         self.specs = {spec.key: spec for spec in agent_specs()}
         self.result = BuildResult()
         self.calls = AgentCaller(world, reasoner, self.tol, self.result)
+        self.put_down = PutDown(world, self.calls)
         self.memory = TaskMemory()
 
     # --- the pipeline -------------------------------------------------------------------
@@ -146,13 +141,13 @@ class Orchestrator:
         self.result.placements[target] = brick
 
     def _check_bricks_left(self) -> None:
-        """Stop the trial if no unused brick lies in the pick area (one fell or toppled)."""
+        """Stop the trial if no unused brick can be picked (each toppled or fell on others)."""
         used = tuple(p.brick_id for p in self.memory.placed)
         state = self.world.observe(Progress(placed_ids=used, step="pre_grasp"))
         unused = [b for b in state.bricks if b.id not in used]
-        if not any(b.status == "in_pick_area" for b in unused):
+        if not any(b.pickable for b in unused):
             statuses = ", ".join(f"brick {b.id} {b.status}" for b in unused)
-            raise TrialStopped("no_brick_left", "pre_grasp", f"none in the pick area: {statuses}")
+            raise TrialStopped("no_brick_left", "pre_grasp", f"none can be picked: {statuses}")
 
     def _stage(
         self, key: str, act: Callable[[AgentAnswer, WorldState], Any], label: str | None = None
@@ -218,9 +213,10 @@ class Orchestrator:
             )
         if brick in used or brick not in {b.id for b in state.bricks}:
             raise _Refused(f"brick {brick} does not exist or is already placed", "invalid_choice")
-        if state.brick(brick).status != "in_pick_area":
+        if not state.brick(brick).pickable:
             raise _Refused(
-                f"brick {brick} is {state.brick(brick).status}, not in the pick area",
+                f"brick {brick} is {state.brick(brick).status}, neither in the pick area nor "
+                "lying on the ground",
                 "invalid_choice",
             )
         waypoint = _checked(answer.waypoint, path="joint")
@@ -297,47 +293,32 @@ class Orchestrator:
             raise _Regrasp(verdict.feedback)
         return waypoint
 
-    def _put_back(self, brick: int, grasp: WaypointProposal, lifted: WaypointProposal) -> None:
-        """Put the held brick back where it was grasped and let go (for a re-grasp from Ag1):
-        straight up to the lift height, over the spot, straight down until the brick rests on
-        the ground, open, and back up; gently, since the brick may hang loose. The tool is
-        placed by where the brick sits in the hand now, so that the brick's centre, not the
-        tool's, comes down where the brick was grasped (still within reach)."""
+    def _put_back(self, brick: int, spot: WaypointProposal, lifted: WaypointProposal) -> None:
+        """Put the held brick back flat on ``spot``, where it was grasped (sigma_4 = 0)."""
         state = self.world.observe(Progress(current_brick=brick, step=self.memory.step))
-        tool, held = state.robot.ee_pose, state.brick(brick).pose
-        x, y, z = tool.position_m
-        in_hand = (
-            Rotation.from_quat(tool.quat_xyzw)
-            .inv()
-            .apply(np.subtract(held.position_m, tool.position_m))
-        )
-        bx, by, bz = np.subtract(
-            grasp.position_m, Rotation.from_quat(grasp.quat_xyzw).apply(in_hand)
-        )
-        height = max(z, lifted.position_m[2])
-        up = WaypointProposal(position_m=(x, y, height), quat_xyzw=tool.quat_xyzw, path="linear")
-        over = WaypointProposal(position_m=(bx, by, height), quat_xyzw=grasp.quat_xyzw)
-        down = over.model_copy(update={"position_m": (bx, by, bz), "path": "linear"})
-        for move, length in (
-            (up, height - z),
-            (over, math.dist((x, y), (bx, by))),
-            (down, height - bz),
-        ):
-            seconds = max(length / PUT_BACK_SPEED_MPS, MIN_MOVE_S)
-            gentle = move.model_copy(update={"duration_s": seconds})
-            self.world.move(gentle, stop_on_contact=brick if move is down else None)
-        self.world.grip(GRIPPER_OPEN_M)
-        self.world.move(over.model_copy(update={"path": "linear"}))
+        self.put_down.put_back(state, brick, _as_pose(spot), lifted.position_m[2])
+
+    def _set_aside(self, brick: int, grasp: WaypointProposal, lifted: WaypointProposal) -> None:
+        """Put the held brick down on the free ground nearest the tool (Ag5 asked for a
+        re-grasp): a loose brick swings further on every move, so it is not carried back.
+        Where no free ground near by is within reach, it goes back where it was grasped."""
+        state = self.world.observe(Progress(current_brick=brick, step=self.memory.step))
+        built = {p.target_index for p in self.memory.placed}
+        height = lifted.position_m[2]
+        spot = None
+        if state.brick(brick).status == "grasped":
+            spot = self.put_down.free_spot(state, brick, built, _as_pose(grasp), height)
+        self.put_down.put_back(state, brick, spot or _as_pose(grasp), height)
 
     def _placement(
         self, brick: int, target: int, grasp: WaypointProposal, lifted: WaypointProposal
     ) -> None:
         """Ag5 twice: carry the brick over its slot, then, re-measured there, set it down.
 
-        Either call may answer ``regrasp``: the brick is put back where it was grasped and
+        Either call may answer ``regrasp``: the brick is set aside on free ground near by and
         the cycle starts again at Ag1 (a brick that rolled in the hand is grasped level).
         """
-        back = partial(self._put_back, brick, grasp, lifted)
+        back = partial(self._set_aside, brick, grasp, lifted)
         self._stage(
             "placement", partial(self._carry_over_slot, brick=brick, back=back), label="transfer"
         )
@@ -477,6 +458,10 @@ def _above(slot: WaypointProposal, state: WorldState, path: str = "joint") -> Wa
     x, y, z = slot.position_m
     height = max(state.robot.ee_pose.position_m[2], z)
     return slot.model_copy(update={"position_m": (x, y, height), "path": path})
+
+
+def _as_pose(waypoint: WaypointProposal) -> Pose:
+    return Pose(position_m=waypoint.position_m, quat_xyzw=waypoint.quat_xyzw)
 
 
 def _pose(waypoint: WaypointProposal | Pose) -> dict[str, Any]:

@@ -105,8 +105,8 @@ class PlacementAnswer(AgentAnswer):
     waypoint: WaypointProposal | None = None
     regrasp: bool = Field(
         False,
-        description="Put the brick back where it was grasped and grasp it again (for a brick "
-        "that rolled in the hand further than the tool can tilt to set it level).",
+        description="Set the brick down on free ground near by and grasp it again (for a "
+        "brick that rolled in the hand further than the tool can tilt to set it level).",
     )
 
 

@@ -8,7 +8,9 @@ the same schemas, verification and gates. It is the offline default and the refe
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -31,6 +33,7 @@ from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.agents.spec import SINGLE_AGENT_START
 from actionreasoning.world.geometry import quat_yaw, top_down_quat
 from actionreasoning.world.models import BrickState, Pose
+from actionreasoning.world.tolerances import Tolerances
 
 LIFT_CLEARANCE_M = 0.12
 MIN_LIFT_M = 0.30
@@ -80,9 +83,9 @@ class BuiltinReasoner:
             for t in state.goal.targets
             if t.index not in built and set(supports[t.index]) <= built
         )
-        free = [b for b in state.bricks if b.id not in used and b.status == "in_pick_area"]
+        free = [b for b in state.bricks if b.id not in used and b.pickable]
         if not free:
-            raise ValueError("no unused brick is left in the pick area")
+            raise ValueError("no unused brick can be picked")
 
         def wrist_load(brick: BrickState, candidate: Any) -> float:
             turn = quat_yaw(target.pose.quat_xyzw) - quat_yaw(brick.pose.quat_xyzw)
@@ -91,21 +94,35 @@ class BuiltinReasoner:
             place = Pose(position_m=(x, y, z + 0.1), quat_xyzw=top_down_quat(place_yaw))
             reports = [
                 request.call_tool("reachability", {"pose": pose.model_dump()})
-                for pose in (candidate.approach_pose, place)
+                for pose in (candidate.approach_pose, candidate.grasp_pose, place)
             ]
             if not all(r.reachable for r in reports):
                 return math.inf
             return max(abs(r.joints_rad[6]) for r in reports)
 
-        # The first free brick with a grasp reachable at pick and place (a brick put back
-        # for a re-grasp may lie where none is).
-        for brick in free:
-            grasps = request.call_tool("grasp_candidates", {"brick_id": brick.id})
-            load, best = min(
-                ((wrist_load(brick, c), c) for c in grasps.candidates), key=lambda pair: pair[0]
-            )
-            if math.isfinite(load):
-                break
+        def grasps() -> Iterator[tuple[float, BrickState, Any]]:
+            for brick in free:
+                candidates = request.call_tool("grasp_candidates", {"brick_id": brick.id})
+                load, best = min(
+                    ((wrist_load(brick, c), c) for c in candidates.candidates),
+                    key=lambda pair: pair[0],
+                )
+                yield load, brick, best
+
+        # The first free brick with a grasp reachable at pick and place and a clear way down
+        # to it (a dropped brick may lie where none is, or beside another); else the first
+        # reachable one, else the first, for the gates to refuse with feedback.
+        options = grasps()
+        first = next(options)
+        choice = next(
+            (
+                (load, brick, best)
+                for load, brick, best in itertools.chain([first], options)
+                if math.isfinite(load) and _way_down_to_grasp_clear(request, brick, best)
+            ),
+            None,
+        )
+        _, brick, best = choice or first
         return PreGraspAnswer(
             brick_id=brick.id,
             target_index=target.index,
@@ -117,14 +134,9 @@ class BuiltinReasoner:
     def _descent(self, request: AgentRequest) -> AgentAnswer:
         state = request.state
         brick = state.brick(_current(request))
-        opening = brick.size_m[1] + request.tolerances.delta_m + DESCENT_EXTRA_M
-        # A brick lying on the ground has its centre at half its height, whatever the noisy
-        # measurement of that height says.
-        x, y, _ = brick.pose.position_m
-        centre = (x, y, brick.size_m[2] / 2.0)
-        grasp = Pose(position_m=centre, quat_xyzw=state.robot.ee_pose.quat_xyzw)
+        grasp = _grasp_pose(brick, state.robot.ee_pose.quat_xyzw)
         return DescentAnswer(
-            gripper_opening_m=min(opening, 0.16),
+            gripper_opening_m=_descent_opening(brick, request.tolerances),
             waypoint=_proposal(grasp, path="linear"),
             rationale="open to width + delta and go straight down to the brick centre, half "
             "its height above the ground",
@@ -199,7 +211,7 @@ class BuiltinReasoner:
         step = NEXT_STEP[request.memory.step]
         state = request.state
         used = {p.brick_id for p in request.memory.placed}
-        left = [b for b in state.bricks if b.id not in used and b.status == "in_pick_area"]
+        left = [b for b in state.bricks if b.id not in used and b.pickable]
         if step == "pre_grasp" and (len(used) == len(state.goal.targets) or not left):
             return SingleAgentAnswer(
                 step="done", waypoint=_proposal(self.ready), rationale="nothing left to build"
@@ -259,6 +271,47 @@ class BuiltinReasoner:
         return SingleAgentAnswer(
             step=step, waypoint=_proposal(up, path="linear"), rationale="straight up"
         )
+
+
+def _grasp_pose(brick: BrickState, quat_xyzw: tuple[float, ...]) -> Pose:
+    """The tool at the brick's centre. A brick lying on the ground has its centre at half its
+    height, whatever the noisy measurement of that height says."""
+    x, y, _ = brick.pose.position_m
+    return Pose(position_m=(x, y, brick.size_m[2] / 2.0), quat_xyzw=quat_xyzw)
+
+
+def _descent_opening(brick: BrickState, tolerances: Tolerances) -> float:
+    return min(brick.size_m[1] + tolerances.delta_m + DESCENT_EXTRA_M, 0.16)
+
+
+def _way_down_to_grasp_clear(request: AgentRequest, brick: BrickState, grasp: Any) -> bool:
+    """Whether sigma_1 will pass the way to the approach pose (clearance c_min) and the
+    descent below it is clear, at the opening the descent will use."""
+    tol = request.tolerances
+    approach = grasp.approach_pose
+    to_approach = request.call_tool(
+        "collision_check",
+        {
+            "pose": approach.model_dump(),
+            "path": "joint",
+            "gripper_opening_m": request.state.robot.gripper_width_m,
+            "ignore_brick_id": brick.id,
+        },
+    )
+    descent = request.call_tool(
+        "collision_check",
+        {
+            "pose": _grasp_pose(brick, approach.quat_xyzw).model_dump(),
+            "start_pose": approach.model_dump(),
+            "gripper_opening_m": _descent_opening(brick, tol),
+            "ignore_brick_id": brick.id,
+        },
+    )
+    return (
+        to_approach.reachable
+        and to_approach.clearance_m >= tol.c_min_m
+        and tol.clear(descent.clearance_m, descent.reachable)
+    )
 
 
 def _way_down_clear(request: AgentRequest, slot: WaypointProposal) -> bool:

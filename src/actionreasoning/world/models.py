@@ -61,6 +61,12 @@ class BrickState(_Model):
     angular_velocity_radps: Vec3 = (0.0, 0.0, 0.0)
     status: BrickStatus = "in_pick_area"
 
+    @property
+    def pickable(self) -> bool:
+        """Free to be picked: in the pick area, or dropped but lying on the ground."""
+        on_ground = self.pose.position_m[2] < self.size_m[2]
+        return self.status == "in_pick_area" or (self.status == "dropped" and on_ground)
+
 
 class TargetBrick(_Model):
     """One brick of a goal pattern: where its centre goes, in build order."""

@@ -1,0 +1,176 @@
+"""Putting a held brick down on the ground for a re-grasp: where, and how gently.
+
+Where: back on the spot it was grasped from (after sigma_4), or, when Ag5 asks, on the
+nearest free ground within reach, so that a loose brick is not carried far. How: pressed
+onto the ground, still held, until it lies flat, then let go just past its width. A brick
+that rolled in the hand turns about the pads, which hold little torque: pressed down it
+turns back flat, where one let go on a corner falls, often onto its side.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+from shapely.geometry import Polygon
+
+from actionreasoning.agents.calls import AgentCaller
+from actionreasoning.agents.outputs import WaypointProposal
+from actionreasoning.agents.world import World
+from actionreasoning.world.geometry import quat_yaw, top_down_quat
+from actionreasoning.world.ground import free_spots
+from actionreasoning.world.models import Pose, WorldState
+from actionreasoning.world.support import BrickBox
+
+GRIPPER_OPEN_M = 0.16
+#: Mean speed of every move with a brick to put down, and the shortest move.
+PUT_BACK_SPEED_MPS = 0.05
+MIN_MOVE_S = 0.1
+#: The opening that lets go of a brick put down: its width and this much.
+PUT_DOWN_SLACK_M = 0.01
+#: Where a brick is set aside: within this distance of the tool, this far from every other
+#: brick and target (room for the open fingers and a loose brick's bounce), trying up to
+#: this many spots, nearest first and this far apart, for one within reach.
+SET_ASIDE_RANGE_M = 0.6
+SET_ASIDE_MARGIN_M = 0.08
+SET_ASIDE_CANDIDATES = 40
+SET_ASIDE_SPREAD_M = 0.05
+#: How far from its spot a brick put down may end up (seen: up to 5 cm).
+SET_ASIDE_SLACK_M = 0.05
+#: Distances from the arm's base probed for reach (start, stop, step; m).
+REACH_PROBES_M = (0.30, 0.90, 0.02)
+
+
+class PutDown:
+    """Puts the held brick down for a re-grasp, through the orchestrator's world and tools."""
+
+    def __init__(self, world: World, calls: AgentCaller) -> None:
+        self.world = world
+        self.calls = calls
+
+    def put_back(self, state: WorldState, brick: int, spot: Pose, height: float) -> None:
+        """Set brick ``brick`` down flat with its centre on ``spot`` (the tool pose that
+        grasps a brick lying there) and let go: up to ``height``, over the spot, down until
+        the brick lies flat, open, and up again; all at PUT_BACK_SPEED_MPS. A brick that is
+        no longer in the hand is left where it fell."""
+        held = state.brick(brick)
+        if held.status != "grasped":
+            self.world.grip(GRIPPER_OPEN_M)
+            return
+        tool = state.robot.ee_pose
+        x, y, z = tool.position_m
+        flat = levelled_offset(tool, held.pose)
+        bx, by, bz = np.subtract(spot.position_m, Rotation.from_quat(spot.quat_xyzw).apply(flat))
+        # No lower than a grasp of a brick lying there (a brick that slid up the pads is
+        # left a little tilted rather than the tool taken to the floor).
+        bz = max(bz, spot.position_m[2])
+        height = max(z, height)
+        up = WaypointProposal(position_m=(x, y, height), quat_xyzw=tool.quat_xyzw, path="linear")
+        over = WaypointProposal(position_m=(bx, by, height), quat_xyzw=spot.quat_xyzw)
+        down = over.model_copy(update={"position_m": (bx, by, bz), "path": "linear"})
+        self._gently(up, height - z)
+        self._gently(over, math.dist((x, y), (bx, by)))
+        self._gently(down, height - bz)
+        # Just past the brick's width: pads swung wide drag a loose brick over.
+        self.world.grip(min(held.size_m[1] + PUT_DOWN_SLACK_M, GRIPPER_OPEN_M))
+        self.world.move(over.model_copy(update={"path": "linear"}))
+
+    def free_spot(
+        self, state: WorldState, brick: int, built: set[int], grasp: Pose, height: float
+    ) -> Pose | None:
+        """The tool pose that grasps brick ``brick`` set down on the nearest free ground:
+        clear of every other brick and every target not in ``built``, and within reach (at
+        the grasp's height and at ``height``) even if the brick lands a little off."""
+        occupied = [_footprint(b.pose, b.size_m) for b in state.bricks if b.id != brick]
+        occupied += [
+            _footprint(t.pose, t.size_m) for t in state.goal.targets if t.index not in built
+        ]
+        held, tool = state.brick(brick), state.robot.ee_pose
+        quat = top_down_quat(quat_yaw(tool.quat_xyzw))
+        spots = free_spots(
+            tool.position_m[:2],
+            held.size_m,
+            quat_yaw(held.pose.quat_xyzw),
+            occupied,
+            SET_ASIDE_MARGIN_M,
+            SET_ASIDE_RANGE_M,
+        )
+        low, high = self._reach_band(
+            state, tool.position_m[:2], quat, (grasp.position_m[2], height)
+        )
+        tried: list[tuple[float, float]] = []
+        for x, y in spots:
+            if len(tried) == SET_ASIDE_CANDIDATES:
+                return None
+            within = low + SET_ASIDE_SLACK_M <= math.hypot(x, y) <= high - SET_ASIDE_SLACK_M
+            if not within or any(math.dist((x, y), t) < SET_ASIDE_SPREAD_M for t in tried):
+                continue
+            tried.append((x, y))
+            spot = Pose(position_m=(x, y, grasp.position_m[2]), quat_xyzw=quat)
+            if self._way_down_reachable(state, spot, height, brick):
+                return spot
+        return None
+
+    def _way_down_reachable(self, state: WorldState, spot: Pose, height: float, brick: int) -> bool:
+        """Every pose of the way straight down onto ``spot`` within reach (the held brick is
+        left out of the check: it ends on the ground by design)."""
+        x, y, _ = spot.position_m
+        start = Pose(position_m=(x, y, height), quat_xyzw=spot.quat_xyzw)
+        report = self.calls.measure(
+            state,
+            "collision_check",
+            pose=_dump(spot),
+            start_pose=_dump(start),
+            gripper_opening_m=state.robot.gripper_width_m,
+            ignore_brick_id=brick,
+        )
+        return bool(report.reachable)
+
+    def _reach_band(
+        self,
+        state: WorldState,
+        towards: tuple[float, float],
+        quat: tuple[float, float, float, float],
+        heights: tuple[float, float],
+    ) -> tuple[float, float]:
+        """The least and greatest distance from the arm's base, along the ray through
+        ``towards``, at which the tool reaches down at ``quat`` at both ``heights``."""
+        azimuth = math.atan2(towards[1], towards[0])
+
+        def reached(radius: float) -> bool:
+            x, y = radius * math.cos(azimuth), radius * math.sin(azimuth)
+            return all(
+                self.calls.measure(
+                    state, "reachability", pose=_dump(Pose(position_m=(x, y, z), quat_xyzw=quat))
+                ).reachable
+                for z in heights
+            )
+
+        radii = [float(r) for r in np.arange(*REACH_PROBES_M) if reached(float(r))]
+        return (min(radii), max(radii)) if radii else (math.inf, -math.inf)
+
+    def _gently(self, move: WaypointProposal, length_m: float) -> None:
+        seconds = max(length_m / PUT_BACK_SPEED_MPS, MIN_MOVE_S)
+        self.world.move(move.model_copy(update={"duration_s": seconds}))
+
+
+def levelled_offset(tool: Pose, brick: Pose) -> np.ndarray:
+    """The brick's centre in the tool frame once it has turned flat about the tool centre
+    point: its offset now, turned by the least rotation that lays it flat in the hand (on
+    either broad face: a brick is the same upside down)."""
+    to_tool = Rotation.from_quat(tool.quat_xyzw).inv()
+    offset = to_tool.apply(np.subtract(brick.position_m, tool.position_m))
+    face = (to_tool * Rotation.from_quat(brick.quat_xyzw)).apply((0.0, 0.0, 1.0))
+    up = to_tool.apply((0.0, 0.0, 1.0))  # the world's up, in the tool frame
+    turn, _ = Rotation.align_vectors([up], [face if np.dot(face, up) >= 0.0 else -face])
+    return turn.apply(offset)
+
+
+def _footprint(pose: Pose, size: tuple[float, float, float]) -> Polygon:
+    return BrickBox(-1, pose.position_m, quat_yaw(pose.quat_xyzw), size).footprint
+
+
+def _dump(pose: Pose) -> dict[str, Any]:
+    return {"position_m": list(pose.position_m), "quat_xyzw": list(pose.quat_xyzw)}

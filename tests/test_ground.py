@@ -1,0 +1,37 @@
+"""Free ground: where a brick can be set aside for a re-grasp."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+from actionreasoning.world.ground import GRID_STEP_M, free_spots
+from actionreasoning.world.support import BrickBox
+
+SIZE = (0.20, 0.095, 0.06)
+
+
+def footprint(x: float, y: float, yaw: float = 0.0):
+    return BrickBox(0, (x, y, 0.03), yaw, SIZE).footprint
+
+
+def test_free_ground_is_the_spot_itself() -> None:
+    assert next(free_spots((0.5, 0.2), SIZE, 0.3, [], 0.08, 0.3)) == (0.5, 0.2)
+
+
+def test_the_nearest_spot_keeps_the_margin_from_every_occupied_footprint() -> None:
+    occupied = [footprint(0.5, 0.2), footprint(0.5, 0.45, 0.7)]
+    spots = free_spots((0.5, 0.2), SIZE, 0.0, occupied, 0.08, 0.4)
+    x, y = next(spots)
+    brick = footprint(x, y)
+    assert all(brick.distance(o) >= 0.08 for o in occupied)
+    # Nearest first: the brick sits beside the occupied one, within a grid step of touching
+    # the margin along one of its sides (0.095 wide + 0.08 across, 0.20 long + 0.08 along).
+    assert math.hypot(x - 0.5, y - 0.2) <= 0.095 + 0.08 + 2 * GRID_STEP_M
+    later = [math.hypot(sx - 0.5, sy - 0.2) for sx, sy in spots]
+    assert all(b >= a - 1e-9 for a, b in itertools.pairwise(later))
+
+
+def test_no_spot_when_everything_within_range_is_taken() -> None:
+    occupied = [footprint(0.5, 0.2)]
+    assert list(free_spots((0.5, 0.2), SIZE, 0.0, occupied, 0.08, 0.05)) == []
