@@ -30,7 +30,7 @@ from scipy.spatial.transform import Rotation
 
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
 from actionreasoning.eval.trial import Method, TrialSpec, run_trial, trial_world
-from actionreasoning.reasoners.builtin import CARRY_SPEED_MPS, LIFT_SPEED_MPS
+from actionreasoning.reasoners.builtin import CARRY_SPEED_MPS, LIFT_SPEEDS_MPS
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.geometry import quat_yaw, top_down_quat
 from actionreasoning.world.models import Pose
@@ -55,7 +55,7 @@ class Speeds:
 
 
 FULL = Speeds("full speed", lambda _: None, lambda _: None)
-AGENTS = Speeds("agents", lambda m: m / LIFT_SPEED_MPS, lambda m: m / CARRY_SPEED_MPS)
+AGENTS = Speeds("agents", lambda m: m / LIFT_SPEEDS_MPS[0], lambda m: m / CARRY_SPEED_MPS)
 
 
 def in_hand(scene: Scene) -> tuple[np.ndarray, Rotation]:

@@ -222,6 +222,11 @@ def test_placement_can_ask_for_a_regrasp_and_the_brick_is_grasped_again(small_go
     assert again.answer["brick_id"] == asked.brick
     pre_grasps = [r for r in reasoner.requests if r.spec.key == "pre_grasp"]
     assert pre_grasps[1].memory.last_feedback == asked.feedback
+    # The agents know this is a re-grasp; the built-in one lifts at another speed.
+    lifts = [c for c in result.transcript if c.agent == "lift" and c.target == asked.target]
+    first, second = (c.answer["waypoint"]["duration_s"] for c in lifts[:2])
+    assert first != pytest.approx(second, rel=0.05)
+    assert [r.memory.regrasps for r in pre_grasps[:2]] == [0, 1]
     aside = pre_grasps[1].state.brick(asked.brick)
     assert aside.status == "dropped" and aside.pickable
     slot = small_goal.targets[asked.target].pose.position_m

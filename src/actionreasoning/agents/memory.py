@@ -26,3 +26,6 @@ class TaskMemory(BaseModel):
     retries: dict[str, int] = Field(default_factory=dict, description="Attempts used per agent.")
     flags: dict[str, bool] = Field(default_factory=dict, description="Gates passed this brick.")
     last_feedback: str = Field("", description="Why the last attempt was refused, if it was.")
+    regrasps: int = Field(
+        0, description="Times the current target's brick was put down to be grasped again."
+    )

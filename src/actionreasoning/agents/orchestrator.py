@@ -117,9 +117,14 @@ class Orchestrator:
 
     def _place_one(self, supports: Mapping[int, tuple[int, ...]]) -> None:
         feedback = ""
-        for _ in range(self.budgets.regrasps + 1):
+        for regrasps in range(self.budgets.regrasps + 1):
             self.memory = self.memory.model_copy(
-                update={"retries": {}, "flags": {}, "last_feedback": feedback}
+                update={
+                    "retries": {},
+                    "flags": {},
+                    "last_feedback": feedback,
+                    "regrasps": regrasps,
+                }
             )
             self._check_bricks_left()
             brick, target = self._stage("pre_grasp", partial(self._pre_grasp, supports=supports))
@@ -295,8 +300,7 @@ class Orchestrator:
 
     def _put_back(self, brick: int, spot: WaypointProposal, lifted: WaypointProposal) -> None:
         """Put the held brick back flat on ``spot``, where it was grasped (sigma_4 = 0)."""
-        state = self.world.observe(Progress(current_brick=brick, step=self.memory.step))
-        self.put_down.put_back(state, brick, _as_pose(spot), lifted.position_m[2])
+        self.put_down.put_back(self._observer(brick), brick, _as_pose(spot), lifted.position_m[2])
 
     def _set_aside(self, brick: int, grasp: WaypointProposal, lifted: WaypointProposal) -> None:
         """Put the held brick down on the free ground nearest the tool (Ag5 asked for a
@@ -308,7 +312,11 @@ class Orchestrator:
         spot = None
         if state.brick(brick).status == "grasped":
             spot = self.put_down.free_spot(state, brick, built, _as_pose(grasp), height)
-        self.put_down.put_back(state, brick, spot or _as_pose(grasp), height)
+        self.put_down.put_back(self._observer(brick), brick, spot or _as_pose(grasp), height)
+
+    def _observer(self, brick: int) -> Callable[[], WorldState]:
+        """Measures the world with ``brick`` as the current one, at the current step."""
+        return partial(self.world.observe, Progress(current_brick=brick, step=self.memory.step))
 
     def _placement(
         self, brick: int, target: int, grasp: WaypointProposal, lifted: WaypointProposal

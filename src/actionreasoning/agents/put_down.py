@@ -10,6 +10,7 @@ turns back flat, where one let go on a corner falls, often onto its side.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -19,7 +20,7 @@ from shapely.geometry import Polygon
 from actionreasoning.agents.calls import AgentCaller
 from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.agents.world import World
-from actionreasoning.world.geometry import quat_yaw, top_down_quat
+from actionreasoning.world.geometry import Vec3, quat_yaw, top_down_quat
 from actionreasoning.world.ground import free_spots
 from actionreasoning.world.models import Pose, WorldState
 from actionreasoning.world.support import BrickBox
@@ -39,6 +40,10 @@ SET_ASIDE_CANDIDATES = 40
 SET_ASIDE_SPREAD_M = 0.05
 #: How far from its spot a brick put down may end up (seen: up to 5 cm).
 SET_ASIDE_SLACK_M = 0.05
+#: A brick swinging in the hand is measured again over its spot up to this many times,
+#: until the place to press it flat from moves less than this.
+PRESS_CHECKS = 3
+PRESS_TOLERANCE_M = 0.005
 #: Distances from the arm's base probed for reach (start, stop, step; m).
 REACH_PROBES_M = (0.30, 0.90, 0.02)
 
@@ -50,39 +55,53 @@ class PutDown:
         self.world = world
         self.calls = calls
 
-    def put_back(self, state: WorldState, brick: int, spot: Pose, height: float) -> None:
+    def put_back(
+        self, observe: Callable[[], WorldState], brick: int, spot: Pose, height: float
+    ) -> None:
         """Set brick ``brick`` down flat with its centre on ``spot`` (the tool pose that
         grasps a brick lying there) and let go: up to ``height``, over the spot, down until
-        the brick lies flat, open, and up again; all at PUT_BACK_SPEED_MPS. A brick that is
-        no longer in the hand is left where it fell."""
-        held = state.brick(brick)
-        if held.status != "grasped":
+        the brick lies flat, open, and up again; all at PUT_BACK_SPEED_MPS. A loose brick
+        swings on the way, so it is measured again over the spot until the tool is where it
+        must be to press it flat. A brick no longer in the hand is left where it fell."""
+        state = observe()
+        if state.brick(brick).status != "grasped":
             self.world.grip(GRIPPER_OPEN_M)
             return
-        tool = state.robot.ee_pose
-        x, y, z = tool.position_m
-        flat = levelled_offset(tool, held.pose)
-        bx, by, bz = np.subtract(spot.position_m, Rotation.from_quat(spot.quat_xyzw).apply(flat))
-        # No lower than a grasp of a brick lying there (a brick that slid up the pads is
-        # left a little tilted rather than the tool taken to the floor).
-        bz = max(bz, spot.position_m[2])
+        width = state.brick(brick).size_m[1]
+        x, y, z = state.robot.ee_pose.position_m
         height = max(z, height)
-        up = WaypointProposal(position_m=(x, y, height), quat_xyzw=tool.quat_xyzw, path="linear")
-        over = WaypointProposal(position_m=(bx, by, height), quat_xyzw=spot.quat_xyzw)
-        down = over.model_copy(update={"position_m": (bx, by, bz), "path": "linear"})
-        self._gently(up, height - z)
-        self._gently(over, math.dist((x, y), (bx, by)))
-        self._gently(down, height - bz)
+        self._gently(
+            WaypointProposal(
+                position_m=(x, y, height), quat_xyzw=state.robot.ee_pose.quat_xyzw, path="linear"
+            ),
+            height - z,
+        )
+        press = _pressing_point(state, brick, spot)
+        for _ in range(PRESS_CHECKS):
+            here = state.robot.ee_pose.position_m
+            over = WaypointProposal(position_m=(*press[:2], height), quat_xyzw=spot.quat_xyzw)
+            self._gently(over, math.dist(here[:2], press[:2]))
+            state = observe()
+            if state.brick(brick).status != "grasped":
+                self.world.grip(GRIPPER_OPEN_M)
+                return
+            again = _pressing_point(state, brick, spot)
+            settled = math.dist(again[:2], press[:2]) <= PRESS_TOLERANCE_M
+            press = again
+            if settled:
+                break
+        down = WaypointProposal(position_m=press, quat_xyzw=spot.quat_xyzw, path="linear")
+        self._gently(down, height - press[2])
         # Just past the brick's width: pads swung wide drag a loose brick over.
-        self.world.grip(min(held.size_m[1] + PUT_DOWN_SLACK_M, GRIPPER_OPEN_M))
-        self.world.move(over.model_copy(update={"path": "linear"}))
+        self.world.grip(min(width + PUT_DOWN_SLACK_M, GRIPPER_OPEN_M))
+        self.world.move(down.model_copy(update={"position_m": (*press[:2], height)}))
 
     def free_spot(
         self, state: WorldState, brick: int, built: set[int], grasp: Pose, height: float
     ) -> Pose | None:
         """The tool pose that grasps brick ``brick`` set down on the nearest free ground:
-        clear of every other brick and every target not in ``built``, and within reach (at
-        the grasp's height and at ``height``) even if the brick lands a little off."""
+        clear of every other brick and every target not in ``built``, and within reach (from
+        the grasp up to ``height``) even if the brick lands a little off."""
         occupied = [_footprint(b.pose, b.size_m) for b in state.bricks if b.id != brick]
         occupied += [
             _footprint(t.pose, t.size_m) for t in state.goal.targets if t.index not in built
@@ -97,9 +116,10 @@ class PutDown:
             SET_ASIDE_MARGIN_M,
             SET_ASIDE_RANGE_M,
         )
-        low, high = self._reach_band(
-            state, tool.position_m[:2], quat, (grasp.position_m[2], height)
-        )
+        # Within reach on the whole way up from the ground: an approach pose is in between.
+        ground = grasp.position_m[2]
+        heights = (ground, (ground + height) / 2.0, height)
+        low, high = self._reach_band(state, tool.position_m[:2], quat, heights)
         tried: list[tuple[float, float]] = []
         for x, y in spots:
             if len(tried) == SET_ASIDE_CANDIDATES:
@@ -133,10 +153,10 @@ class PutDown:
         state: WorldState,
         towards: tuple[float, float],
         quat: tuple[float, float, float, float],
-        heights: tuple[float, float],
+        heights: tuple[float, ...],
     ) -> tuple[float, float]:
         """The least and greatest distance from the arm's base, along the ray through
-        ``towards``, at which the tool reaches down at ``quat`` at both ``heights``."""
+        ``towards``, at which the tool reaches down at ``quat`` at every one of ``heights``."""
         azimuth = math.atan2(towards[1], towards[0])
 
         def reached(radius: float) -> bool:
@@ -154,6 +174,16 @@ class PutDown:
     def _gently(self, move: WaypointProposal, length_m: float) -> None:
         seconds = max(length_m / PUT_BACK_SPEED_MPS, MIN_MOVE_S)
         self.world.move(move.model_copy(update={"duration_s": seconds}))
+
+
+def _pressing_point(state: WorldState, brick: int, spot: Pose) -> Vec3:
+    """Where the tool must go, at the spot's orientation, so that the held brick, turned flat
+    about the tool centre point, lies on the ground with its centre on ``spot``; no lower
+    than a grasp of a brick lying there (a brick that slid up the pads is left a little
+    tilted rather than the tool taken to the floor)."""
+    flat = levelled_offset(state.robot.ee_pose, state.brick(brick).pose)
+    x, y, z = np.subtract(spot.position_m, Rotation.from_quat(spot.quat_xyzw).apply(flat))
+    return float(x), float(y), max(float(z), spot.position_m[2])
 
 
 def levelled_offset(tool: Pose, brick: Pose) -> np.ndarray:
