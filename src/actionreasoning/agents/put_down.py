@@ -62,11 +62,12 @@ class PutDown:
         grasps a brick lying there) and let go: up to ``height``, over the spot, down until
         the brick lies flat, open, and up again; all at PUT_BACK_SPEED_MPS. A loose brick
         swings on the way, so it is measured again over the spot until the tool is where it
-        must be to press it flat. A brick no longer in the hand is left where it fell."""
+        must be to press it flat. A brick no longer in the hand is left where it fell, and
+        the open gripper goes up clear of it."""
         state = observe()
-        if state.brick(brick).status != "grasped":
+        held = state.brick(brick).status == "grasped"
+        if not held:
             self.world.grip(GRIPPER_OPEN_M)
-            return
         width = state.brick(brick).size_m[1]
         x, y, z = state.robot.ee_pose.position_m
         height = max(z, height)
@@ -76,6 +77,8 @@ class PutDown:
             ),
             height - z,
         )
+        if not held:
+            return
         press = _pressing_point(state, brick, spot)
         for _ in range(PRESS_CHECKS):
             here = state.robot.ee_pose.position_m

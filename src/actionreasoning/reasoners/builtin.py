@@ -47,6 +47,9 @@ RETREAT_M = 0.08
 #: predicts: a brick grasped again after a roll is lifted at the next speed of the cycle.
 LIFT_SPEEDS_MPS = (0.02, 0.01, 0.03, 0.015, 0.025)
 CARRY_SPEED_MPS = 0.10
+#: A brick rolled in the hand no more than this counts as level: grasping it again would not
+#: change how it is carried.
+LEVEL_IN_HAND_DEG = 5.0
 
 #: The single agent's cycle: the step that follows the one executed last.
 NEXT_STEP = {
@@ -172,7 +175,10 @@ class BuiltinReasoner:
                 f"than the {limit:g} deg the tool may tilt to set it level: grasp it again",
             )
         slot = self._slot(request)
-        if not _way_down_clear(request, slot):
+        # Only a tilt a re-grasp can remove: with the brick level in the hand, what blocks
+        # the way is in the world, and the orchestrator's check says what.
+        tilted = slip.tilt_in_hand_deg > LEVEL_IN_HAND_DEG
+        if tilted and not _way_down_clear(request, slot):
             return PlacementAnswer(
                 regrasp=True,
                 rationale=f"with the brick rolled {slip.tilt_in_hand_deg:.1f} deg in the hand, "
