@@ -47,9 +47,6 @@ RETREAT_M = 0.08
 #: predicts: a brick grasped again after a roll is lifted at the next speed of the cycle.
 LIFT_SPEEDS_MPS = (0.02, 0.01, 0.03, 0.015, 0.025)
 CARRY_SPEED_MPS = 0.10
-#: A brick rolled in the hand no more than this counts as level: grasping it again would not
-#: change how it is carried.
-LEVEL_IN_HAND_DEG = 5.0
 
 #: The single agent's cycle: the step that follows the one executed last.
 NEXT_STEP = {
@@ -175,14 +172,12 @@ class BuiltinReasoner:
                 f"than the {limit:g} deg the tool may tilt to set it level: grasp it again",
             )
         slot = self._slot(request)
-        # Only a tilt a re-grasp can remove: with the brick level in the hand, what blocks
-        # the way is in the world, and the orchestrator's check says what.
-        tilted = slip.tilt_in_hand_deg > LEVEL_IN_HAND_DEG
-        if tilted and not _way_down_clear(request, slot):
+        if not _way_down_clear(request, slot):
             return PlacementAnswer(
                 regrasp=True,
-                rationale=f"with the brick rolled {slip.tilt_in_hand_deg:.1f} deg in the hand, "
-                "the tilted tool's way to the slot collides: grasp it again",
+                rationale=f"with the brick where it sits in the hand (rolled "
+                f"{slip.tilt_in_hand_deg:.1f} deg), the way to the slot collides or is out of "
+                "reach: grasp it again",
             )
         return PlacementAnswer(
             waypoint=slot,
