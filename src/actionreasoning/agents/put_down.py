@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -131,7 +130,7 @@ class PutDown:
             if not within or any(math.dist((x, y), t) < SET_ASIDE_SPREAD_M for t in tried):
                 continue
             tried.append((x, y))
-            spot = Pose(position_m=(x, y, grasp.position_m[2]), quat_xyzw=quat)
+            spot = Pose(position_m=(x, y, ground), quat_xyzw=quat)
             if self._way_down_reachable(state, spot, height, brick):
                 return spot
         return None
@@ -144,8 +143,8 @@ class PutDown:
         report = self.calls.measure(
             state,
             "collision_check",
-            pose=_dump(spot),
-            start_pose=_dump(start),
+            pose=spot.model_dump(),
+            start_pose=start.model_dump(),
             gripper_opening_m=state.robot.gripper_width_m,
             ignore_brick_id=brick,
         )
@@ -164,11 +163,10 @@ class PutDown:
 
         def reached(radius: float) -> bool:
             x, y = radius * math.cos(azimuth), radius * math.sin(azimuth)
+            poses = (Pose(position_m=(x, y, z), quat_xyzw=quat) for z in heights)
             return all(
-                self.calls.measure(
-                    state, "reachability", pose=_dump(Pose(position_m=(x, y, z), quat_xyzw=quat))
-                ).reachable
-                for z in heights
+                self.calls.measure(state, "reachability", pose=pose.model_dump()).reachable
+                for pose in poses
             )
 
         radii = [float(r) for r in np.arange(*REACH_PROBES_M) if reached(float(r))]
@@ -203,7 +201,3 @@ def levelled_offset(tool: Pose, brick: Pose) -> np.ndarray:
 
 def _footprint(pose: Pose, size: tuple[float, float, float]) -> Polygon:
     return BrickBox(-1, pose.position_m, quat_yaw(pose.quat_xyzw), size).footprint
-
-
-def _dump(pose: Pose) -> dict[str, Any]:
-    return {"position_m": list(pose.position_m), "quat_xyzw": list(pose.quat_xyzw)}
