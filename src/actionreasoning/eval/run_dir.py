@@ -63,14 +63,9 @@ def open_run(out: Path, manifest: RunManifest) -> list[TrialResult]:
             "choose another --out"
         )
     try:
-        previous = RunManifest.model_validate_json(stored.read_text())
-    except ValidationError as error:
-        first = error.errors()[0]
-        where = ".".join(str(part) for part in first["loc"])
-        raise ConfigError(
-            f"{stored} is damaged or from an earlier version ({where}: {first['msg']}): "
-            "choose another --out"
-        ) from error
+        previous = read_manifest(stored)
+    except ConfigError as error:
+        raise ConfigError(f"{error}: choose another --out") from error
     if previous != manifest:
         differences = ", ".join(_differences(previous.model_dump(), manifest.model_dump()))
         raise ConfigError(
@@ -78,6 +73,18 @@ def open_run(out: Path, manifest: RunManifest) -> list[TrialResult]:
             "or repeat that run's options to resume it"
         )
     return read_results(results, repair=True)
+
+
+def read_manifest(path: Path) -> RunManifest:
+    """The run.json at ``path``; a damaged one, or one of another version, is an error."""
+    try:
+        return RunManifest.model_validate_json(path.read_bytes())
+    except ValidationError as error:
+        first = error.errors()[0]
+        where = ".".join(str(part) for part in first["loc"])
+        raise ConfigError(
+            f"{path} is damaged or from an earlier version ({where}: {first['msg']})"
+        ) from error
 
 
 def _differences(there: dict[str, Any], now: dict[str, Any], prefix: str = "") -> list[str]:
