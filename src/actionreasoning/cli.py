@@ -20,7 +20,7 @@ from actionreasoning.errors import ActionReasoningError, ConfigError
 from actionreasoning.eval.jobs import RESUME_HINT
 from actionreasoning.eval.progress import ConsoleProgress
 from actionreasoning.eval.report.build import build_report
-from actionreasoning.eval.report.tables import AVERAGE, COLUMNS, pattern_title
+from actionreasoning.eval.report.tables import AVERAGE, COLUMNS
 from actionreasoning.eval.report.tables import Table as ComparisonTable
 from actionreasoning.eval.run import RunConfig, run_eval
 from actionreasoning.eval.summary import RunSummary
@@ -322,14 +322,14 @@ def _comparison(table: ComparisonTable) -> Table:
     shown.add_column("Method")
     columns = [*table.patterns, AVERAGE]
     for pattern in columns:
-        shown.add_column(pattern_title(pattern), justify="right")
+        shown.add_column(escape(pattern), justify="right")
     for row in table.rows:
         cells = []
         for pattern in columns:
             values = [table.cell(row, pattern, metric) for metric, *_ in COLUMNS]
             text = " ".join(f"[bold]{v}[/]" if best else v for v, best in values)
             cells.append(f"{text}\n{table.success_cell(row, pattern)} ok")
-        shown.add_row(row, *cells)
+        shown.add_row(escape(row), *cells)  # labels hold [brackets]
     return shown
 
 
@@ -343,19 +343,18 @@ def report_command(
         bool, typer.Option(help="Also make an animated GIF of every trial with snapshots.")
     ] = False,
 ) -> None:
-    """Compare eval runs: Table I (markdown, CSV, LaTeX), plots, stage grids, one HTML page."""
+    """Compare eval runs: Table I (markdown, CSV, LaTeX), plots, stage grids, one HTML page.
+
+    Runs are pooled only under the same run.json conditions (the seed aside) and pattern
+    content; others are set side by side, and the report names the fields that differ.
+    """
     try:
         report = build_report(runs, out, gifs=gif)
     except ActionReasoningError as error:
         _fail(error)
     console.print(_comparison(report.table))
-    for group in report.groups:
-        if group.repeated:
-            console.print(
-                f"{group.label} on {group.pattern}: {group.repeated} trials appear in more than "
-                "one directory (same seed and index, so the same trial); each counted once",
-                highlight=False,
-            )
+    for note in report.table.notes:
+        console.print(note, highlight=False, markup=False, soft_wrap=True)
     if gif and not report.gifs:
         console.print("no GIFs: no run kept snapshots (eval --snapshots)", highlight=False)
     written = [*report.tables, *(p for p, _ in (*report.plots, *report.grids, *report.gifs))]

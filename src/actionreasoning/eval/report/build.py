@@ -16,12 +16,12 @@ from jinja2 import Environment, PackageLoader, select_autoescape
 from actionreasoning.eval.report.collect import Group, load_groups, patterns
 from actionreasoning.eval.report.pictures import stage_grid, trial_gif
 from actionreasoning.eval.report.plots import error_distributions, llm_cost, success_rates
+from actionreasoning.eval.report.runs import unique
 from actionreasoning.eval.report.tables import (
     AVERAGE,
     COLUMNS,
     Table,
     comparison_table,
-    pattern_title,
     to_csv,
     to_latex,
     to_markdown,
@@ -70,9 +70,9 @@ def build_report(directories: Sequence[Path], out: Path, gifs: bool = False) -> 
         report.plots.append((cost, "LLM tokens per brick and latency per call, by agent"))
     for pattern in patterns(groups):
         members = [g for g in groups if g.pattern == pattern]
-        grid = stage_grid(members, out / f"stages_{_slug(pattern_title(pattern))}.png")
+        grid = stage_grid(members, out / f"stages_{_slug(pattern)}.png")
         if grid is not None:
-            report.grids.append((grid, f"Stages on {pattern_title(pattern)}"))
+            report.grids.append((grid, f"Stages on {pattern}"))
     if gifs:
         report.gifs = _gifs(groups, out / "gifs")
     report.html = write_html(report, directories)
@@ -82,16 +82,19 @@ def build_report(directories: Sequence[Path], out: Path, gifs: bool = False) -> 
 def _gifs(groups: Sequence[Group], directory: Path) -> list[tuple[Path, str]]:
     made = []
     for group in groups:
+        seeds = len({r.seed for r in group.results}) > 1  # pooled: trial k of each seed
         for result in group.results:
-            snapshots = group.snapshot_dir(result.trial)
+            snapshots = group.snapshot_dir(result)
             if snapshots is None:
                 continue
-            pattern = pattern_title(group.pattern)
-            name = f"{_slug(group.label)}_{_slug(pattern)}_trial_{result.trial:03d}"
+            trial = f"trial {result.trial}"
+            name = f"{_slug(group.label)}_{_slug(group.pattern)}_trial_{result.trial:03d}"
+            if seeds:
+                trial, name = f"seed {result.seed}, {trial}", f"{name}_seed_{result.seed}"
             gif = trial_gif(snapshots, directory / f"{name}.gif")
             if gif is not None:
                 status = "success" if result.failure is None else result.failure.reason
-                made.append((gif, f"{group.label} on {pattern}, trial {result.trial} ({status})"))
+                made.append((gif, f"{group.label} on {group.pattern}, {trial} ({status})"))
     return made
 
 
@@ -109,8 +112,8 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
     )
     page = environment.get_template("report.html.j2").render(
         title="actionreasoning report",
-        runs=[str(d) for d in directories],
-        column_groups=[pattern_title(p) for p in column_groups],
+        runs=[str(d) for d in unique(directories)],
+        column_groups=column_groups,
         columns=[f"{title} {'↓' if lower else '↑'}" for _, title, _, _, lower in COLUMNS],
         table_rows=[
             {
@@ -123,7 +126,7 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
             }
             for row in table.rows
         ],
-        success_columns=[pattern_title(p) if p != AVERAGE else "all" for p in column_groups],
+        success_columns=[p if p != AVERAGE else "all" for p in column_groups],
         success_rows=[
             {
                 "label": row,
@@ -132,6 +135,7 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
             for row in table.rows
         ],
         failures=table.failures,
+        notes=table.notes,
         plots=[{"data": _data_uri(p), "caption": c} for p, c in report.plots],
         grids=[{"data": _data_uri(p), "caption": c} for p, c in report.grids],
         gifs=[{"data": _data_uri(p), "caption": c} for p, c in report.gifs],

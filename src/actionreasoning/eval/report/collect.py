@@ -1,86 +1,211 @@
-"""Eval output directories read back, grouped by method (with backend) and pattern."""
+"""Eval runs grouped for a report: a row per set of run.json conditions, a column per pattern.
+
+Runs are pooled only when every run.json field but the seed and the pattern as given is
+the same, and their patterns have the same content (pattern_sha256); nothing is grouped by
+a name or a path string. Rows that share a method label get the fields that tell them apart
+added to it, and patterns that share a title get their hash.
+"""
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
-from typing import get_args
+from pathlib import Path, PurePath
+from typing import Any, get_args
 
 from actionreasoning.agents.outputs import SingleAgentStep
 from actionreasoning.errors import ConfigError
+from actionreasoning.eval.report.runs import Run, read_runs
 from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.run_dir import RESULTS_FILE, read_results
+from actionreasoning.eval.run_dir import RESULTS_FILE, RunManifest
 from actionreasoning.eval.summary import RunSummary, summarize
 
 #: Stages in the order a brick goes through them: the single agent's cycle, whose names
 #: the six agents and the classical script share.
 STAGE_ORDER = tuple(step for step in get_args(SingleAgentStep) if step != "done")
+PATTERN_HASH = "pattern_sha256"
 
 
 @dataclass(frozen=True)
 class Group:
-    """Every trial of one method and backend on one pattern, from one or more directories."""
+    """Every trial of one row's conditions on one pattern, from one or more directories."""
 
-    label: str
-    pattern: str
-    directories: tuple[Path, ...]
-    results: tuple[TrialResult, ...]
+    label: str  # the row: method, backend, conditions
+    pattern: str  # the column: the pattern's title
+    conditions: dict[str, Any]  # run.json, flattened (see Run.conditions)
+    results: tuple[TrialResult, ...]  # ordered by seed and trial
+    sources: dict[tuple[int, int], tuple[Path, ...]]  # (seed, trial) -> directories holding it
     summary: RunSummary
-    repeated: int = 0  # trials found in two directories (same seed and index), counted once
+    repeated: int = 0  # lines identical to a trial already read from another directory
 
-    def snapshot_dir(self, trial: int) -> Path | None:
-        """Where the pictures of ``trial`` are, if its run kept them."""
-        for directory in self.directories:
-            path = directory / "snapshots" / f"trial_{trial:03d}"
+    def snapshot_dir(self, result: TrialResult) -> Path | None:
+        """Where the pictures of ``result`` are, if its run kept them."""
+        for directory in self.sources[(result.seed, result.trial)]:
+            path = directory / "snapshots" / f"trial_{result.trial:03d}"
             if path.is_dir():
                 return path
         return None
 
 
-def method_label(result: TrialResult) -> str:
-    """How a table row names a method: with its reasoning backend where it has one, its
-    physics profile and, where there is any, its noise level. Runs whose labels differ are
-    never pooled."""
-    name = result.method if result.llm == "none" else f"{result.method} ({result.llm})"
-    noise = "" if result.noise == "none" else f", noise {result.noise}"
-    return f"{name}, {result.physics}{noise}"
+def pattern_title(pattern: str) -> str:
+    """A pattern as given, as a title: a built-in name, or a pattern file's stem."""
+    return PurePath(pattern).stem if pattern.endswith((".json", ".yaml", ".yml")) else pattern
+
+
+def method_label(manifest: RunManifest) -> str:
+    """How a row names a method: with its reasoning backend where it has one, its physics
+    profile and, where there is any, its noise level."""
+    name = manifest.method if manifest.llm == "none" else f"{manifest.method} ({manifest.llm})"
+    noise = "" if manifest.noise.name == "none" else f", noise {manifest.noise.name}"
+    return f"{name}, {manifest.physics.name}{noise}"
+
+
+def show(value: Any) -> str:
+    """A run.json value, short: floats as %g where that loses nothing, the rest as JSON."""
+    if isinstance(value, float) and float(f"{value:g}") == value:
+        return f"{value:g}"
+    return value if isinstance(value, str) else json.dumps(value)
+
+
+def differing(conditions: Sequence[dict[str, Any]]) -> list[str]:
+    """The fields whose values are not the same in all ``conditions`` (a missing one counts)."""
+    names = dict.fromkeys(name for c in conditions for name in c)
+    return [
+        name
+        for name in names
+        if len({json.dumps(c[name]) if name in c else None for c in conditions}) > 1
+    ]
 
 
 def load_groups(directories: Sequence[Path]) -> list[Group]:
-    """The trials of every directory, grouped; a directory without results is an error."""
-    found: dict[tuple[str, str], list[tuple[Path, TrialResult]]] = {}
-    for directory in directories:
-        path = directory / RESULTS_FILE
-        if not path.is_file():
-            raise ConfigError(f"{directory} holds no {RESULTS_FILE}: not an eval --out directory")
-        results = read_results(path)
-        if not results:
-            raise ConfigError(f"{path} is empty: no trial has finished there yet")
-        for result in results:
-            found.setdefault((method_label(result), result.pattern), []).append((directory, result))
-    groups = []
-    for (label, pattern), members in found.items():
-        unique = {(r.seed, r.trial): r for _, r in reversed(members)}  # the first one kept
-        results = tuple(unique[key] for key in sorted(unique))
-        groups.append(
-            Group(
-                label=label,
-                pattern=pattern,
-                directories=tuple(dict.fromkeys(d for d, _ in members)),
-                results=results,
-                summary=summarize(results, wall_time_s=0.0),
-                repeated=len(members) - len(results),
-            )
-        )
-    return groups
+    """The trials of every directory, grouped by conditions and pattern content."""
+    runs = read_runs(directories)
+    found: dict[tuple[str, str], list[Run]] = {}
+    for run in runs:
+        conditions = run.conditions()
+        pattern = conditions.pop(PATTERN_HASH)
+        found.setdefault((json.dumps(conditions, sort_keys=True), pattern), []).append(run)
+    rows = _row_labels({row: members[0] for (row, _), members in found.items()})
+    columns = _pattern_titles({p: members[0] for (_, p), members in found.items()})
+    return [_pool(rows[row], columns[p], members) for (row, p), members in found.items()]
+
+
+def _row_labels(rows: dict[str, Run]) -> dict[str, str]:
+    """A unique label per row: the method label, with the fields that tell apart rows that
+    share it (``classical, precise [budget.max_steps=2000]``)."""
+    by_label: dict[str, list[str]] = {}
+    for row, run in rows.items():
+        by_label.setdefault(method_label(run.manifest), []).append(row)
+    labels = {}
+    for label, same in by_label.items():
+        conditions = {row: rows[row].conditions() for row in same}
+        names = [n for n in differing(list(conditions.values())) if n != PATTERN_HASH]
+        for row in same:
+            shown = ", ".join(f"{n}={show(conditions[row].get(n, '–'))}" for n in names)
+            labels[row] = f"{label} [{shown}]" if shown else label
+    return labels
+
+
+def _pattern_titles(patterns: dict[str, Run]) -> dict[str, str]:
+    """A unique title per pattern content: the title, with the hash where two share it."""
+    titles = {p: pattern_title(run.manifest.pattern) for p, run in patterns.items()}
+    shared = {t for t in titles.values() if list(titles.values()).count(t) > 1}
+    return {p: f"{t} ({p[:8]})" if t in shared else t for p, t in titles.items()}
+
+
+def _pool(label: str, pattern: str, runs: Sequence[Run]) -> Group:
+    """One group from the runs of one row and pattern; the same trial in two directories
+    is counted once if its lines agree, and refused if they do not."""
+    kept: dict[tuple[int, int], TrialResult] = {}
+    sources: dict[tuple[int, int], tuple[Path, ...]] = {}
+    repeated = 0
+    for run in runs:
+        for result in run.results:
+            key = (result.seed, result.trial)
+            if key in kept:
+                if _same(kept[key], result):
+                    sources[key] += (run.directory,)
+                    repeated += 1
+                    continue
+                raise ConfigError(
+                    f"trial {result.trial} of seed {result.seed} is in "
+                    f"{sources[key][0] / RESULTS_FILE} and {run.directory / RESULTS_FILE} under "
+                    "the same run.json conditions, with different results: report one of them"
+                )
+            kept[key], sources[key] = result, (run.directory,)
+    results = tuple(kept[key] for key in sorted(kept))
+    return Group(
+        label=label,
+        pattern=pattern,
+        conditions=runs[0].conditions(),
+        results=results,
+        sources=sources,
+        summary=summarize(results, wall_time_s=0.0),
+        repeated=repeated,
+    )
+
+
+def _same(first: TrialResult, second: TrialResult) -> bool:
+    """Whether two lines record the same outcome (the pattern as given aside: runs.py has
+    checked that both patterns have the same content)."""
+    return first.model_dump(exclude={"pattern"}) == second.model_dump(exclude={"pattern"})
 
 
 def labels(groups: Sequence[Group]) -> list[str]:
-    """Method labels in first-seen order."""
+    """Row labels in first-seen order."""
     return list(dict.fromkeys(g.label for g in groups))
 
 
 def patterns(groups: Sequence[Group]) -> list[str]:
-    """Patterns in first-seen order."""
+    """Pattern titles in first-seen order."""
     return list(dict.fromkeys(g.pattern for g in groups))
+
+
+def condition_notes(groups: Sequence[Group]) -> list[str]:
+    """What a reader must know about how runs were grouped: the run.json fields that differ
+    between rows, patterns that share a title, trials found in two directories."""
+    notes = []
+    rows = {g.label: g.conditions for g in groups}
+    names = [n for n in differing(list(rows.values())) if n != PATTERN_HASH]
+    if names:
+        notes.append(
+            f"Rows differ in run.json: {_compact(names)}. All its other fields are the same "
+            "in every row (seeds may differ)."
+        )
+    shared: dict[str, list[str]] = {}  # a title two pattern contents share -> their hashes
+    for group in groups:
+        digest = group.conditions[PATTERN_HASH]
+        title = group.pattern.removesuffix(f" ({digest[:8]})")
+        if title != group.pattern and digest not in shared.setdefault(title, []):
+            shared[title].append(digest)
+    for title, hashes in shared.items():
+        notes.append(
+            f"{title}: {len(hashes)} different pattern files (pattern_sha256 "
+            f"{', '.join(h[:8] for h in hashes)}), shown apart: the file was edited "
+            "between runs, or two files share the name."
+        )
+    for group in groups:
+        if group.repeated:
+            notes.append(
+                f"{group.label} on {group.pattern}: {group.repeated} trial lines are also in "
+                "another directory, identical: each counted once."
+            )
+    return notes
+
+
+def _compact(names: Sequence[str]) -> str:
+    """Dotted names, those under one field together: ``physics.{name, solver_iterations}``."""
+    by_top: dict[str, list[str]] = {}
+    for name in names:
+        top, _, rest = name.partition(".")
+        by_top.setdefault(top, []).append(rest)
+    parts = []
+    for top, rest in by_top.items():
+        if rest == [""]:
+            parts.append(top)
+        elif len(rest) == 1:
+            parts.append(f"{top}.{rest[0]}")
+        else:
+            parts.append(f"{top}.{{{', '.join(rest)}}}")
+    return ", ".join(parts)

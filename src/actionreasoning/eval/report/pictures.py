@@ -12,6 +12,7 @@ import imageio.v3 as iio
 import numpy as np
 
 from actionreasoning.eval.report.collect import STAGE_ORDER, Group
+from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.snapshots import FRAMES_DIR, image_grid
 
 CLOSEUP = re.compile(r"b(?P<brick>\d+)_(?P<n>\d+)_(?P<stage>\w+)\.png")
@@ -29,13 +30,13 @@ def stage_pictures(directory: Path, brick: int) -> dict[str, Path]:
     return {stage: path for _, stage, path in sorted(found)}
 
 
-def shown_trial(group: Group) -> tuple[int, Path] | None:
+def shown_trial(group: Group) -> tuple[TrialResult, Path] | None:
     """The trial a grid shows for a group: its first trial with snapshots, successful first."""
     ordered = sorted(group.results, key=lambda r: (not r.success, r.trial))
     for result in ordered:
-        directory = group.snapshot_dir(result.trial)
+        directory = group.snapshot_dir(result)
         if directory is not None:
-            return result.trial, directory
+            return result, directory
     return None
 
 
@@ -46,8 +47,7 @@ def stage_grid(groups: Sequence[Group], path: Path) -> Path | None:
         shown = shown_trial(group)
         if shown is None:
             continue
-        trial, directory = shown
-        result = next(r for r in group.results if r.trial == trial)
+        result, directory = shown
         pictures = stage_pictures(directory, result.bricks[-1].id)
         if not pictures:
             continue
@@ -57,7 +57,7 @@ def stage_grid(groups: Sequence[Group], path: Path) -> Path | None:
         ]
         while cells and cells[-1][1] is None:
             cells.pop()
-        rows.append((f"{group.label}\ntrial {trial}", cells))
+        rows.append((f"{group.label}\ntrial {result.trial}", cells))
     if not rows:
         return None
     path.write_bytes(image_grid(rows, titles_on_first_row=True))

@@ -10,7 +10,6 @@ from matplotlib import colormaps
 from matplotlib.figure import Figure
 
 from actionreasoning.eval.report.collect import Group, labels, patterns
-from actionreasoning.eval.report.tables import pattern_title
 from actionreasoning.records import LLMUsage
 
 #: (per-brick field, axis title, scale)
@@ -62,7 +61,7 @@ def error_distributions(groups: Sequence[Group], path: Path) -> Path:
                 for box in boxes["boxes"]:
                     box.set_facecolor(colours[r])
                     box.set_alpha(0.7)
-        axis.set_xticks(range(len(cols)), [pattern_title(p) for p in cols])
+        axis.set_xticks(range(len(cols)), cols)
         axis.set_title(title)
         axis.grid(axis="y", alpha=0.3)
     handles = [
@@ -97,7 +96,7 @@ def success_rates(groups: Sequence[Group], path: Path) -> Path:
                 ha="center",
                 fontsize=8,
             )
-    axis.set_xticks(range(len(cols)), [pattern_title(p) for p in cols])
+    axis.set_xticks(range(len(cols)), cols)
     axis.set_ylim(0, 112)
     axis.set_ylabel("success (%)")
     figure.legend(loc="lower center", ncol=min(len(rows), 3), fontsize=8, frameon=False)

@@ -1,5 +1,6 @@
 """The paper's Table I: methods in rows; per pattern and on average, rotation error (°),
 centre offset (cm) and IoU (%), means over successful trials; as markdown, CSV and LaTeX.
+Rows and pattern columns are the groups of collect.py; the notes say how runs differ.
 """
 
 from __future__ import annotations
@@ -8,11 +9,10 @@ import csv
 import io
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import PurePath
 
 import numpy as np
 
-from actionreasoning.eval.report.collect import Group, labels, patterns
+from actionreasoning.eval.report.collect import Group, condition_notes, labels, patterns
 
 #: (summary metric, column title, scale, digits, lower is better)
 COLUMNS = (
@@ -21,11 +21,6 @@ COLUMNS = (
     ("iou", "IoU", 100.0, 2, False),
 )
 AVERAGE = "Average"  # Table I's last column group; for success counts, the total
-
-
-def pattern_title(pattern: str) -> str:
-    """A pattern as a column title: a built-in name, or a pattern file's stem."""
-    return PurePath(pattern).stem if pattern.endswith((".json", ".yaml", ".yml")) else pattern
 
 
 @dataclass(frozen=True)
@@ -50,6 +45,7 @@ class Table:
     success: dict[tuple[str, str], tuple[int, int]]  # (row, pattern) -> (successes, trials);
     # (row, Average): summed over the patterns
     failures: list[FailureRow]
+    notes: list[str]  # how the runs' conditions differ (collect.condition_notes)
 
     def best(self, pattern: str, metric: str) -> float | None:
         """The best value of a column, for bold type."""
@@ -98,7 +94,12 @@ def comparison_table(groups: Sequence[Group]) -> Table:
         counts = [success[(row, p)] for p in cols if (row, p) in success]
         success[(row, AVERAGE)] = (sum(c[0] for c in counts), sum(c[1] for c in counts))
     return Table(
-        rows=rows, patterns=cols, values=values, success=success, failures=_failures(groups)
+        rows=rows,
+        patterns=cols,
+        values=values,
+        success=success,
+        failures=_failures(groups),
+        notes=condition_notes(groups),
     )
 
 
@@ -113,7 +114,7 @@ def _failures(groups: Sequence[Group]) -> list[FailureRow]:
             rows.append(
                 FailureRow(
                     label=group.label,
-                    pattern=pattern_title(group.pattern),
+                    pattern=group.pattern,
                     reason=reason,
                     count=count,
                     trial=example.trial,
@@ -127,9 +128,7 @@ def to_markdown(table: Table) -> str:
     """Table I as a markdown table (best of each column in bold), then success per pattern."""
     groups = [*table.patterns, AVERAGE]
     header = ["Method"] + [
-        f"{pattern_title(p)}: {title} {'↓' if lower else '↑'}"
-        for p in groups
-        for _, title, _, _, lower in COLUMNS
+        f"{p}: {title} {'↓' if lower else '↑'}" for p in groups for _, title, _, _, lower in COLUMNS
     ]
     lines = ["| " + " | ".join(header) + " |", "|---" * len(header) + "|"]
     for row in table.rows:
@@ -142,7 +141,7 @@ def to_markdown(table: Table) -> str:
     lines += [
         "",
         "| Method | "
-        + " | ".join(f"{pattern_title(p) if p != AVERAGE else 'all'}: success" for p in groups)
+        + " | ".join(f"{p if p != AVERAGE else 'all'}: success" for p in groups)
         + " |",
         "|---" * (len(groups) + 1) + "|",
     ]
@@ -161,6 +160,8 @@ def to_markdown(table: Table) -> str:
         ]
     else:
         lines.append("No trial failed.")
+    if table.notes:
+        lines += ["", *(f"- {note}" for note in table.notes)]
     return "\n".join(lines) + "\n"
 
 
@@ -197,10 +198,7 @@ def to_latex(table: Table) -> str:
         r"\begin{tabular}{l" + "c" * (n * len(groups)) + "}",
         r"\toprule",
         r"\multirow{2}{*}{\textbf{Method}}"
-        + "".join(
-            rf" & \multicolumn{{{n}}}{{c}}{{\textbf{{{_latex_escape(pattern_title(p))}}}}}"
-            for p in groups
-        )
+        + "".join(rf" & \multicolumn{{{n}}}{{c}}{{\textbf{{{_latex_escape(p)}}}}}" for p in groups)
         + r" \\",
         "".join(rf"\cmidrule(lr){{{2 + i * n}-{1 + (i + 1) * n}}}" for i in range(len(groups))),
         " & ".join(

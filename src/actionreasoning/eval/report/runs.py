@@ -1,0 +1,95 @@
+"""Eval directories read back for a report: each one's run.json and the trials under it.
+
+A directory is named by its resolved path, so one given two ways (``r``, ``./r/``, a link
+to it) is read once. Every line must be a trial of the run its run.json describes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from actionreasoning.errors import ConfigError
+from actionreasoning.eval.results import TrialResult
+from actionreasoning.eval.run_dir import (
+    MANIFEST_FILE,
+    RESULTS_FILE,
+    RunManifest,
+    read_manifest,
+    read_results,
+)
+
+#: run.json fields that do not make trials incomparable: the seed (runs of other seeds are
+#: pooled) and the pattern as it was given (its content is compared, by pattern_sha256).
+NOT_CONDITIONS = ("seed", "pattern")
+
+
+@dataclass(frozen=True)
+class Run:
+    """One eval directory: the run it holds and its finished trials."""
+
+    directory: Path
+    manifest: RunManifest
+    results: tuple[TrialResult, ...]
+
+    def conditions(self) -> dict[str, Any]:
+        """Every run.json field that trials must share to be pooled, nested ones dotted
+        (``budget.max_steps``)."""
+        data = self.manifest.model_dump(mode="json", exclude=set(NOT_CONDITIONS))
+        return _flatten(data)
+
+
+def _flatten(data: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    flat: dict[str, Any] = {}
+    for name, value in data.items():
+        if isinstance(value, dict):
+            flat.update(_flatten(value, f"{prefix}{name}."))
+        else:
+            flat[f"{prefix}{name}"] = value
+    return flat
+
+
+def unique(directories: Sequence[Path]) -> list[Path]:
+    """The directories resolved, each once, in the order first given."""
+    return list(dict.fromkeys(directory.resolve() for directory in directories))
+
+
+def read_runs(directories: Sequence[Path]) -> list[Run]:
+    """The run of every directory, each read once."""
+    return [read_run(directory) for directory in unique(directories)]
+
+
+def read_run(directory: Path) -> Run:
+    """A directory's run; one without results, without run.json, or whose lines belong to
+    another run is an error."""
+    path, stored = directory / RESULTS_FILE, directory / MANIFEST_FILE
+    if not path.is_file():
+        raise ConfigError(f"{directory} holds no {RESULTS_FILE}: not an eval --out directory")
+    if not stored.is_file():
+        raise ConfigError(
+            f"{directory} holds {RESULTS_FILE} but no {MANIFEST_FILE}: the conditions of its "
+            "trials are unknown, so they cannot be compared"
+        )
+    manifest = read_manifest(stored)
+    results = read_results(path)
+    if not results:
+        raise ConfigError(f"{path} is empty: no trial has finished there yet")
+    expected = {
+        "method": manifest.method,
+        "pattern": manifest.pattern,
+        "seed": manifest.seed,
+        "llm": manifest.llm,
+        "physics": manifest.physics.name,
+        "noise": manifest.noise.name,
+    }
+    for number, result in enumerate(results, start=1):
+        for name, value in expected.items():
+            found = getattr(result, name)
+            if found != value:
+                raise ConfigError(
+                    f"{path} line {number} is a trial of {name} {found!r}, but {stored} says "
+                    f"{value!r}: lines of another run were written into this directory"
+                )
+    return Run(directory=directory, manifest=manifest, results=tuple(results))
