@@ -63,7 +63,7 @@ def open_run(out: Path, manifest: RunManifest) -> list[TrialResult]:
             "choose another --out"
         )
     try:
-        previous = RunManifest.model_validate_json(stored.read_text())
+        previous = RunManifest.model_validate_json(stored.read_bytes())
     except ValidationError as error:
         first = error.errors()[0]
         where = ".".join(str(part) for part in first["loc"])
