@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import json
+import subprocess
 from pathlib import Path
 
 import pytest
-from conftest import assert_clean_error, cli
+from conftest import SMALL_PATTERN, assert_clean_error, cli
 
 from actionreasoning.eval.run import RunConfig
 from actionreasoning.eval.trial import Method
@@ -185,3 +186,68 @@ def test_broken_recordings_and_run_files_are_refused_in_one_line(tmp_path: Path,
     llm = ["--llm", f"replay:{tmp_path / name}"] if name == "rec.jsonl" else []
     result = cli("eval", *llm, "--trials", "1", "--out", str(tmp_path / "o"))
     assert_clean_error(result, needle)
+
+
+def assert_usage_error(result: subprocess.CompletedProcess[str], option: str) -> None:
+    """A bad option value: exit 2 and the option named, as for every other bad flag."""
+    assert result.returncode == 2, result.stderr
+    assert "Traceback" not in result.stderr + result.stdout
+    assert option in result.stderr, result.stderr
+
+
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [
+        (("eval", "--seed", "-1"), "--seed"),
+        (("demo", "--seed", "-1"), "--seed"),
+        (("prompt", "--agent", "1", "--seed", "-1"), "--seed"),
+        (("eval", "--max-trial-s", "inf"), "--max-trial-s"),
+        (("eval", "--max-trial-s", "nan"), "--max-trial-s"),
+        (("eval", "--llm-timeout", "inf"), "--llm-timeout"),
+    ],
+)
+def test_out_of_range_numbers_are_refused_as_bad_options(
+    tmp_path: Path, args: tuple[str, ...], option: str
+) -> None:
+    out = () if args[0] == "prompt" else ("--out", str(tmp_path / "o"))  # prompt has no --out
+    result = cli(*args, *out)
+    assert_usage_error(result, option)
+    assert not (tmp_path / "o").exists()
+
+
+def test_unwritable_output_directories_are_refused_in_one_line(tmp_path: Path) -> None:
+    (tmp_path / "afile").write_text("x")
+    for out in ("/proc/actionreasoning-test", str(tmp_path / "afile" / "sub")):
+        result = cli("eval", "--method", "classical", "--trials", "1", "--out", out)
+        assert_clean_error(result, out)
+    result = cli("report", str(tmp_path), "--out", str(tmp_path / "afile"))
+    assert_clean_error(result, str(tmp_path / "afile"))
+
+
+def test_a_binary_run_file_is_refused_in_one_line(tmp_path: Path) -> None:
+    (tmp_path / "o").mkdir()
+    (tmp_path / "o" / "run.json").write_bytes(bytes(range(256)) * 2)
+    (tmp_path / "o" / "results.jsonl").write_text("{}\n")
+    result = cli("eval", "--trials", "1", "--out", str(tmp_path / "o"))
+    assert_clean_error(result, "run.json is damaged")
+
+
+@pytest.mark.slow
+def test_rich_markup_in_names_and_paths_is_printed_as_text(tmp_path: Path) -> None:
+    folder = tmp_path / "p[/]q"  # the slash nests "]q" in "p["
+    folder.mkdir(parents=True)
+    pattern = folder / "x[bold].json"
+    pattern.write_text(json.dumps({**SMALL_PATTERN, "name": "a[/]b"}))
+    shown = cli("pattern", str(pattern))
+    assert shown.returncode == 0, shown.stderr
+    assert "a[/]b" in shown.stdout
+    out = tmp_path / "r[/]"
+    run = cli(
+        "eval", "--method", "classical", "--physics", "precise", "--trials", "1",
+        "--pattern", str(pattern), "--out", str(out),
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr  # it crashed after writing the results
+    assert "classical on" in run.stdout
+    report = cli("report", str(out), "--out", str(tmp_path / "rep"))
+    assert report.returncode == 0, report.stderr
+    assert "x[bold]" in report.stdout  # the column, named after the file

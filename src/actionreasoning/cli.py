@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 import shutil
 from enum import StrEnum
 from pathlib import Path
@@ -73,8 +74,22 @@ NoiseOption = Annotated[
         "noise and per-brick friction, mass and size; see README) or a noise file."
     ),
 ]
+
+
+def _finite(value: float) -> float:
+    if not math.isfinite(value):
+        raise typer.BadParameter(f"{value} is not a finite number of seconds")
+    return value
+
+
 TimeoutOption = Annotated[
-    float, typer.Option(min=0.1, help="Seconds to wait for one answer of the model server.")
+    float,
+    typer.Option(
+        min=0.1, callback=_finite, help="Seconds to wait for one answer of the model server."
+    ),
+]
+SeedOption = Annotated[
+    int, typer.Option(min=0, help="Run seed; trial k uses a seed from (seed, k).")
 ]
 
 
@@ -90,6 +105,16 @@ def _fail(error: ActionReasoningError) -> None:
     raise typer.Exit(code=2)
 
 
+def _output_dir(out: Path) -> None:
+    """Create ``out`` if need be; a directory that cannot be made or written is refused."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise ConfigError(f"cannot create the output directory {out}: {error.strerror}") from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise ConfigError(f"cannot write to the output directory {out}")
+
+
 def _check_options(method: Method, llm: LLMConfig, transcripts: bool) -> None:
     if transcripts and method is Method.CLASSICAL:
         raise ConfigError("--transcripts records agent calls; --method classical makes none")
@@ -100,7 +125,8 @@ def _check_options(method: Method, llm: LLMConfig, transcripts: bool) -> None:
 def _summary_table(summary: RunSummary) -> Table:
     s = summary.successful
     table = Table(
-        title=f"{summary.method} on {summary.pattern}", caption="means ± std over successful trials"
+        title=escape(f"{summary.method} on {summary.pattern}"),
+        caption="means ± std over successful trials",
     )
     for column in ("Rot. Err (°)", "Ctr. Off. (cm)", "IoU (%)", "Success"):
         table.add_column(column, justify="right")
@@ -132,7 +158,7 @@ def eval_command(
     method: Annotated[Method, typer.Option(help="Reasoning method.")] = Method.AGENTS,
     pattern: PatternOption = "pyramid",
     trials: Annotated[int, typer.Option(min=1, help="Number of trials.")] = 10,
-    seed: Annotated[int, typer.Option(help="Run seed; trial k uses a seed from (seed, k).")] = 0,
+    seed: SeedOption = 0,
     llm: LLMOption = "builtin",
     physics: PhysicsOption = "paper",
     noise: NoiseOption = "none",
@@ -163,7 +189,8 @@ def eval_command(
         typer.Option(min=1, help="Simulation steps a trial may take (of the profile's time step)."),
     ] = TrialBudget().max_steps,
     max_trial_s: Annotated[
-        float, typer.Option(min=0.0, help="Wall-clock seconds a trial may take.")
+        float,
+        typer.Option(min=0.0, callback=_finite, help="Wall-clock seconds a trial may take."),
     ] = TrialBudget().max_wall_s,
     ray: Annotated[
         str | None,
@@ -225,7 +252,7 @@ DEMO_FILES = ("results.jsonl", "run.json", "summary.json", "summary.md", "report
 def demo(
     out: Annotated[Path, typer.Option(help="Output directory for the report.")] = Path("demo"),
     pattern: PatternOption = "pyramid",
-    seed: Annotated[int, typer.Option(help="Seed of the demo trial.")] = 0,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the demo trial.")] = 0,
     physics: PhysicsOption = "paper",
     noise: NoiseOption = "none",
 ) -> None:
@@ -282,6 +309,7 @@ def _evaluate(
     """Load the pattern and conditions, run the trials with progress, print the table; errors
     end the command."""
     try:
+        _output_dir(out)
         config = RunConfig(
             method=method,
             pattern_name=pattern,
@@ -303,6 +331,8 @@ def _evaluate(
             summary = run_eval(config, progress)
     except ActionReasoningError as error:
         _fail(error)
+    except OSError as error:
+        _fail(ConfigError(f"{error.filename or out}: {error.strerror}"))
     except KeyboardInterrupt:
         err_console.print(f"interrupted: {RESUME_HINT}", highlight=False)
         raise typer.Exit(code=130) from None
@@ -349,9 +379,12 @@ def report_command(
     content; others are set side by side, and the report names the fields that differ.
     """
     try:
+        _output_dir(out)
         report = build_report(runs, out, gifs=gif)
     except ActionReasoningError as error:
         _fail(error)
+    except OSError as error:
+        _fail(ConfigError(f"{error.filename or out}: {error.strerror}"))
     console.print(_comparison(report.table))
     for note in report.table.notes:
         console.print(note, highlight=False, markup=False, soft_wrap=True)
@@ -372,7 +405,7 @@ def prompt_command(
         ),
     ],
     pattern: PatternOption = "pyramid",
-    seed: Annotated[int, typer.Option(help="Run seed; the scene is that of trial 0.")] = 0,
+    seed: Annotated[int, typer.Option(min=0, help="Run seed; the scene is that of trial 0.")] = 0,
     physics: PhysicsOption = "paper",
     noise: NoiseOption = "none",
 ) -> None:
@@ -407,7 +440,7 @@ def pattern_command(
         goal = load_pattern(pattern, SceneSpec())
     except ActionReasoningError as error:
         _fail(error)
-    table = Table(title=f"pattern {goal.name}: {len(goal.targets)} bricks, valid")
+    table = Table(title=escape(f"pattern {goal.name}: {len(goal.targets)} bricks, valid"))
     for column in ("#", "x (m)", "y (m)", "z (m)", "yaw (deg)"):
         table.add_column(column, justify="right")
     for target in goal.targets:

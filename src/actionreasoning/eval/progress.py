@@ -5,6 +5,7 @@ from __future__ import annotations
 from types import TracebackType
 
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
@@ -75,7 +76,7 @@ class ConsoleProgress:
             )
         if self._bar is not None:
             self._task = self._bar.add_task(
-                self.title, total=total, completed=len(finished), successes=self.successes
+                escape(self.title), total=total, completed=len(finished), successes=self.successes
             )
 
     def finished(self, result: TrialResult) -> None:
