@@ -5,7 +5,12 @@ files, a real full file system where the machine lets one be mounted."""
 from __future__ import annotations
 
 import json
+import os
+import resource
+import shlex
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -57,6 +62,100 @@ def tree(directory: Path) -> dict[str, bytes]:
     """Every file under ``directory`` with its content."""
     files = (path for path in directory.rglob("*") if path.is_file())
     return {str(path.relative_to(directory)): path.read_bytes() for path in files}
+
+
+# 4. a full disk
+
+
+def run_limited(args: list[str], max_file_bytes: int) -> subprocess.CompletedProcess[str]:
+    """The command with no file it writes allowed past ``max_file_bytes`` (RLIMIT_FSIZE: a
+    write beyond is cut short, the next one fails with EFBIG), as on a nearly full disk."""
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (max_file_bytes, max_file_bytes))
+
+    return subprocess.run(
+        [sys.executable, "-m", "actionreasoning", *args],
+        capture_output=True, text=True, timeout=600, preexec_fn=limit,
+    )  # fmt: skip
+
+
+#: Over the largest file a trial writes outside --out (the arm's URDF, in a temporary
+#: directory), under the sheet of stage pictures of a trial.
+OTHER_FILES_BYTES = 20 * 1024
+
+
+def test_a_short_write_of_a_result_ends_the_run_keeping_whole_lines(
+    one_brick: Path, reference: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "run"
+    lines = lines_of(reference)
+    kept = next(k for k in range(len(lines)) if len(b"".join(lines[:k])) > OTHER_FILES_BYTES)
+    first_trials_of(reference, out, kept)
+    limit = len(b"".join(lines[:kept])) + len(lines[kept]) // 2  # the next line half fits
+    result = run_limited(eval_args(one_brick, out, trials=kept + 1), limit)
+    where = str(out / "results.jsonl")
+    assert_clean_error(result, where, "File too large", f"{kept} finished trials kept")
+    assert lines_of(out) == lines[:kept]
+    resumed = cli(*eval_args(one_brick, out, trials=kept + 1))
+    assert resumed.returncode == 0, resumed.stderr
+    assert lines_of(out) == lines[: kept + 1]
+
+
+def test_a_trial_whose_pictures_do_not_fit_keeps_its_result_line(
+    one_brick: Path, reference: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "run"
+    first_trials_of(reference, out, 1)
+    result = run_limited(eval_args(one_brick, out, "--snapshots"), OTHER_FILES_BYTES)
+    assert_clean_error(result, str(out / "snapshots" / "trial_001"), "File too large")
+    assert "2 finished trials kept" in result.stderr
+    assert lines_of(out) == lines_of(reference)[:2]
+
+
+def unshare_mount_works() -> bool:
+    """Whether this user may mount a tmpfs in a user namespace of its own (with 4 KiB pages,
+    which the test counts on)."""
+    if shutil.which("unshare") is None or os.sysconf("SC_PAGE_SIZE") != 4096:
+        return False
+    probe = subprocess.run(
+        ["unshare", "-rm", "sh", "-c", "mount -t tmpfs -o size=4k tmpfs /mnt"],
+        capture_output=True,
+    )
+    return probe.returncode == 0
+
+
+@pytest.mark.skipif(not unshare_mount_works(), reason="no user namespaces to mount a tmpfs")
+def test_a_full_disk_ends_the_run_in_one_line_naming_it(
+    one_brick: Path, reference: Path, tmp_path: Path
+) -> None:
+    """A 16 KiB tmpfs (four pages), mounted in a user namespace (no root needed), holding a
+    run whose results.jsonl fills its first page: the next line needs a page the disk has
+    not got, is written in part, and cut back."""
+    lines = lines_of(reference)
+    kept = next(k for k in range(len(lines)) if len(b"".join(lines[: k + 1])) > 4096)
+    disk, saved = tmp_path / "disk", tmp_path / "saved"
+    disk.mkdir()
+    first_trials_of(reference, tmp_path / "start", kept)
+    run = disk / "run"
+    command = shlex.join(
+        [sys.executable, "-m", "actionreasoning", *eval_args(one_brick, run, trials=kept + 1)]
+    )
+    q_disk, q_run = shlex.quote(str(disk)), shlex.quote(str(run))
+    q_start, q_saved = shlex.quote(str(tmp_path / "start")), shlex.quote(str(saved))
+    script = (
+        f"mount -t tmpfs -o size=16k tmpfs {q_disk} || exit 99; "
+        f"cp -r {q_start} {q_run} && echo x > {q_run}/run.lock; "  # the lock file's page
+        f"dd if=/dev/zero of={q_disk}/filler bs=4096 2>/dev/null; "  # and the disk is full
+        f"{command}; rc=$?; cp -r {q_run} {q_saved}; exit $rc"
+    )
+    result = subprocess.run(
+        ["unshare", "-rm", "sh", "-c", script], capture_output=True, text=True, timeout=600
+    )
+    assert_clean_error(
+        result, f"{run / 'results.jsonl'}: No space left on device", f"disk mounted at {disk}"
+    )
+    assert lines_of(saved) == lines[:kept]
 
 
 # 7. hand-edited result lines

@@ -1,15 +1,17 @@
 """An eval output directory: what run it holds (run.json) and its finished trials.
 
-results.jsonl only ever grows by whole lines, each written with one call, flushed and
-synced as its trial finishes. A run killed at any moment leaves at most a partial last
-line, which resuming cuts off (a whole line that only lacks its newline is kept); a trial
-is never written twice, and a line whose trial index does not fit its seed is refused.
-run.json records what makes trials comparable, so a different configuration cannot be
-mixed into the same directory.
+results.jsonl only ever grows by whole lines, each checked to be written whole and synced
+as its trial finishes; a write that fails (a full disk) is cut back. A run killed at any
+moment leaves at most a partial last line, which resuming cuts off (a whole line that only
+lacks its newline is kept); a trial is never written twice, and a line whose trial index
+does not fit its seed is refused. run.json records what makes trials comparable, so a
+different configuration cannot be mixed into the same directory.
 """
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import hashlib
 import os
 from pathlib import Path
@@ -17,7 +19,7 @@ from typing import IO, Any
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
-from actionreasoning.errors import ConfigError
+from actionreasoning.errors import ConfigError, StorageError
 from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.trial import trial_seed
 from actionreasoning.world.noise import NoiseLevel
@@ -124,7 +126,10 @@ def read_results(path: Path, repair: bool = False) -> list[TrialResult]:
         seen.add(result.trial)
         results.append(result)
     if repair and lines != data:
-        _mend(path, len(data), lines)
+        try:
+            _mend(path, len(data), lines)
+        except OSError as error:
+            raise write_error(path, error, "its whole lines are kept") from error
     return results
 
 
@@ -169,9 +174,49 @@ def _check_index(result: TrialResult, where: str) -> None:
 
 
 def append_result(sink: IO[bytes], result: TrialResult) -> None:
-    """Write one result line with a single system call and push it to the disk.
+    """Append one result line, check that all of it was written and push it to the disk.
 
     ``sink`` is the results file opened unbuffered for appending (``open(path, "ab", 0)``).
+    If anything fails (a full disk), the file is cut back to its whole lines and the error
+    raised.
     """
-    sink.write((result.model_dump_json() + "\n").encode())
-    os.fsync(sink.fileno())
+    line = (result.model_dump_json() + "\n").encode()
+    start = os.fstat(sink.fileno()).st_size
+    try:
+        written = 0
+        while written < len(line):  # one call, unless the disk takes only part of the line
+            count = sink.write(line[written:])
+            if not count:
+                raise OSError(errno.EIO, "the line was not written")
+            written += count
+        os.fsync(sink.fileno())
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.ftruncate(sink.fileno(), start)
+        raise
+
+
+def write_file(path: Path, data: bytes, kept: str) -> None:
+    """Write ``path`` (making its folders); a failure raises :func:`write_error`'s error."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(data)
+    except OSError as error:
+        raise write_error(path, error, kept) from error
+
+
+def write_error(path: Path, error: OSError, kept: str) -> StorageError:
+    """One line for a write that failed: the file, the system's reason, the disk it is on,
+    and ``kept``, what is safe."""
+    return StorageError(
+        f"cannot write {path}: {error.strerror or error} (the disk mounted at "
+        f"{_mount_point(path)}); {kept}; make room, then run the same command again"
+    )
+
+
+def _mount_point(path: Path) -> Path:
+    """The mount point of the file system that holds (or would hold) ``path``."""
+    place = Path(os.path.abspath(path)).parent
+    while not os.path.ismount(place):
+        place = place.parent
+    return place
