@@ -9,8 +9,11 @@ import os
 import resource
 import shlex
 import shutil
+import signal
+import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -62,6 +65,46 @@ def tree(directory: Path) -> dict[str, bytes]:
     """Every file under ``directory`` with its content."""
     files = (path for path in directory.rglob("*") if path.is_file())
     return {str(path.relative_to(directory)): path.read_bytes() for path in files}
+
+
+# 2. two runs into one directory
+
+
+def test_a_second_run_into_a_directory_in_use_is_refused_naming_the_holder(
+    one_brick: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "r"
+    with socket.socket() as silent:  # a model server that accepts and never answers
+        silent.bind(("127.0.0.1", 0))
+        silent.listen(8)
+        url = f"http://127.0.0.1:{silent.getsockname()[1]}/v1"
+        first = subprocess.Popen(
+            [sys.executable, "-m", "actionreasoning", "eval", "--llm", "openai:m", "--base-url",
+             url, "--llm-timeout", "600", "--trials", "2", "--out", str(out)],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        )  # fmt: skip
+        try:
+            lock = out / "run.lock"
+            deadline = time.monotonic() + 120
+            while not (lock.is_file() and f"pid {first.pid} " in lock.read_text()):
+                assert first.poll() is None, "the first run ended"
+                assert time.monotonic() < deadline, "the first run never locked its directory"
+                time.sleep(0.05)
+            manifest = (out / "run.json").read_bytes()
+            second = cli(*eval_args(one_brick, out, "--seed", "7"))
+            assert_clean_error(second, str(out), f"pid {first.pid} on {socket.gethostname()}")
+            assert (out / "run.json").read_bytes() == manifest  # the first run's, seed 0
+            assert json.loads(manifest)["seed"] == 0
+            results = out / "results.jsonl"
+            assert not results.exists() or results.stat().st_size == 0
+        finally:
+            first.send_signal(signal.SIGKILL)
+            first.wait()
+    # The OS dropped the lock with its holder: the directory (no trial in it) is free again.
+    third = cli(*eval_args(one_brick, out, "--seed", "7"))
+    assert third.returncode == 0, third.stderr
+    assert json.loads((out / "run.json").read_text())["seed"] == 7
+    assert [json.loads(line)["trial"] for line in lines_of(out)] == [0, 1]
 
 
 # 4. a full disk

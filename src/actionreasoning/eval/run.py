@@ -2,10 +2,10 @@
 
 results.jsonl gets one line per finished trial, as it finishes; running the same command
 again skips the trials already there (run_dir.py). Trials run one after another, in worker
-processes or on a Ray cluster (jobs.py); only this process writes files. With transcripts,
-transcripts/trial_NNN.jsonl holds every agent call of trial NNN; with snapshots,
-snapshots/trial_NNN/ its pictures, written after its result line, so a disk that fills
-up costs pictures, never a result.
+processes or on a Ray cluster (jobs.py); only this process writes files, and only while it
+holds the directory's lock (run_lock.py). With transcripts, transcripts/trial_NNN.jsonl
+holds every agent call of trial NNN; with snapshots, snapshots/trial_NNN/ its pictures,
+written after its result line, so a disk that fills up costs pictures, never a result.
 summary.json and summary.md are written at the end. A write that fails ends the run with
 a :class:`StorageError` saying what is kept.
 """
@@ -36,6 +36,7 @@ from actionreasoning.eval.run_dir import (
     write_error,
     write_file,
 )
+from actionreasoning.eval.run_lock import run_lock
 from actionreasoning.eval.summary import RunSummary, describe_rule, summarize, summary_markdown
 from actionreasoning.eval.trial import Method, SuccessRule, TrialSpec
 from actionreasoning.reasoners.factory import LLMConfig, prepare
@@ -103,8 +104,14 @@ def check_engine(config: RunConfig) -> None:
 
 
 def run_eval(config: RunConfig, observer: RunObserver | None = None) -> RunSummary:
-    """Run the trials not yet in ``config.out``, append each as it finishes, then summarize."""
+    """Run the trials not yet in ``config.out``, append each as it finishes, then summarize;
+    all while holding the directory, which another run may not write meanwhile."""
     check_engine(config)
+    with run_lock(config.out):
+        return _run_locked(config, observer)
+
+
+def _run_locked(config: RunConfig, observer: RunObserver | None) -> RunSummary:
     finished = open_run(config.out, config.manifest())
     llm = prepare(config.llm) if config.method is not Method.CLASSICAL else config.llm
     done = {r.trial for r in finished}
