@@ -67,6 +67,43 @@ def tree(directory: Path) -> dict[str, bytes]:
     return {str(path.relative_to(directory)): path.read_bytes() for path in files}
 
 
+# 1. demo
+
+
+def test_demo_refuses_a_directory_it_did_not_make(one_brick: Path, tmp_path: Path) -> None:
+    mine = tmp_path / "u"
+    (mine / "report").mkdir(parents=True)
+    (mine / "report.md").write_text("x\n")
+    (mine / "report" / "thesis.tex").write_text("precious\n")
+    before = tree(mine)
+    result = cli("demo", "--pattern", str(one_brick), "--out", str(mine))
+    assert_clean_error(result, str(mine), "not empty")
+    assert tree(mine) == before
+    assert sorted(path.name for path in mine.iterdir()) == ["report", "report.md"]
+
+    a_file = tmp_path / "notes.txt"
+    a_file.write_text("keep\n")
+    assert_clean_error(cli("demo", "--out", str(a_file)), str(a_file), "not a directory")
+    assert a_file.read_text() == "keep\n"
+
+
+@pytest.mark.slow
+def test_demo_writes_a_new_or_empty_directory_and_replaces_its_own(
+    one_brick: Path, tmp_path: Path
+) -> None:
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    for out in (tmp_path / "new", empty):
+        result = cli("demo", "--pattern", str(one_brick), "--out", str(out))
+        assert result.returncode == 0, result.stderr
+        assert (out / ".actionreasoning-demo").is_file() and (out / "report.md").is_file()
+    (empty / "snapshots" / "stale.png").write_bytes(b"old picture")
+    again = cli("demo", "--pattern", str(one_brick), "--seed", "1", "--out", str(empty))
+    assert again.returncode == 0, again.stderr
+    assert not (empty / "snapshots" / "stale.png").exists()
+    assert json.loads(lines_of(empty)[0])["seed"] == 1 and len(lines_of(empty)) == 1
+
+
 # 2. two runs into one directory
 
 
