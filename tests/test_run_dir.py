@@ -12,6 +12,7 @@ from actionreasoning.errors import ConfigError
 from actionreasoning.eval.progress import ConsoleProgress
 from actionreasoning.eval.results import TrialMetrics, TrialResult
 from actionreasoning.eval.run_dir import RunManifest, append_result, open_run, read_results
+from actionreasoning.eval.trial import trial_seed
 from actionreasoning.records import Failure
 from actionreasoning.world.noise import LEVELS
 from actionreasoning.world.physics import PAPER, PRECISE
@@ -32,7 +33,8 @@ MANIFEST = RunManifest(
 
 def result(trial: int, success: bool = True) -> TrialResult:
     return TrialResult(
-        method="agents", pattern="pyramid", seed=0, trial=trial, trial_seed=trial, success=success,
+        method="agents", pattern="pyramid", seed=0, trial=trial, trial_seed=trial_seed(0, trial),
+        success=success,
         llm="builtin", bricks=(), bricks_placed=0,
         metrics=TrialMetrics(
             center_offset_cm=0.01, rotation_error_deg=0.02, symmetric_rotation_error_deg=0.02,
@@ -60,6 +62,19 @@ def test_a_partial_last_line_is_cut_off_and_whole_lines_kept(tmp_path: Path) -> 
     assert path.read_bytes() == whole
 
 
+def test_a_whole_last_line_without_its_newline_is_kept_and_the_newline_added(
+    tmp_path: Path,
+) -> None:
+    write_run(tmp_path, 2)
+    path = tmp_path / "results.jsonl"
+    whole = path.read_bytes()
+    path.write_bytes(whole[:-1])
+    assert [r.trial for r in read_results(path)] == [0, 1]
+    assert path.read_bytes() == whole[:-1]  # reading alone repairs nothing
+    assert [r.trial for r in open_run(tmp_path, MANIFEST)] == [0, 1]
+    assert path.read_bytes() == whole
+
+
 def test_a_different_run_is_refused_naming_what_differs(tmp_path: Path) -> None:
     write_run(tmp_path, 1)
     other = MANIFEST.model_copy(update={"seed": 4, "llm": "openai:m"})
@@ -72,14 +87,19 @@ def test_a_different_run_is_refused_naming_what_differs(tmp_path: Path) -> None:
     [
         ("{not json}\n", r"line 2 is not a trial result"),
         (None, r"line 2 repeats trial 0"),
+        (result(0).model_copy(update={"trial": -1}), r"line 2: trial -1 of seed 0 is not a trial"),
+        (result(1).model_copy(update={"trial": 7}), r"line 2: trial 7 of seed 0 has trial_seed"),
+        (result(1).model_copy(update={"seed": 7, "trial_seed": trial_seed(7, 1)}), r"line 2 is of"),
     ],
 )
 def test_damaged_results_are_refused_with_the_line(
-    tmp_path: Path, damage: str | None, message: str
+    tmp_path: Path, damage: str | TrialResult | None, message: str
 ) -> None:
     write_run(tmp_path, 1)
     path = tmp_path / "results.jsonl"
     first = path.read_text()
+    if isinstance(damage, TrialResult):
+        damage = damage.model_dump_json() + "\n"
     path.write_text(first + (damage or first))
     with pytest.raises(ConfigError, match=message):
         open_run(tmp_path, MANIFEST)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import os
-import shutil
 from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
@@ -18,6 +17,7 @@ from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.prompt import render_prompt
 from actionreasoning.agents.spec import SINGLE_AGENT_START, agent_specs, single_agent_spec
 from actionreasoning.errors import ActionReasoningError, ConfigError
+from actionreasoning.eval.demo_dir import demo_directory
 from actionreasoning.eval.jobs import RESUME_HINT
 from actionreasoning.eval.progress import ConsoleProgress
 from actionreasoning.eval.report.build import build_report
@@ -245,12 +245,11 @@ def eval_command(
     )
 
 
-DEMO_FILES = ("results.jsonl", "run.json", "summary.json", "summary.md", "report.md")
-
-
 @app.command()
 def demo(
-    out: Annotated[Path, typer.Option(help="Output directory for the report.")] = Path("demo"),
+    out: Annotated[
+        Path, typer.Option(help="Output directory: new, empty, or one an earlier demo wrote.")
+    ] = Path("demo"),
     pattern: PatternOption = "pyramid",
     seed: Annotated[int, typer.Option(min=0, help="Seed of the demo trial.")] = 0,
     physics: PhysicsOption = "paper",
@@ -259,35 +258,35 @@ def demo(
     """Build a pattern once with the six agents and write a report with pictures of every stage.
 
     report.md shows the stages and the result; report/report.html adds the plots and an
-    animation of the build. Running it again into the same directory replaces the files.
+    animation of the build. It writes only into a new or empty directory, which it marks as
+    its own (.actionreasoning-demo), or into an earlier demo's, whose files it replaces.
     """
-    if (out / "report.md").exists():
-        for name in DEMO_FILES:
-            (out / name).unlink(missing_ok=True)
-        for folder in ("snapshots", "report"):
-            shutil.rmtree(out / folder, ignore_errors=True)
-    _evaluate(
-        Method.AGENTS,
-        pattern,
-        1,
-        seed,
-        out,
-        llm=LLMConfig(),
-        snapshots=True,
-        physics=physics,
-        noise=noise,
-    )
-    html = build_report([out], out / "report", gifs=True)
-    animation = html.gifs[0][0].relative_to(out)
-    report = out / "report.md"
-    report.write_text(
-        (out / "summary.md").read_text()
-        + "\n## Stages\n\nStages left to right, bricks top to bottom.\n\n"
-        + "![stages](snapshots/trial_000/stages.png)\n\n## Result\n\n"
-        + "![build](snapshots/trial_000/final_build.png)\n"
-        + f"![the build, stage by stage]({animation})\n"
-    )
-    console.print(f"report: {report} and {html.html}", highlight=False, markup=False)
+    try:
+        with demo_directory(out):
+            _evaluate(
+                Method.AGENTS,
+                pattern,
+                1,
+                seed,
+                out,
+                llm=LLMConfig(),
+                snapshots=True,
+                physics=physics,
+                noise=noise,
+            )
+            html = build_report([out], out / "report", gifs=True)
+            animation = html.gifs[0][0].relative_to(out)
+            report = out / "report.md"
+            report.write_text(
+                (out / "summary.md").read_text()
+                + "\n## Stages\n\nStages left to right, bricks top to bottom.\n\n"
+                + "![stages](snapshots/trial_000/stages.png)\n\n## Result\n\n"
+                + "![build](snapshots/trial_000/final_build.png)\n"
+                + f"![the build, stage by stage]({animation})\n"
+            )
+            console.print(f"report: {report} and {html.html}", highlight=False, markup=False)
+    except ActionReasoningError as error:
+        _fail(error)
 
 
 def _evaluate(
@@ -309,7 +308,6 @@ def _evaluate(
     """Load the pattern and conditions, run the trials with progress, print the table; errors
     end the command."""
     try:
-        _output_dir(out)
         config = RunConfig(
             method=method,
             pattern_name=pattern,

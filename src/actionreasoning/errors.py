@@ -41,6 +41,11 @@ class EngineError(ActionReasoningError):
     """A worker process or Ray task running trials died; finished trials are kept."""
 
 
+class StorageError(ActionReasoningError):
+    """An output file could not be written (a full disk, a file size limit); the whole
+    result lines written before are kept."""
+
+
 class LLMError(ActionReasoningError):
     """A language model could not give a valid answer: the server failed or timed out, or
     every repair of its output was refused. ``reason`` is the trial's failure code."""

@@ -2,9 +2,12 @@
 
 results.jsonl gets one line per finished trial, as it finishes; running the same command
 again skips the trials already there (run_dir.py). Trials run one after another, in worker
-processes or on a Ray cluster (jobs.py); only this process writes files. With transcripts,
-transcripts/trial_NNN.jsonl holds every agent call of trial NNN; with snapshots,
-snapshots/trial_NNN/ its pictures. summary.json and summary.md are written at the end.
+processes or on a Ray cluster (jobs.py); only this process writes files, and only while it
+holds the directory's lock (run_lock.py). With transcripts, transcripts/trial_NNN.jsonl
+holds every agent call of trial NNN; with snapshots, snapshots/trial_NNN/ its pictures,
+written after its result line, so a disk that fills up costs pictures, never a result.
+summary.json and summary.md are written at the end. A write that fails ends the run with
+a :class:`StorageError` saying what is kept.
 """
 
 from __future__ import annotations
@@ -30,8 +33,10 @@ from actionreasoning.eval.run_dir import (
     append_result,
     digest,
     open_run,
+    write_error,
+    write_file,
 )
-from actionreasoning.eval.snapshots import save_files
+from actionreasoning.eval.run_lock import run_lock
 from actionreasoning.eval.summary import RunSummary, describe_rule, summarize, summary_markdown
 from actionreasoning.eval.trial import Method, SuccessRule, TrialSpec
 from actionreasoning.reasoners.factory import LLMConfig, prepare
@@ -99,8 +104,14 @@ def check_engine(config: RunConfig) -> None:
 
 
 def run_eval(config: RunConfig, observer: RunObserver | None = None) -> RunSummary:
-    """Run the trials not yet in ``config.out``, append each as it finishes, then summarize."""
+    """Run the trials not yet in ``config.out``, append each as it finishes, then summarize;
+    all while holding the directory, which another run may not write meanwhile."""
     check_engine(config)
+    with run_lock(config.out):
+        return _run_locked(config, observer)
+
+
+def _run_locked(config: RunConfig, observer: RunObserver | None) -> RunSummary:
     finished = open_run(config.out, config.manifest())
     llm = prepare(config.llm) if config.method is not Method.CLASSICAL else config.llm
     done = {r.trial for r in finished}
@@ -128,11 +139,15 @@ def run_eval(config: RunConfig, observer: RunObserver | None = None) -> RunSumma
     if observer is not None:
         observer.started(config.trials, list(results))
     started = time.perf_counter()
-    with (config.out / RESULTS_FILE).open("ab", buffering=0) as sink:
+    path = config.out / RESULTS_FILE
+    with path.open("ab", buffering=0) as sink:
         for output in _engine(config, jobs):
-            _write_outputs(config, output)
-            append_result(sink, output.result)
+            try:
+                append_result(sink, output.result)
+            except OSError as error:
+                raise write_error(path, error, _kept(len(results))) from error
             results.append(output.result)
+            _write_outputs(config, output, _kept(len(results)))
             if observer is not None:
                 observer.finished(output.result)
     mode = None if llm.mode is None else str(llm.mode)
@@ -145,9 +160,16 @@ def run_eval(config: RunConfig, observer: RunObserver | None = None) -> RunSumma
         physics=config.physics,
         noise=config.noise,
     )
-    (config.out / "summary.json").write_text(summary.model_dump_json(indent=2) + "\n")
-    (config.out / "summary.md").write_text(summary_markdown(summary))
+    kept = _kept(len(results))
+    write_file(
+        config.out / "summary.json", (summary.model_dump_json(indent=2) + "\n").encode(), kept
+    )
+    write_file(config.out / "summary.md", summary_markdown(summary).encode(), kept)
     return summary
+
+
+def _kept(finished: int) -> str:
+    return f"{finished} finished trial{'s' if finished != 1 else ''} kept in {RESULTS_FILE}"
 
 
 def _engine(config: RunConfig, jobs: list[TrialJob]) -> Iterator[TrialOutput]:
@@ -158,12 +180,14 @@ def _engine(config: RunConfig, jobs: list[TrialJob]) -> Iterator[TrialOutput]:
     return run_serial(jobs)
 
 
-def _write_outputs(config: RunConfig, output: TrialOutput) -> None:
-    """A trial's transcript and pictures; written before its result line, never after."""
+def _write_outputs(config: RunConfig, output: TrialOutput, kept: str) -> None:
+    """A trial's transcript and pictures, written after its result line."""
     name = f"trial_{output.result.trial:03d}"
+    files: dict[Path, bytes] = {}
     if config.transcripts:
-        path = config.out / "transcripts" / f"{name}.jsonl"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(output.transcript)
+        files[Path("transcripts") / f"{name}.jsonl"] = output.transcript.encode()
     if config.snapshots:
-        save_files(config.out / "snapshots" / name, output.pictures)
+        files |= {Path("snapshots") / name / path: data for path, data in output.pictures.items()}
+    incomplete = f"not all of trial {output.result.trial}'s pictures and transcript are written"
+    for path, data in files.items():
+        write_file(config.out / path, data, f"{incomplete}; {kept}")

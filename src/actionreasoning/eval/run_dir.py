@@ -1,13 +1,17 @@
 """An eval output directory: what run it holds (run.json) and its finished trials.
 
-results.jsonl only ever grows by whole lines, each written with one call, flushed and
-synced as its trial finishes. A run killed at any moment leaves at most a partial last
-line, which resuming cuts off; a trial is never written twice. run.json records what makes
-trials comparable, so a different configuration cannot be mixed into the same directory.
+results.jsonl only ever grows by whole lines, each checked to be written whole and synced
+as its trial finishes; a write that fails (a full disk) is cut back. A run killed at any
+moment leaves at most a partial last line, which resuming cuts off (a whole line that only
+lacks its newline is kept); a trial is never written twice, and a line whose trial index
+does not fit its seed is refused. run.json records what makes trials comparable, so a
+different configuration cannot be mixed into the same directory.
 """
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import hashlib
 import os
 from pathlib import Path
@@ -15,8 +19,9 @@ from typing import IO, Any
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
-from actionreasoning.errors import ConfigError
+from actionreasoning.errors import ConfigError, StorageError
 from actionreasoning.eval.results import TrialResult
+from actionreasoning.eval.trial import trial_seed
 from actionreasoning.world.noise import NoiseLevel
 from actionreasoning.world.physics import PhysicsProfile
 
@@ -72,7 +77,16 @@ def open_run(out: Path, manifest: RunManifest) -> list[TrialResult]:
             f"--out {out} holds a different run ({differences}): choose another --out, "
             "or repeat that run's options to resume it"
         )
-    return read_results(results, repair=True)
+    finished = read_results(results, repair=True)
+    expected = (manifest.method, manifest.pattern, manifest.seed)
+    for number, result in enumerate(finished, start=1):
+        found = (result.method, result.pattern, result.seed)
+        if found != expected:
+            raise ConfigError(
+                f"{results} line {number} is of another run (method, pattern, seed: {found}, "
+                f"{stored} says {expected}): choose another --out"
+            )
+    return finished
 
 
 def read_manifest(path: Path) -> RunManifest:
@@ -100,32 +114,116 @@ def _differences(there: dict[str, Any], now: dict[str, Any], prefix: str = "") -
 
 
 def read_results(path: Path, repair: bool = False) -> list[TrialResult]:
-    """The trials in a results.jsonl; a partial last line is ignored (cut off if ``repair``)."""
+    """The trials in a results.jsonl, every line checked. A last line cut short is ignored
+    and a whole one that only lacks its newline kept; ``repair`` mends the file to match."""
     data = path.read_bytes()
-    whole = data.rfind(b"\n") + 1
-    if repair and whole < len(data):
-        with path.open("r+b") as handle:
-            handle.truncate(whole)
+    lines = _whole_lines(data)
     results: list[TrialResult] = []
     seen: set[int] = set()
-    for number, line in enumerate(data[:whole].splitlines(), start=1):
+    for number, line in enumerate(lines.splitlines(), start=1):
         try:
             result = TrialResult.model_validate_json(line)
         except ValidationError as error:
             raise ConfigError(
                 f"{path} line {number} is not a trial result ({error.errors()[0]['msg']})"
             ) from error
+        _check_index(result, f"{path} line {number}")
         if result.trial in seen:
             raise ConfigError(f"{path} line {number} repeats trial {result.trial}")
         seen.add(result.trial)
         results.append(result)
+    if repair and lines != data:
+        try:
+            _mend(path, len(data), lines)
+        except OSError as error:
+            raise write_error(path, error, "its whole lines are kept") from error
     return results
 
 
+def _mend(path: Path, size: int, lines: bytes) -> None:
+    """Make the file of ``size`` bytes ``lines``: its start, or itself plus a newline."""
+    with path.open("r+b") as handle:
+        kept = min(size, len(lines))
+        handle.truncate(kept)
+        handle.seek(kept)
+        handle.write(lines[kept:])
+        os.fsync(handle.fileno())
+
+
+def _whole_lines(data: bytes) -> bytes:
+    """``data`` ending in a newline: a last line cut short dropped, a missing newline added.
+
+    A line cut short is not JSON; any JSON is a whole line, checked as a result after."""
+    whole = data.rfind(b"\n") + 1
+    if whole == len(data):
+        return data
+    try:
+        TrialResult.model_validate_json(data[whole:])
+    except ValidationError as error:
+        if error.errors()[0]["type"] == "json_invalid":
+            return data[:whole]
+    return data + b"\n"
+
+
+def _check_index(result: TrialResult, where: str) -> None:
+    """Refuse a trial index that cannot be (negative) or is not its seed's (edited)."""
+    if result.trial < 0 or result.seed < 0:
+        raise ConfigError(
+            f"{where}: trial {result.trial} of seed {result.seed} is not a trial "
+            "(indices and seeds are 0 or more)"
+        )
+    expected = trial_seed(result.seed, result.trial)
+    if result.trial_seed != expected:
+        raise ConfigError(
+            f"{where}: trial {result.trial} of seed {result.seed} has trial_seed "
+            f"{result.trial_seed}, not {expected}: the line was edited or damaged"
+        )
+
+
 def append_result(sink: IO[bytes], result: TrialResult) -> None:
-    """Write one result line with a single system call and push it to the disk.
+    """Append one result line, check that all of it was written and push it to the disk.
 
     ``sink`` is the results file opened unbuffered for appending (``open(path, "ab", 0)``).
+    If anything fails (a full disk), the file is cut back to its whole lines and the error
+    raised.
     """
-    sink.write((result.model_dump_json() + "\n").encode())
-    os.fsync(sink.fileno())
+    line = (result.model_dump_json() + "\n").encode()
+    start = os.fstat(sink.fileno()).st_size
+    try:
+        written = 0
+        while written < len(line):  # one call, unless the disk takes only part of the line
+            count = sink.write(line[written:])
+            if not count:
+                raise OSError(errno.EIO, "the line was not written")
+            written += count
+        os.fsync(sink.fileno())
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.ftruncate(sink.fileno(), start)
+        raise
+
+
+def write_file(path: Path, data: bytes, kept: str) -> None:
+    """Write ``path`` (making its folders); a failure raises :func:`write_error`'s error."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(data)
+    except OSError as error:
+        raise write_error(path, error, kept) from error
+
+
+def write_error(path: Path, error: OSError, kept: str) -> StorageError:
+    """One line for a write that failed: the file, the system's reason, the disk it is on,
+    and ``kept``, what is safe."""
+    return StorageError(
+        f"cannot write {path}: {error.strerror or error} (the disk mounted at "
+        f"{_mount_point(path)}); {kept}; make room, then run the same command again"
+    )
+
+
+def _mount_point(path: Path) -> Path:
+    """The mount point of the file system that holds (or would hold) ``path``."""
+    place = Path(os.path.abspath(path)).parent
+    while not os.path.ismount(place):
+        place = place.parent
+    return place

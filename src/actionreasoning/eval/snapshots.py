@@ -10,7 +10,6 @@ simulator, so a trial with snapshots gives the same results as one without.
 from __future__ import annotations
 
 from io import BytesIO
-from pathlib import Path
 
 import imageio.v3 as iio
 import numpy as np
@@ -69,14 +68,6 @@ class SnapshotRecorder:
         self.files["final_build.png"] = png(render(scene, build_closeup(scene)))
         if self._rows:
             self.files[SHEET] = sheet_png(self._rows)
-
-
-def save_files(directory: Path, files: dict[str, bytes]) -> None:
-    """Write ``files`` (relative path -> bytes) under ``directory``."""
-    for name, data in files.items():
-        path = directory / name
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_bytes(data)
 
 
 def sheet_png(rows: dict[int, list[tuple[str, np.ndarray]]]) -> bytes:
