@@ -251,3 +251,14 @@ def test_rich_markup_in_names_and_paths_is_printed_as_text(tmp_path: Path) -> No
     report = cli("report", str(out), "--out", str(tmp_path / "rep"))
     assert report.returncode == 0, report.stderr
     assert "x[bold]" in report.stdout  # the column, named after the file
+
+
+def test_a_run_resumes_with_its_pattern_file_spelled_another_way(
+    tmp_path: Path, small_pattern: Path
+) -> None:
+    common = ("eval", "--method", "classical", "--physics", "precise", "--out", "r")
+    first = cli(*common, "--trials", "1", "--pattern", small_pattern.name, cwd=tmp_path)
+    assert first.returncode == 0, first.stderr
+    again = cli(*common, "--trials", "2", "--pattern", f"./{small_pattern.name}", cwd=tmp_path)
+    assert again.returncode == 0, again.stderr
+    assert "resuming: 1 of 2" in again.stdout

@@ -307,6 +307,8 @@ def _evaluate(
 ) -> RunSummary:
     """Load the pattern and conditions, run the trials with progress, print the table; errors
     end the command."""
+    if Path(pattern).is_file():  # one file, however it is spelled: ./x.json is x.json
+        pattern = os.path.normpath(pattern)
     try:
         config = RunConfig(
             method=method,
