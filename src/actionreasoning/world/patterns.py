@@ -13,8 +13,9 @@ build rows (world x turned by ``spec.build_yaw_rad`` about z), and ``yaw_deg`` m
 from that x axis. So x runs along a row and y points across the rows.
 
 Every pattern is validated before anything runs (fields, a brick size the gripper holds,
-ground, reach, overlaps, support); each problem is a one-line :class:`PatternError` naming
-the file or built-in and the field or brick.
+no more bricks than the pick area holds for every seed, ground, reach, overlaps, support);
+each problem is a one-line :class:`PatternError` naming the file or built-in and the field
+or brick.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from pydantic import BaseModel, ConfigDict, Field, Strict
 from actionreasoning.errors import PatternError
 from actionreasoning.world.config_files import parse_model, read_mapping
 from actionreasoning.world.geometry import Vec3, yaw_quat
+from actionreasoning.world.layout import pick_capacity
 from actionreasoning.world.models import GoalPattern, Pose, TargetBrick
 from actionreasoning.world.scene_spec import (
     FINGERTIPS_BEYOND_TCP_M,
@@ -113,6 +115,7 @@ def load_pattern(name_or_path: str | Path, spec: SceneSpec) -> GoalPattern:
         source, gap = str(name_or_path), None
         pattern = _parse(read_mapping(Path(name_or_path), "pattern file", PatternError), source)
     _check_brick_size(source, pattern.brick_size, spec)
+    _check_pick_area(source, len(pattern.bricks), pattern.brick_size, spec)
     blocks = _place(pattern, spec)
     _validate(source, blocks, spec)
     targets = tuple(
@@ -183,6 +186,16 @@ def _check_brick_size(source: str, size: Vec3, spec: SceneSpec) -> None:
                 f"m (the gripper opens {GRIPPER_GAP_M[0]:g}-{GRIPPER_GAP_M[1]:g} m; "
                 f"catalogue brick {_fmt(spec.brick_size_m)} m)"
             )
+
+
+def _check_pick_area(source: str, count: int, size: Vec3, spec: SceneSpec) -> None:
+    """Refuse more bricks than the pick area holds for every seed (see world/layout.py)."""
+    capacity = pick_capacity(spec, size)
+    if count > capacity:
+        raise PatternError(
+            f"{source}: bricks: {count} bricks, but the pick area holds at most {capacity} "
+            f"bricks of {_fmt(size)} m ({spec.pick_spacing_m(size):.3f} m apart)"
+        )
 
 
 def _validate(source: str, blocks: list[BrickBox], spec: SceneSpec) -> None:
