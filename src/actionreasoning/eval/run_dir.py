@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 
 from actionreasoning.errors import ConfigError
 from actionreasoning.eval.results import TrialResult
+from actionreasoning.world.config_files import read_user_file
 from actionreasoning.world.noise import NoiseLevel
 from actionreasoning.world.physics import PhysicsProfile
 
@@ -63,7 +64,7 @@ def open_run(out: Path, manifest: RunManifest) -> list[TrialResult]:
             "choose another --out"
         )
     try:
-        previous = RunManifest.model_validate_json(stored.read_text())
+        previous = RunManifest.model_validate_json(read_user_file(stored, "run file"))
     except ValidationError as error:
         first = error.errors()[0]
         where = ".".join(str(part) for part in first["loc"])
@@ -94,7 +95,7 @@ def _differences(there: dict[str, Any], now: dict[str, Any], prefix: str = "") -
 
 def read_results(path: Path, repair: bool = False) -> list[TrialResult]:
     """The trials in a results.jsonl; a partial last line is ignored (cut off if ``repair``)."""
-    data = path.read_bytes()
+    data = read_user_file(path, "results file", limit=None)
     whole = data.rfind(b"\n") + 1
     if repair and whole < len(data):
         with path.open("r+b") as handle:
