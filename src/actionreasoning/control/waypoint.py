@@ -205,7 +205,7 @@ class WaypointController:
     def _obstacles(self, start: Vec3) -> list[Obstacle]:
         """Every brick a free move must pass above in transit: all but the one in the hand
         (near the tool centre point, or pressed by both pads however far it slid)."""
-        size = self.scene.spec.brick_size_m
+        size = self.scene.nominal.size_m
         radius = math.hypot(size[0], size[1]) / 2.0 + HAND_RADIUS_M
         obstacles = []
         for brick in range(len(self.scene.bricks)):

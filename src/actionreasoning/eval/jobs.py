@@ -13,10 +13,11 @@ import os
 import socket
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
+from itertools import islice
 
 from actionreasoning.errors import ConfigError, EngineError
 from actionreasoning.eval.results import TrialResult
@@ -24,6 +25,8 @@ from actionreasoning.eval.snapshots import SnapshotRecorder
 from actionreasoning.eval.trial import SuccessRule, TrialSpec, run_trial
 
 PARENT_POLL_S = 0.5
+#: Jobs handed out ahead per worker (or Ray CPU): one running, one waiting to start.
+IN_FLIGHT = 2
 RESUME_HINT = "the finished trials are saved: run the same command to run the rest"
 
 
@@ -60,7 +63,7 @@ def execute(job: TrialJob) -> TrialOutput:
     )
 
 
-def run_serial(jobs: Sequence[TrialJob]) -> Iterator[TrialOutput]:
+def run_serial(jobs: Iterable[TrialJob]) -> Iterator[TrialOutput]:
     """Jobs one after another in this process."""
     for job in jobs:
         yield execute(job)
@@ -78,8 +81,11 @@ def _exit_with_parent(parent: int) -> None:
     threading.Thread(target=watch, daemon=True).start()
 
 
-def run_in_processes(jobs: Sequence[TrialJob], workers: int) -> Iterator[TrialOutput]:
-    """Jobs in ``workers`` fresh processes, yielded as they finish (not in trial order)."""
+def run_in_processes(jobs: Iterable[TrialJob], workers: int) -> Iterator[TrialOutput]:
+    """Jobs in ``workers`` fresh processes, yielded as they finish (not in trial order).
+
+    Jobs are taken from ``jobs`` as workers free up, IN_FLIGHT per worker at most.
+    """
     # spawn, not fork: a worker must not inherit this process's simulator clients or threads.
     context = multiprocessing.get_context("spawn")
     pool = ProcessPoolExecutor(
@@ -88,10 +94,14 @@ def run_in_processes(jobs: Sequence[TrialJob], workers: int) -> Iterator[TrialOu
         initializer=_exit_with_parent,
         initargs=(os.getpid(),),
     )
-    pending: set[Future[TrialOutput]] = {pool.submit(execute, job) for job in jobs}
+    queue = iter(jobs)
+    pending: set[Future[TrialOutput]] = {
+        pool.submit(execute, job) for job in islice(queue, IN_FLIGHT * workers)
+    }
     try:
         while pending:
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            pending |= {pool.submit(execute, job) for job in islice(queue, len(done))}
             for future in sorted(done, key=lambda f: f.result().result.trial):
                 yield future.result()
     except BrokenProcessPool as error:
@@ -116,8 +126,9 @@ def _probe(address: str, timeout_s: float = 5.0) -> None:
         raise ConfigError(f"--ray {address}: no Ray cluster answers there ({error})") from error
 
 
-def run_on_ray(jobs: Sequence[TrialJob], address: str) -> Iterator[TrialOutput]:
-    """Jobs as tasks on the Ray cluster at ``address`` (``auto``: the one on this machine)."""
+def run_on_ray(jobs: Iterable[TrialJob], address: str) -> Iterator[TrialOutput]:
+    """Jobs as tasks on the Ray cluster at ``address`` (``auto``: the one on this machine),
+    IN_FLIGHT per CPU of the cluster at most."""
     try:
         import ray
     except ImportError as error:
@@ -131,9 +142,12 @@ def run_on_ray(jobs: Sequence[TrialJob], address: str) -> Iterator[TrialOutput]:
         raise ConfigError(f"--ray {address}: cannot join a Ray cluster there ({error})") from error
     try:
         task = ray.remote(num_cpus=1)(execute)
-        pending = [task.remote(job) for job in jobs]
+        queue = iter(jobs)
+        cpus = max(1, int(ray.cluster_resources().get("CPU", 1)))
+        pending = [task.remote(job) for job in islice(queue, IN_FLIGHT * cpus)]
         while pending:
             done, pending = ray.wait(pending, num_returns=1)
+            pending += [task.remote(job) for job in islice(queue, 1)]
             try:
                 output = ray.get(done[0])
             except ray.exceptions.RayError as error:

@@ -114,34 +114,15 @@ def run_eval(config: RunConfig, observer: RunObserver | None = None) -> RunSumma
 def _run_locked(config: RunConfig, observer: RunObserver | None) -> RunSummary:
     finished = open_run(config.out, config.manifest())
     llm = prepare(config.llm) if config.method is not Method.CLASSICAL else config.llm
-    done = {r.trial for r in finished}
-    jobs = [
-        TrialJob(
-            spec=TrialSpec(
-                method=config.method,
-                pattern_name=config.pattern_name,
-                goal=config.goal,
-                run_seed=config.seed,
-                trial=trial,
-                llm=llm,
-                budget=config.budget,
-                physics=config.physics,
-                noise=config.noise,
-            ),
-            rule=config.rule,
-            snapshots=config.snapshots,
-            transcripts=config.transcripts,
-        )
-        for trial in range(config.trials)
-        if trial not in done
-    ]
     results = [r for r in finished if r.trial < config.trials]
+    resumed = len(results)
     if observer is not None:
         observer.started(config.trials, list(results))
+    jobs = _jobs(config, llm, {r.trial for r in results})
     started = time.perf_counter()
     path = config.out / RESULTS_FILE
     with path.open("ab", buffering=0) as sink:
-        for output in _engine(config, jobs):
+        for output in _engine(config, jobs, config.trials - resumed):
             try:
                 append_result(sink, output.result)
             except OSError as error:
@@ -156,7 +137,7 @@ def _run_locked(config: RunConfig, observer: RunObserver | None) -> RunSummary:
         time.perf_counter() - started,
         config.rule,
         llm_mode=mode,
-        resumed_trials=len(results) - len(jobs),
+        resumed_trials=resumed,
         physics=config.physics,
         noise=config.noise,
     )
@@ -172,11 +153,37 @@ def _kept(finished: int) -> str:
     return f"{finished} finished trial{'s' if finished != 1 else ''} kept in {RESULTS_FILE}"
 
 
-def _engine(config: RunConfig, jobs: list[TrialJob]) -> Iterator[TrialOutput]:
+def _jobs(config: RunConfig, llm: LLMConfig, done: set[int]) -> Iterator[TrialJob]:
+    """The trials not in ``done``, in order, each made when an engine asks for it: a run of
+    any length starts at once and holds only the jobs in flight."""
+    for trial in range(config.trials):
+        if trial in done:
+            continue
+        spec = TrialSpec(
+            method=config.method,
+            pattern_name=config.pattern_name,
+            goal=config.goal,
+            run_seed=config.seed,
+            trial=trial,
+            llm=llm,
+            budget=config.budget,
+            physics=config.physics,
+            noise=config.noise,
+        )
+        yield TrialJob(
+            spec=spec,
+            rule=config.rule,
+            snapshots=config.snapshots,
+            transcripts=config.transcripts,
+        )
+
+
+def _engine(config: RunConfig, jobs: Iterator[TrialJob], count: int) -> Iterator[TrialOutput]:
+    """The engine for ``count`` jobs."""
     if config.ray:
         return run_on_ray(jobs, config.ray)
-    if config.workers > 1 and len(jobs) > 1:
-        return run_in_processes(jobs, min(config.workers, len(jobs)))
+    if config.workers > 1 and count > 1:
+        return run_in_processes(jobs, min(config.workers, count))
     return run_serial(jobs)
 
 

@@ -22,6 +22,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 from actionreasoning.errors import ConfigError, StorageError
 from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.trial import trial_seed
+from actionreasoning.world.config_files import read_user_file
 from actionreasoning.world.noise import NoiseLevel
 from actionreasoning.world.physics import PhysicsProfile
 
@@ -92,7 +93,7 @@ def open_run(out: Path, manifest: RunManifest) -> list[TrialResult]:
 def read_manifest(path: Path) -> RunManifest:
     """The run.json at ``path``; a damaged one, or one of another version, is an error."""
     try:
-        return RunManifest.model_validate_json(path.read_bytes())
+        return RunManifest.model_validate_json(read_user_file(path, "run file"))
     except ValidationError as error:
         first = error.errors()[0]
         where = ".".join(str(part) for part in first["loc"])
@@ -116,7 +117,7 @@ def _differences(there: dict[str, Any], now: dict[str, Any], prefix: str = "") -
 def read_results(path: Path, repair: bool = False) -> list[TrialResult]:
     """The trials in a results.jsonl, every line checked. A last line cut short is ignored
     and a whole one that only lacks its newline kept; ``repair`` mends the file to match."""
-    data = path.read_bytes()
+    data = read_user_file(path, "results file", limit=None)
     lines = _whole_lines(data)
     results: list[TrialResult] = []
     seen: set[int] = set()

@@ -104,22 +104,22 @@ class TrialWorld:
 
 @contextmanager
 def trial_world(spec: TrialSpec) -> Iterator[TrialWorld]:
-    """The trial's world under its physics profile and perturbations, closed on exit."""
+    """The trial's world under its physics profile and perturbations, closed on exit: one
+    brick of the goal's size per target, its mass scaled from the catalogue brick's."""
     seed = trial_seed(spec.run_seed, spec.trial)
-    count = len(spec.goal.targets)
-    nominal = spec.scene.brick_body(spec.physics.brick_lateral_friction)
+    count, size = len(spec.goal.targets), spec.goal.brick_size_m
+    nominal = spec.scene.brick_body(spec.physics.brick_lateral_friction, size)
     bodies = vary_bricks(spec.noise.variation, nominal, count, seed)
+    laid_out = sample_pick_poses(np.random.default_rng(seed), count, spec.scene, size)
     poses = [
         pose.model_copy(update={"position_m": (*pose.position_m[:2], body.size_m[2] / 2.0)})
-        for pose, body in zip(
-            sample_pick_poses(np.random.default_rng(seed), count, spec.scene), bodies, strict=True
-        )
+        for pose, body in zip(laid_out, bodies, strict=True)
     ]
     with ExitStack() as cleanup:
         arm = KinematicArm()
         cleanup.callback(arm.close)
         ready = arm.solve(READY_POSE.position_m, READY_POSE.quat_xyzw).joints_rad
-        scene = Scene(spec.scene, poses, ready, spec.physics, spec.budget, bodies)
+        scene = Scene(spec.scene, poses, ready, spec.physics, spec.budget, bodies, nominal)
         cleanup.callback(scene.close)
         scene.step(scene.ticks_for(SPAWN_SETTLE_S))
         yield TrialWorld(scene=scene, arm=arm, seed=seed, sensor=Sensor(scene, spec.noise, seed))

@@ -102,8 +102,8 @@ class Sensor:
                 BrickState(
                     id=i,
                     size_m=scene.bodies[i].size_m,
-                    mass_kg=scene.spec.brick_mass_kg,
-                    friction=physics.brick_lateral_friction,
+                    mass_kg=scene.nominal.mass_kg,
+                    friction=scene.nominal.lateral_friction,
                     pose=Pose(position_m=position, quat_xyzw=quat),
                     linear_velocity_mps=linear,
                     angular_velocity_radps=angular,

@@ -15,13 +15,15 @@ from pathlib import Path
 import pybullet as p
 import pybullet_data
 
+from actionreasoning.world.scene_spec import FINGERTIPS_BEYOND_TCP_M, GRIPPER_GAP_M
+
 ARM_JOINTS: tuple[int, ...] = tuple(range(7))
 FINGER_LEFT = 8
 FINGER_RIGHT = 9
 TCP_LINK = 10
-FINGER_MIN_M = 0.03
-FINGER_MAX_M = 0.08
-FINGER_PAD_BELOW_TCP_M = 0.02
+FINGER_MIN_M = GRIPPER_GAP_M[0] / 2.0
+FINGER_MAX_M = GRIPPER_GAP_M[1] / 2.0
+FINGER_PAD_BELOW_TCP_M = FINGERTIPS_BEYOND_TCP_M
 
 
 def load_robot(client: int) -> int:

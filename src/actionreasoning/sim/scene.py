@@ -70,7 +70,11 @@ class FingerContact:
 
 
 class Scene:
-    """One trial's world. Bricks have ids 0..n-1 in spawn order."""
+    """One trial's world. Bricks have ids 0..n-1 in spawn order.
+
+    ``nominal`` is the brick the agents are told of (default: the spec's catalogue brick);
+    ``bodies`` are the bricks spawned (default: the nominal brick, once per pose).
+    """
 
     def __init__(
         self,
@@ -80,11 +84,12 @@ class Scene:
         physics: PhysicsProfile = PAPER,
         budget: TrialBudget = TrialBudget(),
         bodies: Sequence[BrickBody] | None = None,
+        nominal: BrickBody | None = None,
     ) -> None:
         self.spec = spec
         self.physics = physics
-        nominal = spec.brick_body(physics.brick_lateral_friction)
-        self.bodies = tuple(bodies) if bodies is not None else (nominal,) * len(brick_poses)
+        self.nominal = nominal or spec.brick_body(physics.brick_lateral_friction)
+        self.bodies = tuple(bodies) if bodies is not None else (self.nominal,) * len(brick_poses)
         self.budget = budget
         self._deadline = time.monotonic() + budget.max_wall_s
         self.client = p.connect(p.DIRECT)

@@ -2,11 +2,15 @@
 
 Every problem becomes one line naming the file and the field, raised as the error class
 the caller passes (a :class:`PatternError` for patterns, a :class:`ConfigError` else).
+Every file a user names is read through :func:`read_user_file`: only a regular file, and
+only up to a size limit, so a FIFO, a device or a huge file cannot hang or exhaust a run.
 """
 
 from __future__ import annotations
 
 import json
+import os
+import stat
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, TypeVar
@@ -25,6 +29,66 @@ _PARSERS = {
 }
 
 
+#: The largest pattern, physics, noise or run file read.
+MAX_FILE_BYTES = 1 << 20
+_CHUNK = 1 << 20
+
+_KINDS = {
+    stat.S_IFDIR: "a directory",
+    stat.S_IFIFO: "a FIFO",
+    stat.S_IFCHR: "a character device",
+    stat.S_IFBLK: "a block device",
+    stat.S_IFSOCK: "a socket",
+}
+
+
+def read_user_file(
+    path: Path,
+    what: str,
+    error: type[ActionReasoningError] = ConfigError,
+    limit: int | None = MAX_FILE_BYTES,
+) -> bytes:
+    """The bytes of the ``what`` file (e.g. "pattern file") at ``path``, a regular file
+    (symlinks followed) of at most ``limit`` bytes (None: no limit); else a one-line ``error``.
+
+    Opening does not block (a FIFO without a writer opens at once and is then refused).
+    """
+    try:
+        descriptor = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    except OSError as exc:
+        raise error(f"{path}: cannot read {what} ({one_line(exc.strerror or exc)})") from exc
+    try:
+        mode = os.fstat(descriptor).st_mode
+        if not stat.S_ISREG(mode):
+            kind = _KINDS.get(stat.S_IFMT(mode), "not a file")
+            raise error(f"{path}: cannot read {what} ({kind}, not a regular file)")
+        data = _read(descriptor, limit)
+    except OSError as exc:
+        raise error(f"{path}: cannot read {what} ({one_line(exc.strerror or exc)})") from exc
+    finally:
+        os.close(descriptor)
+    if limit is not None and len(data) > limit:
+        raise error(f"{path}: cannot read {what} (larger than {_size(limit)})")
+    return data
+
+
+def _read(descriptor: int, limit: int | None) -> bytes:
+    """Everything in the open file, or (past ``limit`` bytes) enough to tell it is larger."""
+    chunks: list[bytes] = []
+    total = 0
+    while limit is None or total <= limit:
+        chunk = os.read(descriptor, _CHUNK)
+        if not chunk:
+            break
+        chunks.append(chunk)
+        total += len(chunk)
+    return b"".join(chunks)
+
+
+def _size(limit: int) -> str:
+    return f"{limit >> 20} MiB" if limit % (1 << 20) == 0 else f"{limit} bytes"
+
+
 def one_line(text: object) -> str:
     """``text`` with every run of whitespace (newlines too) turned into one space."""
     return " ".join(str(text).split())
@@ -36,11 +100,15 @@ def read_mapping(path: Path, what: str, error: type[ActionReasoningError]) -> di
     if suffix not in _PARSERS:
         raise error(f"{path}: unknown extension '{suffix}' (use .json, .yaml or .yml)")
     kind, parse = _PARSERS[suffix]
+    raw = read_user_file(path, what, error)
     try:
-        data = parse(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as exc:  # first: UnicodeDecodeError is a ValueError
-        reason = one_line(getattr(exc, "strerror", None) or exc)
-        raise error(f"{path}: cannot read {what} ({reason})") from exc
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(f"{path}: cannot read {what} ({one_line(exc)})") from exc
+    try:
+        data = parse(text)
+    except RecursionError as exc:
+        raise error(f"{path}: not valid {kind} (nested too deeply)") from exc
     except (ValueError, yaml.YAMLError) as exc:
         raise error(f"{path}: not valid {kind} ({one_line(exc)})") from exc
     if not isinstance(data, dict):

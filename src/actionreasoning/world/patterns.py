@@ -12,8 +12,10 @@ in the scene's build-area frame: its origin at ``spec.build_center_m``, its x ax
 build rows (world x turned by ``spec.build_yaw_rad`` about z), and ``yaw_deg`` measured
 from that x axis. So x runs along a row and y points across the rows.
 
-Every pattern is validated before anything runs (fields, ground, reach, overlaps, support);
-each problem is a one-line :class:`PatternError` naming the file or built-in and the field or brick.
+Every pattern is validated before anything runs (fields, a brick size the gripper holds,
+no more bricks than the pick area holds for every seed, ground, reach, overlaps, support);
+each problem is a one-line :class:`PatternError` naming the file or built-in and the field
+or brick.
 """
 
 from __future__ import annotations
@@ -27,9 +29,15 @@ from pydantic import BaseModel, ConfigDict, Field, Strict
 
 from actionreasoning.errors import PatternError
 from actionreasoning.world.config_files import parse_model, read_mapping
-from actionreasoning.world.geometry import yaw_quat
+from actionreasoning.world.geometry import Vec3, yaw_quat
+from actionreasoning.world.layout import pick_capacity
 from actionreasoning.world.models import GoalPattern, Pose, TargetBrick
-from actionreasoning.world.scene_spec import SceneSpec
+from actionreasoning.world.scene_spec import (
+    FINGERTIPS_BEYOND_TCP_M,
+    GRIPPER_GAP_M,
+    PALM_BEHIND_TCP_M,
+    SceneSpec,
+)
 from actionreasoning.world.support import (
     MIN_AREA_M2,
     SUPPORT_TOL_M,
@@ -37,8 +45,18 @@ from actionreasoning.world.support import (
     carriers,
     centre_is_held,
 )
+from actionreasoning.world.tolerances import Tolerances
 
 OVERLAP_TOL_M = 1e-3  # z-overlap allowed between bricks, and how far below ground a bottom goes
+#: A brick's width is this much more than the gripper's closed gap, and this much less than
+#: its open gap minus sigma_2's opening delta.
+GRIP_MARGIN_M = 0.01
+#: Grasped at its centre, a brick's bottom lies this much beyond the fingertips (they stay
+#: off the ground) and its top this much short of the palm.
+FINGERTIP_CLEARANCE_M = 0.0025
+PALM_CLEARANCE_M = 0.0075
+#: Every edge of a pattern's brick lies within these shares of the catalogue brick's edge.
+SIZE_SHARES = (0.5, 1.5)
 
 #: Built-ins: bricks per layer (each layer a row centred over the one below) and the gap.
 _BUILTINS = {"pyramid": ((3, 2, 1), 0.05), "grid": ((3, 3), 0.02)}
@@ -96,6 +114,8 @@ def load_pattern(name_or_path: str | Path, spec: SceneSpec) -> GoalPattern:
     else:
         source, gap = str(name_or_path), None
         pattern = _parse(read_mapping(Path(name_or_path), "pattern file", PatternError), source)
+    _check_brick_size(source, pattern.brick_size, spec)
+    _check_pick_area(source, len(pattern.bricks), pattern.brick_size, spec)
     blocks = _place(pattern, spec)
     _validate(source, blocks, spec)
     targets = tuple(
@@ -128,6 +148,54 @@ def _place(pattern: PatternFile, spec: SceneSpec) -> list[BrickBox]:
         for i, brick in enumerate(pattern.bricks)
         for x, y, z in [brick.position]
     ]
+
+
+def brick_size_limits(spec: SceneSpec) -> tuple[tuple[float, float], ...]:
+    """The smallest and largest length, width and height of a pattern's brick.
+
+    Each edge is within SIZE_SHARES of the catalogue brick's. The gripper squeezes the width
+    (y), so the pads must close on it and open wide enough to pass it (sigma_2). Grasped at
+    its centre, the brick must reach past the fingertips and stay short of the palm.
+    """
+    low, high = SIZE_SHARES
+    x, y, z = ((edge * low, edge * high) for edge in spec.brick_size_m)
+    width = (
+        GRIPPER_GAP_M[0] + GRIP_MARGIN_M,
+        GRIPPER_GAP_M[1] - Tolerances().delta_m - GRIP_MARGIN_M,
+    )
+    height = (
+        2.0 * (FINGERTIPS_BEYOND_TCP_M + FINGERTIP_CLEARANCE_M),
+        2.0 * (PALM_BEHIND_TCP_M - PALM_CLEARANCE_M),
+    )
+    return (
+        x,
+        (max(y[0], width[0]), min(y[1], width[1])),
+        (max(z[0], height[0]), min(z[1], height[1])),
+    )
+
+
+def _check_brick_size(source: str, size: Vec3, spec: SceneSpec) -> None:
+    """Refuse a brick the gripper cannot hold, or of a size far from the catalogue brick's."""
+    names = ("length", "width (across the gripper)", "height")
+    for axis, (edge, (low, high), name) in enumerate(
+        zip(size, brick_size_limits(spec), names, strict=True)
+    ):
+        if not low <= edge <= high:
+            raise PatternError(
+                f"{source}: brick_size[{axis}]: {name} {edge:g} m is outside {low:.3f}-{high:.3f} "
+                f"m (the gripper opens {GRIPPER_GAP_M[0]:g}-{GRIPPER_GAP_M[1]:g} m; "
+                f"catalogue brick {_fmt(spec.brick_size_m)} m)"
+            )
+
+
+def _check_pick_area(source: str, count: int, size: Vec3, spec: SceneSpec) -> None:
+    """Refuse more bricks than the pick area holds for every seed (see world/layout.py)."""
+    capacity = pick_capacity(spec, size)
+    if count > capacity:
+        raise PatternError(
+            f"{source}: bricks: {count} bricks, but the pick area holds at most {capacity} "
+            f"bricks of {_fmt(size)} m ({spec.pick_spacing_m(size):.3f} m apart)"
+        )
 
 
 def _validate(source: str, blocks: list[BrickBox], spec: SceneSpec) -> None:

@@ -12,6 +12,13 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.world.geometry import Vec3
 
+#: The gripper (sim/assets/gripper.urdf.xml; sim/robot_model.py takes these from here): the
+#: gap between its pads closed and fully open (the finger joints' limits, doubled), and how
+#: far its fingertips reach beyond the tool centre point and its palm sits behind it.
+GRIPPER_GAP_M = (0.06, 0.16)
+FINGERTIPS_BEYOND_TCP_M = 0.02
+PALM_BEHIND_TCP_M = 0.05
+
 
 class ReachBand(BaseModel):
     """Where a top-down tool centre point can go: an annulus around the base, up to a height."""
@@ -58,23 +65,32 @@ class SceneSpec(BaseModel):
 
     model_config = ConfigDict(frozen=True)
 
-    brick_size_m: Vec3 = (0.20, 0.095, 0.06)
-    brick_mass_kg: float = 1.5
+    brick_size_m: Vec3 = Field(
+        (0.20, 0.095, 0.06), description="The catalogue brick; a pattern may use another size."
+    )
+    brick_mass_kg: float = Field(1.5, description="The catalogue brick's mass.")
     build_radius_m: float = 0.58
     build_azimuth_deg: float = 40.0
     pick_radius_m: tuple[float, float] = (0.44, 0.72)
     pick_azimuth_deg: tuple[float, float] = (-150.0, -15.0)
     pick_min_spacing_m: float = Field(
-        0.24, description="Minimum centre distance of spawned bricks."
+        0.24, description="Minimum centre distance of spawned catalogue bricks."
     )
     reach: ReachBand = ReachBand()
     workspace: WorkspaceBox = WorkspaceBox()
 
-    def brick_body(self, lateral_friction: float) -> BrickBody:
-        """The catalogue brick: this spec's size and mass, with the given friction."""
-        return BrickBody(
-            size_m=self.brick_size_m, mass_kg=self.brick_mass_kg, lateral_friction=lateral_friction
-        )
+    def brick_body(self, lateral_friction: float, size_m: Vec3 | None = None) -> BrickBody:
+        """A catalogue brick of ``size_m`` (default: this spec's size) with the given
+        friction; its mass is this spec's brick mass scaled by volume (the same density)."""
+        size = self.brick_size_m if size_m is None else size_m
+        mass = self.brick_mass_kg * (math.prod(size) / math.prod(self.brick_size_m))
+        return BrickBody(size_m=size, mass_kg=mass, lateral_friction=lateral_friction)
+
+    def pick_spacing_m(self, size_m: Vec3) -> float:
+        """Least centre distance of spawned bricks of ``size_m``: the minimum spacing, widened
+        in proportion to a footprint whose diagonal is longer than this spec's brick's."""
+        widen = math.hypot(*size_m[:2]) / math.hypot(*self.brick_size_m[:2])
+        return self.pick_min_spacing_m * max(1.0, widen)
 
     @property
     def build_center_m(self) -> Vec3:

@@ -1,0 +1,123 @@
+"""Files a user names are read only when they are regular files of at most 1 MiB, and
+parsed without a traceback however deep they nest: one line and exit code 2 otherwise."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import pytest
+from conftest import SMALL_PATTERN, assert_clean_error, cli
+
+from actionreasoning.errors import ConfigError
+from actionreasoning.eval.run_dir import MANIFEST_FILE, RESULTS_FILE, read_results
+from actionreasoning.world.config_files import MAX_FILE_BYTES, read_user_file
+from actionreasoning.world.noise import load_noise
+from actionreasoning.world.physics import load_physics
+
+#: The loaders of physics and noise files, by how their errors name the file.
+LOADERS = {"physics file": load_physics, "noise file": load_noise}
+#: Bad files: how to make one at a path, and what its error says.
+BAD_FILES = {
+    "fifo": (os.mkfifo, "(a FIFO, not a regular file)"),
+    "dev_zero": (
+        lambda path: path.symlink_to("/dev/zero"),
+        "(a character device, not a regular file)",
+    ),
+    "directory": (Path.mkdir, "(a directory, not a regular file)"),
+    "large": (
+        lambda path: path.write_text(" " * MAX_FILE_BYTES + "{}"),
+        "(larger than 1 MiB)",
+    ),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("case", sorted(BAD_FILES))
+def test_a_pattern_that_is_no_regular_file_or_too_large_is_refused_at_once(
+    tmp_path: Path, case: str
+) -> None:
+    make, reason = BAD_FILES[case]
+    path = tmp_path / f"{case}.yaml"
+    make(path)
+    out = tmp_path / "out"
+    # Before: a FIFO blocked for ever (the timeout fails the test), /dev/zero filled memory.
+    result = cli("eval", "--pattern", str(path), "--out", str(out), timeout=120)
+    assert_clean_error(result, f"{path}: cannot read pattern file {reason}")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("what", sorted(LOADERS))
+@pytest.mark.parametrize("case", sorted(BAD_FILES))
+def test_a_physics_or_noise_file_that_is_no_regular_file_or_too_large_is_refused(
+    tmp_path: Path, what: str, case: str
+) -> None:
+    make, reason = BAD_FILES[case]
+    path = tmp_path / f"{case}.yaml"
+    make(path)
+    with pytest.raises(ConfigError) as info:
+        LOADERS[what](str(path))
+    assert str(info.value) == f"{path}: cannot read {what} {reason}"
+
+
+NESTED = {
+    "deep.json": "[" * 100_000 + "]" * 100_000,
+    "deep_object.json": '{"a": ' * 100_000 + "1" + "}" * 100_000,
+    "deep.yaml": "[" * 100_000 + "]" * 100_000,
+    "deep_block.yaml": "- " * 100_000 + "x\n",
+}
+
+
+@pytest.mark.parametrize("name", sorted(NESTED))
+def test_a_pattern_nested_100000_deep_is_refused_in_one_line(tmp_path: Path, name: str) -> None:
+    path = tmp_path / name
+    path.write_text(NESTED[name])
+    kind = "JSON" if path.suffix == ".json" else "YAML"
+    assert_clean_error(cli("pattern", str(path)), f"{path}: not valid {kind} (nested too deeply)")
+
+
+@pytest.mark.parametrize("what", sorted(LOADERS))
+@pytest.mark.parametrize("name", sorted(NESTED))
+def test_a_physics_or_noise_file_nested_100000_deep_is_refused(
+    tmp_path: Path, what: str, name: str
+) -> None:
+    path = tmp_path / name
+    path.write_text(NESTED[name])
+    kind = "JSON" if path.suffix == ".json" else "YAML"
+    with pytest.raises(ConfigError) as info:
+        LOADERS[what](str(path))
+    assert str(info.value) == f"{path}: not valid {kind} (nested too deeply)"
+
+
+def test_the_pattern_command_refuses_a_fifo_too(tmp_path: Path) -> None:
+    fifo = tmp_path / "pattern.json"
+    os.mkfifo(fifo)
+    result = cli("pattern", str(fifo), timeout=120)
+    assert_clean_error(result, "pattern file (a FIFO, not a regular file)")
+
+
+def test_a_file_of_exactly_the_limit_is_read(tmp_path: Path) -> None:
+    path = tmp_path / "limit.json"
+    text = json.dumps(SMALL_PATTERN)
+    path.write_text(text + " " * (MAX_FILE_BYTES - len(text)))
+    assert read_user_file(path, "pattern file") == path.read_bytes()
+
+
+def test_a_run_file_that_is_a_fifo_is_refused_on_resume(
+    tmp_path: Path, small_pattern: Path
+) -> None:
+    out = tmp_path / "out"
+    args = ["eval", "--method", "classical", "--pattern", str(small_pattern), "--out", str(out)]
+    out.mkdir()
+    (out / RESULTS_FILE).write_text("{}\n")
+    os.mkfifo(out / MANIFEST_FILE)
+    result = cli(*args, "--trials", "1", timeout=120)
+    assert_clean_error(result, f"{out / MANIFEST_FILE}: cannot read run file (a FIFO")
+    assert (out / RESULTS_FILE).read_text() == "{}\n"
+
+
+def test_a_results_file_that_is_a_fifo_is_refused(tmp_path: Path) -> None:
+    fifo = tmp_path / RESULTS_FILE
+    os.mkfifo(fifo)
+    with pytest.raises(ConfigError, match="cannot read results file \\(a FIFO"):
+        read_results(fifo)
