@@ -18,7 +18,7 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
 import pytest
-from conftest import free_port
+from conftest import cli, free_port
 
 ONE_BRICK = {
     "name": "one",
@@ -31,13 +31,13 @@ HOSTILE = (
 )
 
 
-def completion(content: str) -> bytes:
+def completion(content: str, model: str = "fault") -> bytes:
     return json.dumps(
         {
             "id": "x",
             "object": "chat.completion",
             "created": 0,
-            "model": "fault",
+            "model": model,
             "choices": [
                 {
                     "index": 0,
@@ -87,6 +87,8 @@ class FaultHandler(BaseHTTPRequestHandler):
         elif fault == "slow":
             time.sleep(3.0)
             self._send(200, completion("{}"))
+        elif fault == "markup":  # rich markup in the model's name and answer
+            self._send(200, completion('{"close": true, "rationale": "[/] [bold"}', "[/]m[x"))
         elif fault == "echo":  # an answer quoting the key, then a garbled body quoting it
             body = completion(echo) if self.server.agent_requests == 1 else echo.encode()
             self._send(200, body)
@@ -115,10 +117,14 @@ def fault_server(request: pytest.FixtureRequest) -> Iterator[FaultServer]:
     server.server_close()
 
 
+def base_url(server: FaultServer) -> str:
+    host, port = server.server_address[:2]
+    return f"http://{host}:{port}/v1"
+
+
 def run_eval(tmp_path: Path, server: FaultServer, *extra: str) -> subprocess.CompletedProcess:
     pattern = tmp_path / "one.json"
     pattern.write_text(json.dumps(ONE_BRICK))
-    host, port = server.server_address[:2]
     return subprocess.run(
         [
             sys.executable,
@@ -134,7 +140,7 @@ def run_eval(tmp_path: Path, server: FaultServer, *extra: str) -> subprocess.Com
             "--llm",
             "openai:fault",
             "--base-url",
-            f"http://{host}:{port}/v1",
+            base_url(server),
             "--llm-timeout",
             "1",
             "--llm-retries",
@@ -231,3 +237,11 @@ def test_a_server_that_cannot_be_reached_stops_the_run_with_one_line(tmp_path: P
         assert message == f"error: llm_unreachable: cannot connect to {url}/ (2 retries)"
         assert "Traceback" not in result.stderr + result.stdout
     assert not (tmp_path / "out" / "results.jsonl").exists()
+
+
+@pytest.mark.parametrize("fault_server", ["markup"], indirect=True)
+def test_llm_check_prints_markup_in_names_and_answers_as_text(fault_server: FaultServer) -> None:
+    result = cli("llm", "check", "--llm", "openai:[/]x", "--base-url", base_url(fault_server))
+    assert result.returncode == 0, result.stderr
+    assert "llm check openai:[/]x" in result.stdout
+    assert "[/]m[x" in result.stdout and "[/] [bold" in result.stdout

@@ -436,7 +436,7 @@ def llm_check(
         report = check_backend(config)
     except ActionReasoningError as error:
         _fail(error)
-    table = Table(title=f"llm check {report.label}", show_header=False)
+    table = Table(title=f"llm check {escape(report.label)}", show_header=False)
     for name, value in (
         ("model", report.model),
         ("structured output", report.mode),
@@ -444,7 +444,7 @@ def llm_check(
         ("tokens", f"{report.prompt_tokens} prompt, {report.completion_tokens} completion"),
         ("answer", ("valid: " if report.valid else "INVALID: ") + report.detail),
     ):
-        table.add_row(name, value)
+        table.add_row(name, escape(value))
     console.print(table)
     if not report.valid:
         raise typer.Exit(code=1)
