@@ -18,7 +18,7 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
 import pytest
-from conftest import cli, free_port
+from conftest import assert_clean_error, cli, free_port
 
 ONE_BRICK = {
     "name": "one",
@@ -67,7 +67,10 @@ class FaultHandler(BaseHTTPRequestHandler):
 
     def do_POST(self) -> None:
         body = json.loads(self.rfile.read(int(self.headers["Content-Length"])))
-        echo = f"you sent {self.headers.get('Authorization')} from {self.headers.get('Host')}"
+        echo = (
+            f"you sent {self.headers.get('Authorization')} from {self.headers.get('Host')} "
+            f"to {self.path}"
+        )
         if self.server.fault == "echo_refuse":  # refuses every request, quoting the key
             self._send(400, json.dumps({"error": {"message": echo}}).encode())
             return
@@ -122,7 +125,9 @@ def base_url(server: FaultServer) -> str:
     return f"http://{host}:{port}/v1"
 
 
-def run_eval(tmp_path: Path, server: FaultServer, *extra: str) -> subprocess.CompletedProcess:
+def run_eval(
+    tmp_path: Path, server: FaultServer, *extra: str, url: str | None = None
+) -> subprocess.CompletedProcess:
     pattern = tmp_path / "one.json"
     pattern.write_text(json.dumps(ONE_BRICK))
     return subprocess.run(
@@ -140,7 +145,7 @@ def run_eval(tmp_path: Path, server: FaultServer, *extra: str) -> subprocess.Com
             "--llm",
             "openai:fault",
             "--base-url",
-            base_url(server),
+            url or base_url(server),
             "--llm-timeout",
             "1",
             "--llm-retries",
@@ -245,3 +250,13 @@ def test_llm_check_prints_markup_in_names_and_answers_as_text(fault_server: Faul
     assert result.returncode == 0, result.stderr
     assert "llm check openai:[/]x" in result.stdout
     assert "[/]m[x" in result.stdout and "[/] [bold" in result.stdout
+
+
+@pytest.mark.parametrize("url", ["http://[::1", "http://host:port/v1", "ftp://host/v1", "/v1"])
+def test_a_base_url_that_is_not_an_http_url_is_refused_in_one_line(
+    tmp_path: Path, url: str
+) -> None:
+    for command in (["llm", "check"], ["eval", "--trials", "1", "--out", str(tmp_path / "out")]):
+        result = cli(*command, "--llm", "openai:x", "--base-url", url)
+        assert_clean_error(result, "--base-url")
+    assert not (tmp_path / "out").exists()

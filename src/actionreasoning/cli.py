@@ -190,14 +190,14 @@ def eval_command(
     --workers or on Ray. Run the same command again to resume a killed run. The API key of
     an OpenAI-compatible server comes from OPENAI_API_KEY only.
     """
-    config = LLMConfig(
-        spec=llm,
-        server=ServerOptions(base_url=base_url, timeout_s=llm_timeout, max_retries=llm_retries),
-        limits=LLMLimits(tool_turns=tool_turns, repairs=repairs),
-        fallback=fallback is Fallback.BUILTIN,
-        record=record,
-    )
     try:
+        config = LLMConfig(
+            spec=llm,
+            server=ServerOptions(base_url=base_url, timeout_s=llm_timeout, max_retries=llm_retries),
+            limits=LLMLimits(tool_turns=tool_turns, repairs=repairs),
+            fallback=fallback is Fallback.BUILTIN,
+            record=record,
+        )
         _check_options(method, config, transcripts)
     except ActionReasoningError as error:
         _fail(error)
@@ -431,9 +431,9 @@ def llm_check(
     llm_timeout: TimeoutOption = 60.0,
 ) -> None:
     """Connect to a backend, send one schema-constrained request, and report what came back."""
-    config = LLMConfig(spec=llm, server=ServerOptions(base_url=base_url, timeout_s=llm_timeout))
     try:
-        report = check_backend(config)
+        server = ServerOptions(base_url=base_url, timeout_s=llm_timeout)
+        report = check_backend(LLMConfig(spec=llm, server=server))
     except ActionReasoningError as error:
         _fail(error)
     table = Table(title=f"llm check {escape(report.label)}", show_header=False)

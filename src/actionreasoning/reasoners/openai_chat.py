@@ -4,8 +4,10 @@ Uses the official ``openai`` client with its own retries (connection errors, 408
 and 5xx, with exponential backoff and Retry-After) and a per-request timeout. The base URL
 comes from ``--base-url`` or ``OPENAI_BASE_URL``, the key from ``OPENAI_API_KEY``; the key is
 given to the client only and never stored, logged or written anywhere. Whatever the server
-sends back (answers, error messages) has the key cut out before anything else sees it, in
-case a server echoes it; a password in the base URL is never shown.
+sends back (answers, model names, error messages) has the key and the base URL's credentials
+cut out before anything else sees it, in case a server echoes them, and the base URL is
+shown with its user info and query values hidden
+(:mod:`~actionreasoning.reasoners.credentials`).
 
 Structured output: the strictest ``response_format`` the server accepts is chosen once per
 run by :meth:`OpenAIChat.negotiate`. A server refuses a format with 400 or 422, or, as
@@ -14,12 +16,11 @@ llama-cpp-python's does, with a 500 whose message names ``response_format``.
 
 from __future__ import annotations
 
-import base64
 import os
 import time
 from dataclasses import dataclass
 from typing import Any
-from urllib.parse import urlsplit
+from urllib.parse import parse_qsl, urlsplit
 
 import openai
 from openai.types.chat import ChatCompletion
@@ -31,6 +32,7 @@ from actionreasoning.reasoners.chat import (
     StructuredMode,
     response_format,
 )
+from actionreasoning.reasoners.credentials import Redactor, check_base_url, shown_url
 from actionreasoning.records import LLMUsage
 
 #: Answers are a waypoint and a sentence or two; a runaway generation is cut here.
@@ -43,30 +45,22 @@ _PROBE_SCHEMA = {
 }
 
 
-REDACTED = "[redacted]"
-
-
-def _url_secrets(url: str | None) -> tuple[str, ...]:
-    """The password of a base URL like ``http://user:password@host/v1``, raw and as the
-    HTTP Basic credential the client sends for it."""
-    parts = urlsplit(url or "")
-    if not parts.password:
-        return ()
-    basic = base64.b64encode(f"{parts.username or ''}:{parts.password}".encode()).decode()
-    return (parts.password, basic)
-
-
 class _FormatRefused(Exception):
     """The server refused the request itself (400, 422, or an error naming response_format)."""
 
 
 @dataclass(frozen=True)
 class ServerOptions:
-    """Where the server is and how patiently to ask it."""
+    """Where the server is and how patiently to ask it. An empty or malformed base URL is
+    refused here."""
 
     base_url: str | None = None
     timeout_s: float = 60.0
     max_retries: int = 2
+
+    def __post_init__(self) -> None:
+        if self.base_url is not None:
+            check_base_url(self.base_url, "--base-url")
 
 
 class OpenAIChat:
@@ -83,23 +77,24 @@ class OpenAIChat:
         self.model = model
         self.label = f"openai:{model}"
         self.mode = mode
-        base_url = options.base_url or os.environ.get("OPENAI_BASE_URL")
+        base_url = options.base_url
+        if base_url is None and "OPENAI_BASE_URL" in os.environ:
+            base_url = os.environ["OPENAI_BASE_URL"]
+            check_base_url(base_url, "OPENAI_BASE_URL")
         key = os.environ.get("OPENAI_API_KEY")
-        self._secrets = (key, *_url_secrets(base_url)) if key else _url_secrets(base_url)
+        self.redact = Redactor.of(base_url, key)
+        url = urlsplit(base_url or "")
         self.client = openai.OpenAI(
-            base_url=base_url,
+            # The query goes with every request, not into the path the client appends to.
+            base_url=url._replace(query="").geturl() if base_url else None,
+            default_query=dict(parse_qsl(url.query, keep_blank_values=True)),
             # A local server takes any key; the client insists on one.
             api_key=key or "no-key",
             timeout=options.timeout_s,
             max_retries=options.max_retries,
         )
-        self.where = self.redact(str(self.client.base_url))
-
-    def redact(self, text: str) -> str:
-        """``text`` with the API key and any base-URL password cut out."""
-        for secret in self._secrets:
-            text = text.replace(secret, REDACTED)
-        return text
+        query = f"?{url.query}" if url.query else ""
+        self.where = shown_url(f"{self.client.base_url}{query}")
 
     def complete(self, request: ChatRequest) -> ChatReply:
         """One completion in this backend's structured-output mode."""
