@@ -74,7 +74,12 @@ NoiseOption = Annotated[
     ),
 ]
 TimeoutOption = Annotated[
-    float, typer.Option(min=0.1, help="Seconds to wait for one answer of the model server.")
+    float,
+    typer.Option(
+        min=0.1,
+        help="Seconds one request to the model server may take in all: connect, wait and "
+        "read (each retry gets as long again).",
+    ),
 ]
 
 
