@@ -159,7 +159,7 @@ def test_classical_eval_end_to_end(tmp_path: Path) -> None:
 
 
 BAD_FILES = {
-    "recording_garbage": ("rec.jsonl", "garbage\n", "rec.jsonl:1: not a JSON line"),
+    "recording_garbage": ("rec.jsonl", "garbage\n", "rec.jsonl line 1 is not a recording"),
     "recording_headless": ("rec.jsonl", '{"kind": "header"}\n', "is not a recording"),
     "run_json_damaged": ("o/run.json", "not json", "run.json is damaged"),
     "results_damaged": ("o/results.jsonl", "{}\n", "line 1 is not a trial result"),

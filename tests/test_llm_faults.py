@@ -2,8 +2,9 @@
 
 The server is the tests' own small HTTP server on loopback. It answers the structured-output
 probe at the start of a run properly, then answers agent requests with one fault: malformed
-JSON, a body that is not JSON, HTTP 500, HTTP 429, a delay past the timeout, or a
-completion whose content is hostile.
+JSON, a body that is not JSON, HTTP 500, HTTP 429, a delay past the timeout, a whole valid
+response sent one byte every 0.2 s (status line and headers too), or a completion whose
+content is hostile.
 """
 
 from __future__ import annotations
@@ -18,7 +19,11 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
 import pytest
-from conftest import free_port
+from conftest import assert_clean_error, cli, free_port
+
+from actionreasoning.errors import LLMError
+from actionreasoning.reasoners.chat import ChatRequest
+from actionreasoning.reasoners.openai_chat import OpenAIChat, ServerOptions
 
 ONE_BRICK = {
     "name": "one",
@@ -31,13 +36,18 @@ HOSTILE = (
 )
 
 
-def completion(content: str) -> bytes:
+#: The drip server's pace, and the padding that makes one dripped answer last over 200 s.
+DRIP_S = 0.2
+DRIP_PADDING = " " * 1000
+
+
+def completion(content: str, model: str = "fault") -> bytes:
     return json.dumps(
         {
             "id": "x",
             "object": "chat.completion",
             "created": 0,
-            "model": "fault",
+            "model": model,
             "choices": [
                 {
                     "index": 0,
@@ -57,6 +67,7 @@ class FaultServer(ThreadingHTTPServer):
         super().__init__(("127.0.0.1", 0), FaultHandler)
         self.fault = fault
         self.agent_requests = 0
+        self.dropped = 0  # dripped answers the client hung up on
 
 
 class FaultHandler(BaseHTTPRequestHandler):
@@ -67,7 +78,10 @@ class FaultHandler(BaseHTTPRequestHandler):
 
     def do_POST(self) -> None:
         body = json.loads(self.rfile.read(int(self.headers["Content-Length"])))
-        echo = f"you sent {self.headers.get('Authorization')} from {self.headers.get('Host')}"
+        echo = (
+            f"you sent {self.headers.get('Authorization')} from {self.headers.get('Host')} "
+            f"to {self.path}"
+        )
         if self.server.fault == "echo_refuse":  # refuses every request, quoting the key
             self._send(400, json.dumps({"error": {"message": echo}}).encode())
             return
@@ -87,6 +101,10 @@ class FaultHandler(BaseHTTPRequestHandler):
         elif fault == "slow":
             time.sleep(3.0)
             self._send(200, completion("{}"))
+        elif fault == "markup":  # rich markup in the model's name and answer
+            self._send(200, completion('{"close": true, "rationale": "[/] [bold"}', "[/]m[x"))
+        elif fault == "drip":
+            self._drip(completion("{}" + DRIP_PADDING))
         elif fault == "echo":  # an answer quoting the key, then a garbled body quoting it
             body = completion(echo) if self.server.agent_requests == 1 else echo.encode()
             self._send(200, body)
@@ -104,6 +122,20 @@ class FaultHandler(BaseHTTPRequestHandler):
         self.end_headers()
         self.wfile.write(body)
 
+    def _drip(self, body: bytes) -> None:
+        """A valid response, status line first, one byte every DRIP_S seconds."""
+        head = (
+            "HTTP/1.1 200 OK\r\nContent-Type: application/json\r\n"
+            f"Content-Length: {len(body)}\r\n\r\n"
+        )
+        self.close_connection = True
+        try:
+            for byte in head.encode() + body:
+                self.wfile.write(bytes([byte]))
+                time.sleep(DRIP_S)
+        except OSError:  # the client hung up
+            self.server.dropped += 1
+
 
 @pytest.fixture
 def fault_server(request: pytest.FixtureRequest) -> Iterator[FaultServer]:
@@ -115,10 +147,20 @@ def fault_server(request: pytest.FixtureRequest) -> Iterator[FaultServer]:
     server.server_close()
 
 
-def run_eval(tmp_path: Path, server: FaultServer, *extra: str) -> subprocess.CompletedProcess:
+def base_url(server: FaultServer) -> str:
+    host, port = server.server_address[:2]
+    return f"http://{host}:{port}/v1"
+
+
+def run_eval(
+    tmp_path: Path,
+    server: FaultServer,
+    *extra: str,
+    url: str | None = None,
+    llm_timeout: str = "1",
+) -> subprocess.CompletedProcess:
     pattern = tmp_path / "one.json"
     pattern.write_text(json.dumps(ONE_BRICK))
-    host, port = server.server_address[:2]
     return subprocess.run(
         [
             sys.executable,
@@ -134,9 +176,9 @@ def run_eval(tmp_path: Path, server: FaultServer, *extra: str) -> subprocess.Com
             "--llm",
             "openai:fault",
             "--base-url",
-            f"http://{host}:{port}/v1",
+            url or base_url(server),
             "--llm-timeout",
-            "1",
+            llm_timeout,
             "--llm-retries",
             "1",
             "--repairs",
@@ -158,6 +200,7 @@ def run_eval(tmp_path: Path, server: FaultServer, *extra: str) -> subprocess.Com
         ("500", "llm_server_error", 2),
         ("429", "llm_rate_limited", 2),
         ("slow", "llm_timeout", 2),
+        ("drip", "llm_timeout", 2),  # each try cut after 1 s; one answer would take 280 s
         ("hostile", "invalid_output", 2),
     ],
     indirect=["fault_server"],
@@ -231,3 +274,52 @@ def test_a_server_that_cannot_be_reached_stops_the_run_with_one_line(tmp_path: P
         assert message == f"error: llm_unreachable: cannot connect to {url}/ (2 retries)"
         assert "Traceback" not in result.stderr + result.stdout
     assert not (tmp_path / "out" / "results.jsonl").exists()
+
+
+@pytest.mark.parametrize("fault_server", ["drip"], indirect=True)
+def test_the_trial_wall_time_cuts_a_model_call_in_progress(
+    tmp_path: Path, fault_server: FaultServer
+) -> None:
+    started = time.monotonic()
+    result = run_eval(tmp_path, fault_server, "--max-trial-s", "20", llm_timeout="600")
+    assert result.returncode == 0, result.stderr
+    assert time.monotonic() - started < 200  # one dripped answer alone takes 280 s
+    line = json.loads((tmp_path / "out" / "results.jsonl").read_text())
+    assert line["failure"]["reason"] == "time_budget"
+    assert line["failure"]["agent"] == "pre_grasp"
+    assert "wall time ran out while waiting for http://127.0.0.1:" in line["failure"]["detail"]
+    assert fault_server.agent_requests == 1
+
+
+@pytest.mark.parametrize("fault_server", ["drip"], indirect=True)
+def test_a_cut_request_leaves_no_thread_and_no_connection(fault_server: FaultServer) -> None:
+    chat = OpenAIChat("fault", ServerOptions(base_url(fault_server), timeout_s=1.0, max_retries=0))
+    request = ChatRequest(messages=({"role": "user", "content": "hi"},), schema_name="s", schema={})
+    before = set(threading.enumerate())
+    with pytest.raises(LLMError) as failed:
+        chat.complete(request)
+    assert failed.value.reason == "llm_timeout"
+    assert failed.value.detail == f"{base_url(fault_server)}/ did not answer within 1 s (0 retries)"
+    assert not [t for t in set(threading.enumerate()) - before if isinstance(t, threading.Timer)]
+    waited = time.monotonic()
+    while not fault_server.dropped:  # the client hung up: the server's next byte fails
+        assert time.monotonic() - waited < 60
+        time.sleep(0.1)
+
+
+@pytest.mark.parametrize("url", ["http://[::1", "http://host:port/v1", "ftp://host/v1", "/v1"])
+def test_a_base_url_that_is_not_an_http_url_is_refused_in_one_line(
+    tmp_path: Path, url: str
+) -> None:
+    for command in (["llm", "check"], ["eval", "--trials", "1", "--out", str(tmp_path / "out")]):
+        result = cli(*command, "--llm", "openai:x", "--base-url", url)
+        assert_clean_error(result, "--base-url")
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("fault_server", ["markup"], indirect=True)
+def test_llm_check_prints_markup_in_names_and_answers_as_text(fault_server: FaultServer) -> None:
+    result = cli("llm", "check", "--llm", "openai:[/]x", "--base-url", base_url(fault_server))
+    assert result.returncode == 0, result.stderr
+    assert "llm check openai:[/]x" in result.stdout
+    assert "[/]m[x" in result.stdout and "[/] [bold" in result.stdout

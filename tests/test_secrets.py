@@ -1,5 +1,6 @@
 """An API key never leaves the process: not in results, transcripts, recordings, summaries,
-reports or anything printed, even from a server that echoes it back in answers and errors."""
+reports or anything printed, even from a server that echoes it back in answers and errors.
+Nor do the credentials of a base URL: its user name, its password or its query values."""
 
 from __future__ import annotations
 
@@ -10,12 +11,22 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import assert_clean_error, cli
 from test_llm_faults import FaultServer, fault_server, run_eval
 
 __all__ = ["fault_server"]  # the fixture, shared with the fault tests
 
 KEY = "sk-test-3f9a1c7e5b2d4a6f8e0c1b3d5f7a9e2c"
 PASSWORD = "hunter2-base-url-password"
+TOKEN = "tok-5e8b2f0a9c7d4e1b"
+#: Where a base URL carries a credential; the server echoes the Authorization header
+#: (HTTP Basic for user info, else the key as Bearer) and the request path with its query.
+#: Each: the URL, the secret in it, and the user info the client sends as HTTP Basic.
+CREDENTIALS = {
+    "password": ("http://user:{password}@{host}:{port}/v1", PASSWORD, f"user:{PASSWORD}"),
+    "user name": ("http://{token}@{host}:{port}/v1", TOKEN, f"{TOKEN}:"),
+    "query": ("http://{host}:{port}/v1?key={token}&api-version=2024-06-01", TOKEN, None),
+}
 
 
 @pytest.fixture
@@ -31,20 +42,22 @@ def written(root: Path) -> str:
     )
 
 
+@pytest.mark.parametrize("where", CREDENTIALS)
 @pytest.mark.parametrize("fault_server", ["echo", "echo_refuse"], indirect=True)
 def test_a_known_key_appears_in_no_file_and_no_output(
-    tmp_path: Path, fault_server: FaultServer, key: str
+    tmp_path: Path, fault_server: FaultServer, key: str, where: str
 ) -> None:
     host, port = fault_server.server_address[:2]
-    url = f"http://user:{PASSWORD}@{host}:{port}/v1"  # sent as HTTP Basic, not the key
+    template, secret, basic = CREDENTIALS[where]
+    url = template.format(password=PASSWORD, token=TOKEN, host=host, port=port)
     record = tmp_path / "recording.jsonl"
     printed = []
-    run = run_eval(tmp_path, fault_server, "--record", str(record))  # the key as Bearer
+    run = run_eval(tmp_path, fault_server, "--record", str(record), url=url)
     printed.append(run.stdout + run.stderr)
     assert "Traceback" not in printed[0]
     if fault_server.fault == "echo":
         assert run.returncode == 0, run.stderr
-        assert "you sent Bearer [redacted] from" in record.read_text()
+        assert "you sent " in record.read_text() and "[redacted]" in record.read_text()
         report = subprocess.run(
             [sys.executable, "-m", "actionreasoning", "report", str(tmp_path / "out"),
              "--out", str(tmp_path / "report")],
@@ -61,8 +74,24 @@ def test_a_known_key_appears_in_no_file_and_no_output(
         capture_output=True, text=True, timeout=120, env=os.environ,
     )  # fmt: skip
     printed.append(check.stdout + check.stderr)
+    assert "Traceback" not in printed[-1]
     everything = written(tmp_path) + "\n".join(printed)
     assert fault_server.agent_requests or fault_server.fault == "echo_refuse"
-    basic = base64.b64encode(f"user:{PASSWORD}".encode()).decode()
-    for secret in (KEY, KEY[-12:], PASSWORD, basic):
-        assert secret not in everything
+    secrets = [KEY, KEY[-12:], secret, secret[-8:]]
+    if basic:
+        secrets.append(base64.b64encode(basic.encode()).decode())
+    for text in secrets:
+        assert text not in everything
+
+
+def test_an_empty_base_url_is_refused_not_sent_to_the_public_api(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    out = tmp_path / "out"
+    commands = (["llm", "check"], ["eval", "--trials", "1", "--out", str(out)])
+    for command in commands:
+        assert_clean_error(cli(*command, "--llm", "openai:x", "--base-url", ""), "--base-url")
+    assert not out.exists()
+    monkeypatch.setenv("OPENAI_BASE_URL", "")  # an unset variable exported
+    for command in commands:
+        assert_clean_error(cli(*command, "--llm", "openai:x"), "OPENAI_BASE_URL")

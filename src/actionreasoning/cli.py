@@ -85,7 +85,10 @@ def _finite(value: float) -> float:
 TimeoutOption = Annotated[
     float,
     typer.Option(
-        min=0.1, callback=_finite, help="Seconds to wait for one answer of the model server."
+        min=0.1,
+        callback=_finite,
+        help="Seconds one request to the model server may take in all: connect, wait and "
+        "read (each retry gets as long again).",
     ),
 ]
 SeedOption = Annotated[
@@ -217,14 +220,14 @@ def eval_command(
     --workers or on Ray. Run the same command again to resume a killed run. The API key of
     an OpenAI-compatible server comes from OPENAI_API_KEY only.
     """
-    config = LLMConfig(
-        spec=llm,
-        server=ServerOptions(base_url=base_url, timeout_s=llm_timeout, max_retries=llm_retries),
-        limits=LLMLimits(tool_turns=tool_turns, repairs=repairs),
-        fallback=fallback is Fallback.BUILTIN,
-        record=record,
-    )
     try:
+        config = LLMConfig(
+            spec=llm,
+            server=ServerOptions(base_url=base_url, timeout_s=llm_timeout, max_retries=llm_retries),
+            limits=LLMLimits(tool_turns=tool_turns, repairs=repairs),
+            fallback=fallback is Fallback.BUILTIN,
+            record=record,
+        )
         _check_options(method, config, transcripts)
     except ActionReasoningError as error:
         _fail(error)
@@ -463,12 +466,12 @@ def llm_check(
     llm_timeout: TimeoutOption = 60.0,
 ) -> None:
     """Connect to a backend, send one schema-constrained request, and report what came back."""
-    config = LLMConfig(spec=llm, server=ServerOptions(base_url=base_url, timeout_s=llm_timeout))
     try:
-        report = check_backend(config)
+        server = ServerOptions(base_url=base_url, timeout_s=llm_timeout)
+        report = check_backend(LLMConfig(spec=llm, server=server))
     except ActionReasoningError as error:
         _fail(error)
-    table = Table(title=f"llm check {report.label}", show_header=False)
+    table = Table(title=f"llm check {escape(report.label)}", show_header=False)
     for name, value in (
         ("model", report.model),
         ("structured output", report.mode),
@@ -476,7 +479,7 @@ def llm_check(
         ("tokens", f"{report.prompt_tokens} prompt, {report.completion_tokens} completion"),
         ("answer", ("valid: " if report.valid else "INVALID: ") + report.detail),
     ):
-        table.add_row(name, value)
+        table.add_row(name, escape(value))
     console.print(table)
     if not report.valid:
         raise typer.Exit(code=1)

@@ -181,7 +181,7 @@ def _run_agents(
 ) -> BuildResult:
     """The six gated agents, or the merged single agent, with the spec's reasoner."""
     world = SimWorld(controller, spec.goal, sensor)
-    reasoner = make_reasoner(spec.llm, READY_POSE)
+    reasoner = make_reasoner(spec.llm, READY_POSE, controller.scene.deadline)
     runner = (
         SingleAgent(world, reasoner, on_stage=stage)
         if spec.method is Method.SINGLE_AGENT

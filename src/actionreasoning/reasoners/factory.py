@@ -123,20 +123,22 @@ def check_backend(config: LLMConfig) -> CheckReport:
     )
 
 
-def make_reasoner(config: LLMConfig, ready: Pose) -> Reasoner:
-    """A fresh reasoner for one trial, from a prepared configuration."""
+def make_reasoner(config: LLMConfig, ready: Pose, deadline: float | None = None) -> Reasoner:
+    """A fresh reasoner for one trial, from a prepared configuration; a server's answers
+    are given up at ``deadline`` (``time.monotonic()`` seconds), the trial's end."""
     builtin = BuiltinReasoner(ready)
     if config.kind == "builtin":
         return builtin
-    backend = _backend(config)
+    backend = _backend(config, deadline)
     if config.record is not None:
         backend = RecordingChat(backend, config.record, config.mode or StructuredMode.TEXT)
     return LLMReasoner(backend, config.limits, fallback=builtin if config.fallback else None)
 
 
-def _backend(config: LLMConfig) -> ChatBackend:
+def _backend(config: LLMConfig, deadline: float | None = None) -> ChatBackend:
     if config.kind == "replay":
         return ReplayChat(Path(config.argument))
     if config.kind == "openai":
-        return OpenAIChat(config.argument, config.server, config.mode or StructuredMode.TEXT)
+        mode = config.mode or StructuredMode.TEXT
+        return OpenAIChat(config.argument, config.server, mode, deadline)
     return LlamaCppChat(config.argument)

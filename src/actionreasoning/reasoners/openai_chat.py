@@ -1,11 +1,17 @@
 """An OpenAI-compatible chat server (OpenAI, vLLM, Ollama, llama.cpp's server, LM Studio).
 
-Uses the official ``openai`` client with its own retries (connection errors, 408, 409, 429
-and 5xx, with exponential backoff and Retry-After) and a per-request timeout. The base URL
-comes from ``--base-url`` or ``OPENAI_BASE_URL``, the key from ``OPENAI_API_KEY``; the key is
-given to the client only and never stored, logged or written anywhere. Whatever the server
-sends back (answers, error messages) has the key cut out before anything else sees it, in
-case a server echoes it; a password in the base URL is never shown.
+Uses the official ``openai`` client for each request. Every request has a total deadline,
+connect, wait and read together (:mod:`~actionreasoning.reasoners.deadline`): ``timeout_s``
+per try, and never past the trial's deadline when one is given. Connection errors, timeouts,
+408, 409, 429 and 5xx are retried here, not by the client, with exponential backoff or the
+server's Retry-After, so no wait outlasts the trial either.
+
+The base URL comes from ``--base-url`` or ``OPENAI_BASE_URL``, the key from ``OPENAI_API_KEY``;
+the key is given to the client only and never stored, logged or written anywhere. Whatever
+the server sends back (answers, model names, error messages) has the key and the base URL's
+credentials cut out before anything else sees it, in case a server echoes them, and the base
+URL is shown with its user info and query values hidden
+(:mod:`~actionreasoning.reasoners.credentials`).
 
 Structured output: the strictest ``response_format`` the server accepts is chosen once per
 run by :meth:`OpenAIChat.negotiate`. A server refuses a format with 400 or 422, or, as
@@ -14,12 +20,14 @@ llama-cpp-python's does, with a 500 whose message names ``response_format``.
 
 from __future__ import annotations
 
-import base64
+import math
 import os
+import random
 import time
+import weakref
 from dataclasses import dataclass
 from typing import Any
-from urllib.parse import urlsplit
+from urllib.parse import parse_qsl, urlsplit
 
 import openai
 from openai.types.chat import ChatCompletion
@@ -31,6 +39,8 @@ from actionreasoning.reasoners.chat import (
     StructuredMode,
     response_format,
 )
+from actionreasoning.reasoners.credentials import Redactor, check_base_url, shown_url
+from actionreasoning.reasoners.deadline import Watchdog
 from actionreasoning.records import LLMUsage
 
 #: Answers are a waypoint and a sentence or two; a runaway generation is cut here.
@@ -41,19 +51,13 @@ _PROBE_SCHEMA = {
     "required": ["ok"],
     "additionalProperties": False,
 }
-
-
-REDACTED = "[redacted]"
-
-
-def _url_secrets(url: str | None) -> tuple[str, ...]:
-    """The password of a base URL like ``http://user:password@host/v1``, raw and as the
-    HTTP Basic credential the client sends for it."""
-    parts = urlsplit(url or "")
-    if not parts.password:
-        return ()
-    basic = base64.b64encode(f"{parts.username or ''}:{parts.password}".encode()).decode()
-    return (parts.password, basic)
+#: HTTP statuses worth another try (besides 5xx): timeout, conflict, rate limit.
+_RETRIED_STATUS = (408, 409, 429)
+#: Backoff before retry n (from 0): FIRST_BACKOFF_S * 2**n, at most MAX_BACKOFF_S, less up to
+#: a quarter at random; a server's Retry-After of up to MAX_RETRY_AFTER_S is taken instead.
+FIRST_BACKOFF_S = 0.5
+MAX_BACKOFF_S = 8.0
+MAX_RETRY_AFTER_S = 60.0
 
 
 class _FormatRefused(Exception):
@@ -62,44 +66,57 @@ class _FormatRefused(Exception):
 
 @dataclass(frozen=True)
 class ServerOptions:
-    """Where the server is and how patiently to ask it."""
+    """Where the server is and how patiently to ask it: ``timeout_s`` for each try, all of
+    it. An empty or malformed base URL is refused here."""
 
     base_url: str | None = None
     timeout_s: float = 60.0
     max_retries: int = 2
 
+    def __post_init__(self) -> None:
+        if self.base_url is not None:
+            check_base_url(self.base_url, "--base-url")
+
 
 class OpenAIChat:
-    """Chat completions from an OpenAI-compatible server."""
+    """Chat completions from an OpenAI-compatible server, each given up at ``deadline``
+    (``time.monotonic()`` seconds) if one is set."""
 
     def __init__(
         self,
         model: str,
         options: ServerOptions = ServerOptions(),
         mode: StructuredMode = StructuredMode.JSON_SCHEMA,
+        deadline: float | None = None,
     ) -> None:
         if not model:
             raise ConfigError("--llm openai:MODEL needs a model name after 'openai:'")
         self.model = model
         self.label = f"openai:{model}"
         self.mode = mode
-        base_url = options.base_url or os.environ.get("OPENAI_BASE_URL")
+        self.options = options
+        self.deadline = math.inf if deadline is None else deadline
+        base_url = options.base_url
+        if base_url is None and "OPENAI_BASE_URL" in os.environ:
+            base_url = os.environ["OPENAI_BASE_URL"]
+            check_base_url(base_url, "OPENAI_BASE_URL")
         key = os.environ.get("OPENAI_API_KEY")
-        self._secrets = (key, *_url_secrets(base_url)) if key else _url_secrets(base_url)
+        self.redact = Redactor.of(base_url, key)
+        self._watchdog = Watchdog()
+        http_client = openai.DefaultHttpxClient(event_hooks={"request": [self._watchdog.hook]})
+        weakref.finalize(self, http_client.close)
+        url = urlsplit(base_url or "")
         self.client = openai.OpenAI(
-            base_url=base_url,
+            # The query goes with every request, not into the path the client appends to.
+            base_url=url._replace(query="").geturl() if base_url else None,
+            default_query=dict(parse_qsl(url.query, keep_blank_values=True)),
             # A local server takes any key; the client insists on one.
             api_key=key or "no-key",
-            timeout=options.timeout_s,
-            max_retries=options.max_retries,
+            max_retries=0,  # retried by _create, within the deadlines
+            http_client=http_client,
         )
-        self.where = self.redact(str(self.client.base_url))
-
-    def redact(self, text: str) -> str:
-        """``text`` with the API key and any base-URL password cut out."""
-        for secret in self._secrets:
-            text = text.replace(secret, REDACTED)
-        return text
+        query = f"?{url.query}" if url.query else ""
+        self.where = shown_url(f"{self.client.base_url}{query}")
 
     def complete(self, request: ChatRequest) -> ChatReply:
         """One completion in this backend's structured-output mode."""
@@ -131,52 +148,87 @@ class OpenAIChat:
         )
 
     def _create(self, messages: list[Any], fmt: dict[str, Any], max_tokens: int) -> ChatCompletion:
-        """The raw completion; a refused request raises _FormatRefused, any other failure
-        an LLMError."""
+        """The raw completion, with retries; a refused request raises _FormatRefused, any
+        other failure an LLMError."""
         extra = {"response_format": fmt} if fmt else {}
-        try:
-            completion = self.client.chat.completions.create(
-                model=self.model,
-                messages=messages,
-                temperature=0.0,
-                seed=0,
-                max_tokens=max_tokens,
-                **extra,
-            )
-        except openai.APITimeoutError:
-            raise LLMError(
-                "llm_timeout",
-                f"{self.where} did not answer within {self.client.timeout} s "
-                f"({self.client.max_retries} retries)",
-            ) from None
-        except openai.APIConnectionError:
-            raise LLMError(
-                "llm_unreachable",
-                f"cannot connect to {self.where} ({self.client.max_retries} retries)",
-            ) from None
-        except openai.RateLimitError:
-            raise LLMError(
-                "llm_rate_limited",
-                f"{self.where} kept answering 429 ({self.client.max_retries} retries)",
-            ) from None
-        except openai.APIStatusError as error:
-            if error.status_code in (400, 422) or "response_format" in str(error.message):
-                raise _FormatRefused(
-                    f"HTTP {error.status_code} {self.redact(str(error.message))[:200]}"
+        retries = 0
+        while True:
+            seconds = min(self.options.timeout_s, self.deadline - time.monotonic())
+            if seconds <= 0:
+                raise self._out_of_time()
+            try:
+                with self._watchdog.limit(seconds):
+                    completion = self.client.chat.completions.create(
+                        model=self.model,
+                        messages=messages,
+                        temperature=0.0,
+                        seed=0,
+                        max_tokens=max_tokens,
+                        timeout=seconds,
+                        **extra,
+                    )
+            except (openai.APIConnectionError, openai.APIStatusError) as error:
+                failure = self._failure(error, retries)
+                wait = self._retry_wait(error, retries)
+                if isinstance(failure, _FormatRefused) or wait is None:
+                    raise failure from None
+                time.sleep(wait)
+                retries += 1
+                continue
+            except (openai.APIError, ValueError) as error:  # a body that is not JSON, ...
+                raise LLMError(
+                    "llm_bad_response",
+                    self.redact(f"{self.where} sent an unreadable answer ({error})")[:300],
                 ) from None
-            raise LLMError(
-                "llm_server_error",
-                f"{self.where} answered HTTP {error.status_code} "
-                f"({self.client.max_retries} retries)",
-            ) from None
-        except (openai.APIError, ValueError) as error:  # a body that is not JSON, ...
-            raise LLMError(
-                "llm_bad_response",
-                self.redact(f"{self.where} sent an unreadable answer ({error})")[:300],
-            ) from None
-        if not isinstance(completion, ChatCompletion):
-            raise LLMError("llm_bad_response", f"{self.where} did not send a chat completion")
-        return completion
+            if not isinstance(completion, ChatCompletion):
+                raise LLMError("llm_bad_response", f"{self.where} did not send a chat completion")
+            return completion
+
+    def _failure(
+        self, error: openai.APIConnectionError | openai.APIStatusError, retries: int
+    ) -> LLMError | _FormatRefused:
+        """What a failed try means, after ``retries`` retries."""
+        if time.monotonic() >= self.deadline:
+            return self._out_of_time()
+        if isinstance(error, openai.APITimeoutError) or self._watchdog.expired:
+            return LLMError(
+                "llm_timeout",
+                f"{self.where} did not answer within {self.options.timeout_s:g} s "
+                f"({retries} retries)",
+            )
+        if isinstance(error, openai.APIConnectionError):
+            return LLMError(
+                "llm_unreachable", f"cannot connect to {self.where} ({retries} retries)"
+            )
+        status = error.status_code
+        if status in (400, 422) or "response_format" in str(error.message):
+            return _FormatRefused(f"HTTP {status} {self.redact(str(error.message))[:200]}")
+        if status == 429:
+            return LLMError(
+                "llm_rate_limited", f"{self.where} kept answering 429 ({retries} retries)"
+            )
+        return LLMError(
+            "llm_server_error", f"{self.where} answered HTTP {status} ({retries} retries)"
+        )
+
+    def _retry_wait(
+        self, error: openai.APIConnectionError | openai.APIStatusError, retries: int
+    ) -> float | None:
+        """Seconds to wait before the next try, or None if there is none: retries spent, a
+        status not worth another try, or a wait that would outlast the deadline."""
+        if retries >= self.options.max_retries:
+            return None
+        wait = min(FIRST_BACKOFF_S * 2**retries, MAX_BACKOFF_S) * (1 - 0.25 * random.random())
+        if isinstance(error, openai.APIStatusError):
+            if error.status_code not in _RETRIED_STATUS and error.status_code < 500:
+                return None
+            wait = _retry_after(error.response.headers.get("retry-after", ""), wait)
+        return wait if time.monotonic() + wait < self.deadline else None
+
+    def _out_of_time(self) -> LLMError:
+        return LLMError(
+            "time_budget", f"the trial's wall time ran out while waiting for {self.where}"
+        )
 
     def negotiate(self) -> StructuredMode:
         """Set and return the strictest structured-output mode the server accepts."""
@@ -191,3 +243,12 @@ class OpenAIChat:
             self.mode = mode
             return mode
         raise LLMError("llm_bad_request", f"{self.where} refused every request: {refusals}")
+
+
+def _retry_after(header: str, default: float) -> float:
+    """A server's Retry-After in seconds, if it gives one from 0 to MAX_RETRY_AFTER_S."""
+    try:
+        seconds = float(header)
+    except ValueError:
+        return default
+    return seconds if 0 <= seconds <= MAX_RETRY_AFTER_S else default

@@ -13,7 +13,9 @@ import hashlib
 import json
 from collections import defaultdict, deque
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, TypeVar
+
+from pydantic import BaseModel, ValidationError
 
 from actionreasoning.errors import ConfigError
 from actionreasoning.reasoners.chat import ChatBackend, ChatReply, ChatRequest, StructuredMode
@@ -22,6 +24,27 @@ from actionreasoning.records import LLMUsage
 
 class ReplayMismatchError(ConfigError):
     """A replayed run asked for something the recording does not hold."""
+
+
+class Header(BaseModel):
+    """The first line of a recording: which backend, in which structured-output mode."""
+
+    kind: Literal["header"]
+    llm: str
+    mode: StructuredMode
+
+
+class Exchange(BaseModel):
+    """One recorded completion: the request's hash, the request, the answer, its usage."""
+
+    kind: Literal["exchange"]
+    key: str
+    request: dict[str, Any]
+    content: str
+    usage: LLMUsage
+
+
+Record = TypeVar("Record", Header, Exchange)
 
 
 def request_key(request: ChatRequest) -> str:
@@ -40,45 +63,45 @@ class RecordingChat:
         self.path = path
         if path.exists() and path.stat().st_size > 0:
             header = read_header(path)
-            if header["llm"] != backend.label:
+            if header.llm != backend.label:
                 raise ConfigError(
-                    f"--record {path} holds a recording of {header['llm']}, not {backend.label}"
+                    f"--record {path} holds a recording of {header.llm}, not {backend.label}"
                 )
         else:
             path.parent.mkdir(parents=True, exist_ok=True)
-            self._append({"kind": "header", "llm": backend.label, "mode": str(mode)})
+            self._append(Header(kind="header", llm=backend.label, mode=mode))
 
     def complete(self, request: ChatRequest) -> ChatReply:
         """The backend's reply, recorded."""
         reply = self.backend.complete(request)
         self._append(
-            {
-                "kind": "exchange",
-                "key": request_key(request),
-                "request": {"messages": request.messages, "name": request.schema_name},
-                "content": reply.content,
-                "usage": reply.usage.model_dump(),
-            }
+            Exchange(
+                kind="exchange",
+                key=request_key(request),
+                request={"messages": request.messages, "name": request.schema_name},
+                content=reply.content,
+                usage=reply.usage,
+            )
         )
         return reply
 
-    def _append(self, record: dict[str, Any]) -> None:
+    def _append(self, record: Header | Exchange) -> None:
         with self.path.open("a", encoding="utf-8") as sink:
-            sink.write(json.dumps(record) + "\n")
+            sink.write(record.model_dump_json() + "\n")
 
 
 class ReplayChat:
     """Serves a recording's answers offline."""
 
     def __init__(self, path: Path) -> None:
-        header = read_header(path)
+        header, exchanges = _read(path)
         self.path = path
-        self.label = str(header["llm"])
-        self.mode = StructuredMode(header["mode"])
+        self.label = header.llm
+        self.mode = header.mode
         self._answers: dict[str, deque[ChatReply]] = defaultdict(deque)
-        for record in _records(path)[1:]:
-            reply = ChatReply(content=record["content"], usage=LLMUsage(**record["usage"]))
-            self._answers[record["key"]].append(reply)
+        for exchange in exchanges:
+            reply = ChatReply(content=exchange.content, usage=exchange.usage)
+            self._answers[exchange.key].append(reply)
 
     def complete(self, request: ChatRequest) -> ChatReply:
         """The recorded answer to this request; a request never recorded is an error."""
@@ -93,26 +116,32 @@ class ReplayChat:
         return answers.popleft()
 
 
-def read_header(path: Path) -> dict[str, Any]:
+def read_header(path: Path) -> Header:
     """The header of a recording; a file that is not one is a ConfigError."""
-    records = _records(path, limit=1)
-    if not records or records[0].get("kind") != "header" or "llm" not in records[0]:
-        raise ConfigError(f"{path} is not a recording (no header line)")
-    return records[0]
+    return _read(path, header_only=True)[0]
 
 
-def _records(path: Path, limit: int | None = None) -> list[dict[str, Any]]:
+def _read(path: Path, header_only: bool = False) -> tuple[Header, list[Exchange]]:
+    """A recording's header and exchanges; any line that is not one is a ConfigError."""
     try:
-        lines = path.read_text(encoding="utf-8").splitlines()
+        lines = path.read_bytes().splitlines()
     except OSError as error:
         raise ConfigError(f"cannot read recording {path}: {error.strerror}") from None
-    records = []
-    for number, line in enumerate(lines[:limit] if limit else lines, start=1):
-        try:
-            record = json.loads(line)
-        except json.JSONDecodeError:
-            raise ConfigError(f"{path}:{number}: not a JSON line") from None
-        if not isinstance(record, dict):
-            raise ConfigError(f"{path}:{number}: not a JSON object")
-        records.append(record)
-    return records
+    if not lines:
+        raise ConfigError(f"{path} is not a recording (no header line)")
+    header = _parse(Header, path, lines[0], 1)
+    if header_only:
+        return header, []
+    return header, [_parse(Exchange, path, line, n) for n, line in enumerate(lines[1:], start=2)]
+
+
+def _parse(model: type[Record], path: Path, line: bytes, number: int) -> Record:
+    try:
+        return model.model_validate_json(line)
+    except ValidationError as error:
+        first = error.errors()[0]
+        where = ".".join(str(part) for part in first["loc"])
+        raise ConfigError(
+            f"{path} line {number} is not a recording {model.__name__.lower()} "
+            f"({where + ': ' if where else ''}{first['msg']})"
+        ) from None

@@ -239,6 +239,11 @@ class Scene:
             if self.ticks % WALL_CHECK_TICKS == 0:
                 self.check_wall_time()
 
+    @property
+    def deadline(self) -> float:
+        """When the trial's wall time runs out, in ``time.monotonic()`` seconds."""
+        return self._deadline
+
     def check_wall_time(self) -> None:
         """Raise ``TrialAborted("time_budget", ...)`` once the trial's wall time is spent."""
         if time.monotonic() > self._deadline:
