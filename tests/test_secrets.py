@@ -95,3 +95,4 @@ def test_an_empty_base_url_is_refused_not_sent_to_the_public_api(
     monkeypatch.setenv("OPENAI_BASE_URL", "")  # an unset variable exported
     for command in commands:
         assert_clean_error(cli(*command, "--llm", "openai:x"), "OPENAI_BASE_URL")
+    assert not (out / "run.json").exists()  # refused before the run directory is written

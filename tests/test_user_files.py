@@ -121,3 +121,24 @@ def test_a_results_file_that_is_a_fifo_is_refused(tmp_path: Path) -> None:
     os.mkfifo(fifo)
     with pytest.raises(ConfigError, match="cannot read results file \\(a FIFO"):
         read_results(fifo)
+
+
+@pytest.mark.parametrize("case", ["fifo", "dev_zero", "directory"])
+def test_a_recording_that_is_no_regular_file_is_refused_at_once(tmp_path: Path, case: str) -> None:
+    make, reason = BAD_FILES[case]
+    path = tmp_path / "rec.jsonl"
+    make(path)
+    result = cli("eval", "--llm", f"replay:{path}", "--out", str(tmp_path / "o"), timeout=120)
+    assert_clean_error(result, f"{path}: cannot read recording {reason}")
+
+
+def test_a_results_file_that_is_a_fifo_is_refused_before_a_run_starts(
+    tmp_path: Path, small_pattern: Path
+) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    os.mkfifo(out / RESULTS_FILE)  # size 0: it used to pass for a new run, then block
+    args = ["eval", "--method", "classical", "--pattern", str(small_pattern), "--out", str(out)]
+    result = cli(*args, "--trials", "1", timeout=120)
+    assert_clean_error(result, f"{out / RESULTS_FILE}: cannot read results file (a FIFO")
+    assert not (out / MANIFEST_FILE).exists()

@@ -112,8 +112,8 @@ def run_eval(config: RunConfig, observer: RunObserver | None = None) -> RunSumma
 
 
 def _run_locked(config: RunConfig, observer: RunObserver | None) -> RunSummary:
-    finished = open_run(config.out, config.manifest())
     llm = prepare(config.llm) if config.method is not Method.CLASSICAL else config.llm
+    finished = open_run(config.out, config.manifest())
     results = [r for r in finished if r.trial < config.trials]
     resumed = len(results)
     if observer is not None:

@@ -57,6 +57,8 @@ def open_run(out: Path, manifest: RunManifest) -> list[TrialResult]:
     if out.exists() and not out.is_dir():
         raise ConfigError(f"--out {out} exists and is not a directory")
     results, stored = out / RESULTS_FILE, out / MANIFEST_FILE
+    if results.exists() and not results.is_file():  # e.g. a FIFO: appending would block
+        read_user_file(results, "results file", limit=None)
     if not results.exists() or results.stat().st_size == 0:
         out.mkdir(parents=True, exist_ok=True)
         temporary = stored.with_suffix(".tmp")

@@ -20,6 +20,7 @@ from pydantic import BaseModel, ValidationError
 from actionreasoning.errors import ConfigError
 from actionreasoning.reasoners.chat import ChatBackend, ChatReply, ChatRequest, StructuredMode
 from actionreasoning.records import LLMUsage
+from actionreasoning.world.config_files import read_user_file
 
 
 class ReplayMismatchError(ConfigError):
@@ -123,10 +124,7 @@ def read_header(path: Path) -> Header:
 
 def _read(path: Path, header_only: bool = False) -> tuple[Header, list[Exchange]]:
     """A recording's header and exchanges; any line that is not one is a ConfigError."""
-    try:
-        lines = path.read_bytes().splitlines()
-    except OSError as error:
-        raise ConfigError(f"cannot read recording {path}: {error.strerror}") from None
+    lines = read_user_file(path, "recording", limit=None).splitlines()
     if not lines:
         raise ConfigError(f"{path} is not a recording (no header line)")
     header = _parse(Header, path, lines[0], 1)
