@@ -24,6 +24,7 @@ from actionreasoning.eval.report.build import build_report
 from actionreasoning.eval.report.tables import AVERAGE, COLUMNS
 from actionreasoning.eval.report.tables import Table as ComparisonTable
 from actionreasoning.eval.run import RunConfig, run_eval
+from actionreasoning.eval.run_dir import output_directory
 from actionreasoning.eval.summary import RunSummary
 from actionreasoning.eval.trial import Method, TrialSpec, trial_world
 from actionreasoning.reasoners.factory import LLMConfig, check_backend
@@ -103,19 +104,14 @@ class Fallback(StrEnum):
     BUILTIN = "builtin"
 
 
-def _fail(error: ActionReasoningError) -> None:
-    err_console.print(f"[bold red]error:[/] {escape(str(error))}", highlight=False, soft_wrap=True)
+def _fail(error: ActionReasoningError | OSError, where: Path | None = None) -> None:
+    """End the command with one line naming the problem (for a file error: the file, else
+    ``where``)."""
+    text = str(error)
+    if isinstance(error, OSError) and (error.filename or where) is not None:
+        text = f"{error.filename or where}: {error.strerror}"
+    err_console.print(f"[bold red]error:[/] {escape(text)}", highlight=False, soft_wrap=True)
     raise typer.Exit(code=2)
-
-
-def _output_dir(out: Path) -> None:
-    """Create ``out`` if need be; a directory that cannot be made or written is refused."""
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        raise ConfigError(f"cannot create the output directory {out}: {error.strerror}") from None
-    if not os.access(out, os.W_OK | os.X_OK):
-        raise ConfigError(f"cannot write to the output directory {out}")
 
 
 def _check_options(method: Method, llm: LLMConfig, transcripts: bool) -> None:
@@ -332,10 +328,8 @@ def _evaluate(
         title = f"{method} / {pattern} / {config.physics.name} / noise {config.noise.name}"
         with ConsoleProgress(console, title) as progress:
             summary = run_eval(config, progress)
-    except ActionReasoningError as error:
-        _fail(error)
-    except OSError as error:
-        _fail(ConfigError(f"{error.filename or out}: {error.strerror}"))
+    except (ActionReasoningError, OSError) as error:
+        _fail(error, out)
     except KeyboardInterrupt:
         err_console.print(f"interrupted: {RESUME_HINT}", highlight=False)
         raise typer.Exit(code=130) from None
@@ -382,12 +376,10 @@ def report_command(
     content; others are set side by side, and the report names the fields that differ.
     """
     try:
-        _output_dir(out)
+        output_directory(out)
         report = build_report(runs, out, gifs=gif)
-    except ActionReasoningError as error:
-        _fail(error)
-    except OSError as error:
-        _fail(ConfigError(f"{error.filename or out}: {error.strerror}"))
+    except (ActionReasoningError, OSError) as error:
+        _fail(error, out)
     console.print(_comparison(report.table))
     for note in report.table.notes:
         console.print(note, highlight=False, markup=False, soft_wrap=True)

@@ -52,15 +52,25 @@ def digest(text: str) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def open_run(out: Path, manifest: RunManifest) -> list[TrialResult]:
-    """Create ``out`` for this run, or check it holds the same run; its finished trials."""
+def output_directory(out: Path) -> None:
+    """Create ``out`` if new; a path that is no directory, or cannot be made one, is refused."""
     if out.exists() and not out.is_dir():
         raise ConfigError(f"--out {out} exists and is not a directory")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise ConfigError(
+            f"--out {out}: cannot create that directory ({error.strerror})"
+        ) from error
+
+
+def open_run(out: Path, manifest: RunManifest) -> list[TrialResult]:
+    """Create ``out`` for this run, or check it holds the same run; its finished trials."""
+    output_directory(out)
     results, stored = out / RESULTS_FILE, out / MANIFEST_FILE
     if results.exists() and not results.is_file():  # e.g. a FIFO: appending would block
         read_user_file(results, "results file", limit=None)
     if not results.exists() or results.stat().st_size == 0:
-        out.mkdir(parents=True, exist_ok=True)
         temporary = stored.with_suffix(".tmp")
         temporary.write_text(manifest.model_dump_json(indent=2) + "\n")
         os.replace(temporary, stored)

@@ -18,7 +18,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from actionreasoning.errors import ConfigError
-from actionreasoning.eval.run_dir import write_error
+from actionreasoning.eval.run_dir import output_directory, write_error
 
 LOCK_FILE = "run.lock"
 
@@ -46,15 +46,8 @@ def run_lock(out: Path) -> Iterator[None]:
 
 def _directory(out: Path) -> tuple[int, int]:
     """Create ``out`` if new; its (device, inode)."""
-    if out.exists() and not out.is_dir():
-        raise ConfigError(f"--out {out} exists and is not a directory")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        status = out.stat()
-    except OSError as error:
-        raise ConfigError(
-            f"--out {out}: cannot create that directory ({error.strerror})"
-        ) from error
+    output_directory(out)
+    status = out.stat()
     return status.st_dev, status.st_ino
 
 
