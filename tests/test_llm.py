@@ -15,6 +15,7 @@ from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.reasoner import AgentRequest
 from actionreasoning.agents.spec import agent_specs
 from actionreasoning.agents.transcript import AgentCall
+from actionreasoning.agents.view import StateView
 from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.errors import LLMError
 from actionreasoning.eval.sim_world import SimWorld
@@ -179,11 +180,13 @@ def test_a_tool_call_goes_to_the_world_and_its_result_back_to_the_model(
             ran.append(name)
             return call_tool(name, arguments, context)
 
+        memory = TaskMemory()
         request = AgentRequest(
             spec=pre_grasp,
             prompt=TOOL_PROMPT,
+            view=StateView.of(state, memory, pre_grasp.scope),
             state=state,
-            memory=TaskMemory(),
+            memory=memory,
             tolerances=Tolerances(),
             call_tool=run_tool,
         )
@@ -191,18 +194,18 @@ def test_a_tool_call_goes_to_the_world_and_its_result_back_to_the_model(
             reasoner.decide(request)
         except LLMError as error:  # what the small model answers after the tool is its own
             assert error.reason == "invalid_output"
-    assert ran == ["grasp_candidates"]
+    assert ran == ["grasp_options"]
     exchanges = [json.loads(line) for line in recording.read_text().splitlines()][1:]
     tool_message = exchanges[1]["request"]["messages"][-1]["content"]
-    assert tool_message.startswith('Tool results: [{"tool":"grasp_candidates","result":')
-    assert '"candidates":' in tool_message
+    assert tool_message.startswith('Tool results: [{"tool":"grasp_options","result":')
+    assert '"options":' in tool_message
     assert mode in (StructuredMode.JSON_SCHEMA, StructuredMode.JSON_OBJECT_SCHEMA)
 
 
 TOOL_PROMPT = (
-    "You look before you act. Call the tool grasp_candidates for brick 0 now. Answer with "
-    'exactly this JSON object and nothing else: {"tool_calls": [{"name": "grasp_candidates", '
-    '"arguments": {"brick_id": 0}}], "rationale": "look at the grasps first"}'
+    "You look before you act. Call the tool grasp_options for brick 0 now. Answer with "
+    'exactly this JSON object and nothing else: {"tool_calls": [{"name": "grasp_options", '
+    '"arguments": {"brick_id": 0, "target_index": 0}}], "rationale": "look at the grasps first"}'
 )
 
 

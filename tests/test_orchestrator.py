@@ -11,10 +11,11 @@ import pybullet as p
 import pytest
 from scipy.spatial.transform import Rotation
 
-from actionreasoning.agents.orchestrator import Orchestrator, target_supports
+from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.outputs import PlacementAnswer, PreGraspAnswer
 from actionreasoning.agents.put_down import SET_ASIDE_MARGIN_M, SET_ASIDE_RANGE_M, levelled_offset
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
+from actionreasoning.agents.view import target_supports
 from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.eval.metrics import center_offset_cm
 from actionreasoning.eval.sim_world import SimWorld
@@ -39,7 +40,7 @@ class Scripted:
 
     pre_grasp: list[PreGraspAnswer]
     name: str = "scripted"
-    builtin: BuiltinReasoner = field(default_factory=lambda: BuiltinReasoner(READY_POSE))
+    builtin: BuiltinReasoner = field(default_factory=lambda: BuiltinReasoner())
     requests: list[AgentRequest] = field(default_factory=list)
 
     def decide(self, request: AgentRequest) -> AgentReply:
@@ -160,7 +161,9 @@ class MisplacesFirstSetDown(Scripted):
 
     def decide(self, request: AgentRequest) -> AgentReply:
         reply = super().decide(request)
-        first_set_down = request.spec.key == "placement" and request.memory.flags.get("placement")
+        first_set_down = request.spec.key == "placement" and any(
+            e.agent == "placement" for e in request.memory.this_brick
+        )
         if first_set_down and not self.misplaced:
             self.misplaced = True
             x, y, z = reply.answer.waypoint.position_m
@@ -199,7 +202,9 @@ class RegraspsAtFirstSetDown(Scripted):
     asked: bool = False
 
     def decide(self, request: AgentRequest) -> AgentReply:
-        first_set_down = request.spec.key == "placement" and request.memory.flags.get("placement")
+        first_set_down = request.spec.key == "placement" and any(
+            e.agent == "placement" for e in request.memory.this_brick
+        )
         if first_set_down and not self.asked:
             self.asked = True
             self.requests.append(request)

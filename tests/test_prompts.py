@@ -1,8 +1,10 @@
-"""Agents as data and their prompts: every agent renders, a missing variable fails loudly."""
+"""Agents as data and their prompts: every agent renders, a missing variable fails loudly,
+and a prompt says what is true: frames with a worked example, tool results with their
+fields, the thresholds its agent reads, and for the single agent nothing of the gates."""
 
 from __future__ import annotations
 
-import json
+import math
 import re
 import subprocess
 import sys
@@ -13,13 +15,22 @@ from jinja2 import UndefinedError
 from jsonschema import Draft202012Validator
 
 from actionreasoning.agents.memory import PlacedBrick, TaskMemory
-from actionreasoning.agents.prompt import _ENVIRONMENT, render_prompt
+from actionreasoning.agents.prompt import _ENVIRONMENT, DIGITS, render_prompt
 from actionreasoning.agents.spec import AgentSpec, agent_specs, single_agent_spec
+from actionreasoning.agents.view import StateView
 from actionreasoning.tools.registry import TOOLS
+from actionreasoning.world.geometry import round_floats, top_down_quat, yaw_quat
 from actionreasoning.world.tolerances import Tolerances
 
 STATE = built_state("grid")
-MEMORY = TaskMemory(placed=(PlacedBrick(brick_id=0, target_index=0),), current_brick=1)
+MEMORY = TaskMemory(
+    placed=(PlacedBrick(brick_id=0, target_index=0),), current_brick=1, current_target=1
+)
+
+
+def _prompt(spec: AgentSpec) -> str:
+    view = StateView.of(STATE, MEMORY, spec.scope, spec.robot_extras)
+    return render_prompt(spec, view, MEMORY, Tolerances())
 
 
 def test_there_are_six_agents_with_known_tools_and_valid_output_schemas() -> None:
@@ -34,65 +45,79 @@ def test_there_are_six_agents_with_known_tools_and_valid_output_schemas() -> Non
     ]
     for spec in specs:
         assert spec.tools and set(spec.tools) <= set(TOOLS)
-        assert len(spec.thinking) >= 3
+        assert spec.thinking and spec.gate
+        assert set(spec.thresholds) <= set(Tolerances.model_fields)
         Draft202012Validator.check_schema(spec.output_model.model_json_schema())
 
 
 @pytest.mark.parametrize("spec", [*agent_specs(), single_agent_spec()], ids=lambda s: s.key)
-def test_every_agent_renders_its_six_parts(spec: AgentSpec) -> None:
-    prompt = render_prompt(spec, STATE, MEMORY, Tolerances())
+def test_every_agent_renders_its_parts_and_its_state_reads_back(spec: AgentSpec) -> None:
+    prompt = _prompt(spec)
     title = f"# Agent {spec.number} of 6: {spec.name}" if spec.number else f"# {spec.name}"
     assert prompt.startswith(title + "\n")
-    for heading in (
-        "## Role",
-        "## Current environment state S_t",
-        "## Task memory M_t",
-        "## Knowledge base",
-        "## Thinking chain",
-        "## Output format",
-    ):
+    for heading in ("## Conventions", "## Role", "## State S_t", "## Memory M_t", "## Tools"):
+        assert heading in prompt
+    for heading in ("## Thresholds", "## Thinking chain", "## Answer"):
         assert heading in prompt
     for tool in spec.tools:
-        assert f"### {tool}" in prompt
-    blocks = re.findall(r"```json\n(.*?)\n```", prompt, flags=re.S)
-    state, memory, schema = (json.loads(block) for block in blocks)
-    assert len(state["bricks"]) == 6 and state["goal"]["name"] == "grid"
-    assert memory["placed"] == [{"brick_id": 0, "target_index": 0}]
-    assert schema == json.loads(json.dumps(spec.output_model.model_json_schema()))
-    assert "c_min_m = 0.02" in prompt
+        assert f"### {tool}: " in prompt
+    state_json, memory_json = re.findall(r"```json\n(.*?)\n```", prompt, flags=re.S)
+    shown = StateView.of(STATE, MEMORY, spec.scope, spec.robot_extras).model_dump(mode="json")
+    assert StateView.model_validate_json(state_json) == StateView.model_validate(
+        round_floats(shown, DIGITS)
+    )
+    assert TaskMemory.model_validate_json(memory_json) == MEMORY
+    line = prompt.split("## Thresholds\n", 1)[1].split("\n", 1)[0]
+    assert [pair.split("=")[0] for pair in line.split(", ")] == list(spec.thresholds)
+
+
+def test_tool_results_are_described_field_by_field() -> None:
+    placement = _prompt(agent_specs()[4])
+    result = placement.split("### held_pose: ", 1)[1].split("Result:\n", 1)[1]
+    assert "- offset_in_hand_m: [number x3]  # Centre, tool frame." in result
+    assert "- slot_pose: Pose" in placement
+    assert '"$defs"' not in placement  # no raw JSON schema
+
+
+def test_the_worked_example_is_what_the_conventions_say() -> None:
+    prompt = _prompt(agent_specs()[1])
+    assert "[cos(a/2), sin(a/2), 0, 0]" in prompt
+    example = prompt.split("Example: ", 1)[1]
+    brick = [float(v) for v in re.findall(r"quaternion \[(.*?)\]", example)[0].split(", ")]
+    tool = [float(v) for v in re.findall(r"\], \[(.*?)\]\.", example)[0].split(", ")]
+    yaw = math.radians(30.0)
+    assert brick == pytest.approx(yaw_quat(yaw), abs=1e-4)
+    assert tool == pytest.approx(top_down_quat(yaw), abs=1e-4)
+    assert [math.cos(yaw / 2), math.sin(yaw / 2), 0, 0] == pytest.approx(tool, abs=1e-4)
+
+
+def test_the_single_agent_is_told_nothing_checks_it() -> None:
+    merged, specs = single_agent_spec(), agent_specs()
+    prompt = _prompt(merged)
+    assert "Nothing checks your waypoints" in prompt
+    for spec in specs:
+        assert spec.role in merged.role and spec.gate not in prompt
+    assert "asked again" not in prompt and "sigma_" not in prompt
+    assert set(merged.tools) == {tool for spec in specs for tool in spec.tools}
+    assert len(merged.thinking) == sum(len(spec.thinking) for spec in specs)
 
 
 def test_a_missing_template_variable_fails_loudly() -> None:
     template = _ENVIRONMENT.get_template("agent.md.j2")
-    with pytest.raises(UndefinedError, match="role"):
-        template.render(
-            number=1,
-            name="x",
-            state_json="{}",
-            memory_json="{}",
-            tolerances={},
-            tools=[],
-            thinking=[],
-            output_schema_json="{}",
-        )
+    with pytest.raises(UndefinedError, match="conventions"):
+        template.render(number=1, name="x")
 
 
-def test_prompt_command_prints_what_agent_one_is_sent() -> None:
+def test_prompt_command_prints_what_an_agent_is_sent_in_trial_zero() -> None:
     result = subprocess.run(
-        [sys.executable, "-m", "actionreasoning", "prompt", "--agent", "1", "--seed", "0"],
+        [sys.executable, "-m", "actionreasoning", "prompt", "--agent", "6", "--seed", "0"],
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=300,
     )
     assert result.returncode == 0, result.stderr
-    assert result.stdout.startswith("# Agent 1 of 6: Pre-grasp positioning")
-    assert "### grasp_candidates" in result.stdout
-
-
-def test_the_single_agent_merges_all_six_roles_tools_and_chains() -> None:
-    merged, specs = single_agent_spec(), agent_specs()
-    assert set(merged.tools) == {tool for spec in specs for tool in spec.tools}
-    assert len(merged.thinking) == sum(len(spec.thinking) for spec in specs)
-    for spec in specs:
-        assert spec.role in merged.role
-    Draft202012Validator.check_schema(merged.output_model.model_json_schema())
+    assert result.stdout.startswith("# Agent 6 of 6: Release and return")
+    memory = re.findall(r"```json\n(.*?)\n```", result.stdout, flags=re.S)[1]
+    earlier = [answer.agent for answer in TaskMemory.model_validate_json(memory).this_brick]
+    assert earlier == ["pre_grasp", "descent", "grasp", "lift", "placement", "placement"]
+    assert '"ready_pose":{"position_m":[0.45,-0.25,0.4]' in result.stdout

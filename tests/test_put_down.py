@@ -15,7 +15,7 @@ from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.agents.put_down import PutDown
 from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.eval.trial import READY_POSE, Method, TrialSpec, trial_world
+from actionreasoning.eval.trial import Method, TrialSpec, trial_world
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.world.geometry import quat_yaw, tilt_deg, top_down_quat
 from actionreasoning.world.models import Pose, Progress
@@ -60,7 +60,7 @@ def test_a_brick_rolled_in_the_hand_is_pressed_flat_onto_its_spot(small_pattern,
         assert scene.is_held(0)
         assert tilt_deg(scene.brick_pose(0)[1]) > 20.0  # rolled past eps_tilt: a re-grasp case
 
-        calls = AgentCaller(world, BuiltinReasoner(READY_POSE), Tolerances(), BuildResult())
+        calls = AgentCaller(world, BuiltinReasoner(), Tolerances(), BuildResult())
         observe = lambda: world.observe(Progress(current_brick=0, step="lift"))  # noqa: E731
         PutDown(world, calls).put_back(observe, 0, grasp, height=0.25)
 

@@ -17,6 +17,7 @@ from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.perceive import Sensor
 from actionreasoning.sim.scene import Scene
 from actionreasoning.tools.base import ToolContext
+from actionreasoning.tools.geometry import GraspQuery, grasp_candidates
 from actionreasoning.tools.registry import TOOLS, call_tool
 from actionreasoning.world.geometry import top_down_quat, yaw_quat
 from actionreasoning.world.models import BrickState, Pose, RobotState, WorldState
@@ -69,7 +70,9 @@ def run(arm: KinematicArm, state: WorldState, name: str, **arguments: object):
 def test_every_tool_schema_is_valid_json_schema() -> None:
     assert set(TOOLS) == {
         "alignment_errors",
-        "grasp_candidates",
+        "grasp_options",
+        "held_pose",
+        "placement_pose",
         "support_contact",
         "reachability",
         "collision_check",
@@ -108,7 +111,8 @@ def test_alignment_of_a_shifted_turned_raised_brick(arm: KinematicArm) -> None:
 def test_grasp_candidates_close_across_the_short_side(arm: KinematicArm) -> None:
     yaw = math.radians(30.0)
     state = world(Pose(position_m=(0.1, -0.6, H / 2), quat_xyzw=yaw_quat(yaw)))
-    grasps = run(arm, state, "grasp_candidates", brick_id=0, approach_height_m=0.1)
+    query = GraspQuery(brick_id=0, approach_height_m=0.1)
+    grasps = grasp_candidates(context(arm, state), query)
     assert grasps.grasp_axis_xy == pytest.approx((-math.sin(yaw), math.cos(yaw)))
     first, second = grasps.candidates
     assert first.gripper_yaw_deg == pytest.approx(30.0)
@@ -116,6 +120,25 @@ def test_grasp_candidates_close_across_the_short_side(arm: KinematicArm) -> None
     assert first.grasp_pose.position_m == pytest.approx((0.1, -0.6, H / 2))
     assert first.approach_pose.position_m == pytest.approx((0.1, -0.6, H / 2 + 0.1))
     assert first.opening_needed_m == pytest.approx(W + 0.04)
+
+
+def test_grasp_options_check_both_grasps_for_pick_and_place(arm: KinematicArm) -> None:
+    yaw = math.radians(30.0)
+    free = world(Pose(position_m=(0.3, -0.5, H / 2), quat_xyzw=yaw_quat(yaw)))
+    first, second = run(arm, free, "grasp_options", brick_id=0, target_index=0).options
+    assert {round(first.gripper_yaw_deg), round(second.gripper_yaw_deg)} == {30, -150}
+    for option in (first, second):
+        assert option.grasp_pose.position_m == pytest.approx((0.3, -0.5, H / 2))
+        assert option.approach_pose.position_m[2] == pytest.approx(H / 2 + 0.12)
+    usable = [o for o in (first, second) if o.reachable]
+    assert usable and all(o.approach_clearance_m > 0.02 for o in usable)
+    assert all(o.descent_clearance_m > 0.0 for o in usable)
+    assert all(0.0 <= o.wrist_deg <= 180.0 for o in usable)
+    # A second brick 12 cm to the side: the open fingers come down on it.
+    beside = Pose(position_m=(0.3 + 0.06, -0.5 - 0.104, H / 2), quat_xyzw=yaw_quat(yaw))
+    crowded = world(free.bricks[0].pose, beside)
+    options = run(arm, crowded, "grasp_options", brick_id=0, target_index=0).options
+    assert all(o.descent_clearance_m < 0.0 for o in options)
 
 
 def test_support_on_the_ground_and_on_two_bricks(arm: KinematicArm) -> None:

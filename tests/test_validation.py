@@ -68,9 +68,9 @@ def test_a_nearly_unit_quaternion_is_normalised() -> None:
         ),
         ("lift", json.dumps({"tool_calls": [{"name": "alignment_errors"}]}), "not one of your"),
         (
-            "lift",
-            json.dumps({"tool_calls": [{"name": "slip_estimate", "arguments": {"brick_id": "x"}}]}),
-            "tool_calls[0] (slip_estimate): brick_id",
+            "placement",
+            json.dumps({"tool_calls": [{"name": "held_pose", "arguments": {"brick_id": "x"}}]}),
+            "tool_calls[0] (held_pose): brick_id",
         ),
         ("lift", json.dumps({"rationale": "x" * 5000}), "rationale: String should have at most"),
         ("descent", json.dumps({"gripper_opening_m": 5.0}), "gripper_opening_m: Input should be"),

@@ -13,11 +13,10 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from actionreasoning.agents.memory import TaskMemory
-from actionreasoning.agents.prompt import render_prompt
-from actionreasoning.agents.spec import SINGLE_AGENT_START, agent_specs, single_agent_spec
+from actionreasoning.agents.spec import agent_specs, single_agent_spec
 from actionreasoning.errors import ActionReasoningError, ConfigError
 from actionreasoning.eval.demo_dir import demo_directory
+from actionreasoning.eval.first_prompt import first_prompt
 from actionreasoning.eval.jobs import RESUME_HINT
 from actionreasoning.eval.progress import ConsoleProgress
 from actionreasoning.eval.report.build import build_report
@@ -26,18 +25,16 @@ from actionreasoning.eval.report.tables import Table as ComparisonTable
 from actionreasoning.eval.run import RunConfig, run_eval
 from actionreasoning.eval.run_dir import output_directory
 from actionreasoning.eval.summary import RunSummary
-from actionreasoning.eval.trial import Method, TrialSpec, trial_world
+from actionreasoning.eval.trial import Method, TrialSpec
 from actionreasoning.reasoners.factory import LLMConfig, check_backend
 from actionreasoning.reasoners.llm import LLMLimits
 from actionreasoning.reasoners.openai_chat import ServerOptions
 from actionreasoning.sim.scene import TrialBudget
 from actionreasoning.world.geometry import quat_yaw
-from actionreasoning.world.models import Progress as BuildProgress
 from actionreasoning.world.noise import load_noise
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import load_physics
 from actionreasoning.world.scene_spec import SceneSpec
-from actionreasoning.world.tolerances import Tolerances
 
 app = typer.Typer(
     help="LLM action reasoning for robot brick stacking: simulate, evaluate, report.",
@@ -404,7 +401,8 @@ def prompt_command(
     physics: PhysicsOption = "paper",
     noise: NoiseOption = "none",
 ) -> None:
-    """Print the prompt agent N would be sent at its first step, to read and tune it."""
+    """Print the prompt agent N is first sent in trial 0 (the built-in reasoner answers
+    the agents before it), to read and tune it."""
     try:
         goal = load_pattern(pattern, SceneSpec())
         profile, level = load_physics(physics), load_noise(noise)
@@ -420,10 +418,7 @@ def prompt_command(
         physics=profile,
         noise=level,
     )
-    with trial_world(trial) as world:
-        state = world.sensor.perceive(goal, BuildProgress(step=spec.key))
-    memory = TaskMemory(step=spec.key if agent else SINGLE_AGENT_START)
-    print(render_prompt(spec, state, memory, Tolerances()), end="")
+    print(first_prompt(trial, spec.key), end="")
 
 
 @app.command("pattern")

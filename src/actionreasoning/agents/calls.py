@@ -18,6 +18,7 @@ from actionreasoning.agents.prompt import render_prompt
 from actionreasoning.agents.reasoner import AgentRequest, Reasoner
 from actionreasoning.agents.spec import AgentSpec
 from actionreasoning.agents.transcript import AgentCall, GateRecord, Outcome, ToolRecord
+from actionreasoning.agents.view import StateView
 from actionreasoning.agents.world import World
 from actionreasoning.errors import (
     ActionReasoningError,
@@ -92,7 +93,8 @@ class AgentCaller:
         )
         state = self.world.observe(progress)
         context = self.world.tools(state)
-        prompt = render_prompt(spec, state, memory, self.tol)
+        view = StateView.of(state, memory, spec.scope, spec.robot_extras)
+        prompt = render_prompt(spec, view, memory, self.tol)
         tool_calls: list[ToolRecord] = []
         call = AgentCall(
             call=len(self.result.transcript),
@@ -109,6 +111,7 @@ class AgentCaller:
                 AgentRequest(
                     spec=spec,
                     prompt=prompt,
+                    view=view,
                     state=state,
                     memory=memory,
                     tolerances=self.tol,
@@ -126,6 +129,7 @@ class AgentCaller:
         call.answer, call.tool_calls = reply.answer.model_dump(mode="json"), tool_calls
         call.usage, call.repairs = reply.usage, list(reply.repairs)
         call.tool_turns, call.fallback = reply.tool_turns, reply.fallback
+        call.prompt_chars = reply.prompt_chars or call.prompt_chars
         if not isinstance(reply.answer, spec.output_model):
             raise TrialStopped("invalid_output", spec.key, "answer of the wrong schema")
         return reply.answer, state

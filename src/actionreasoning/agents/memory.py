@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from pydantic import BaseModel, ConfigDict, Field
+
+from actionreasoning.world.geometry import round_floats
 
 
 class PlacedBrick(BaseModel):
@@ -12,6 +16,32 @@ class PlacedBrick(BaseModel):
 
     brick_id: int
     target_index: int
+
+
+#: Earlier answers are history, shown to millimetres and thousandths.
+HISTORY_DIGITS = 3
+
+
+class EarlierAnswer(BaseModel):
+    """An accepted answer of an earlier agent for the current brick: its decision and why."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    agent: str
+    decision: dict[str, Any]
+    rationale: str
+
+    @classmethod
+    def of(cls, agent: str, answer: BaseModel) -> EarlierAnswer:
+        """The record of ``agent``'s accepted ``answer`` (its tool calls left out)."""
+        decision = answer.model_dump(
+            mode="json", exclude={"tool_calls", "rationale"}, exclude_defaults=True
+        )
+        return cls(
+            agent=agent,
+            decision=round_floats(decision, HISTORY_DIGITS),
+            rationale=getattr(answer, "rationale", ""),
+        )
 
 
 class TaskMemory(BaseModel):
@@ -24,8 +54,10 @@ class TaskMemory(BaseModel):
     current_target: int | None = None
     step: str = "pre_grasp"
     retries: dict[str, int] = Field(default_factory=dict, description="Attempts used per agent.")
-    flags: dict[str, bool] = Field(default_factory=dict, description="Gates passed this brick.")
     last_feedback: str = Field("", description="Why the last attempt was refused, if it was.")
     regrasps: int = Field(
         0, description="Times the current target's brick was put down to be grasped again."
+    )
+    this_brick: tuple[EarlierAnswer, ...] = Field(
+        (), description="The accepted answers of this brick's cycle so far, in order."
     )

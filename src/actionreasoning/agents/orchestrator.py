@@ -27,21 +27,21 @@ from actionreasoning.agents.calls import (
     TrialStopped,
     failure_of,
 )
-from actionreasoning.agents.memory import PlacedBrick, TaskMemory
+from actionreasoning.agents.memory import EarlierAnswer, PlacedBrick, TaskMemory
 from actionreasoning.agents.outputs import AgentAnswer, WaypointProposal, unit_waypoint
 from actionreasoning.agents.put_down import PutDown
 from actionreasoning.agents.reasoner import Reasoner
 from actionreasoning.agents.spec import agent_specs
 from actionreasoning.agents.transcript import Outcome
+from actionreasoning.agents.view import target_supports
 from actionreasoning.agents.world import World
 from actionreasoning.errors import UnreachableError
 from actionreasoning.tools.collision import CollisionReport
+from actionreasoning.tools.placement import SEAT_CLEARANCE_M
 from actionreasoning.world.geometry import quat_yaw
 from actionreasoning.world.models import GoalPattern, Pose, Progress, WorldState
-from actionreasoning.world.support import BrickBox, carriers
 from actionreasoning.world.tolerances import Tolerances
 
-SEAT_CLEARANCE_M = 0.003
 RETREAT_M = 0.08
 #: Where the carry ends: this far above the slot, so that the brick is measured in the
 #: hand again just before the set-down (it may have crept or rolled on the way), with room
@@ -71,15 +71,6 @@ class _Refused(Exception):
 
 class _Regrasp(Exception):
     """sigma_4 = 0: the brick was put back; start again at Ag1 with this feedback."""
-
-
-def target_supports(goal: GoalPattern) -> dict[int, tuple[int, ...]]:
-    """For each target, the targets it rests on."""
-    boxes = [
-        BrickBox(t.index, t.pose.position_m, quat_yaw(t.pose.quat_xyzw), t.size_m)
-        for t in goal.targets
-    ]
-    return {box.index: tuple(o.index for o, _ in carriers(box, boxes)) for box in boxes}
 
 
 class Orchestrator:
@@ -121,9 +112,9 @@ class Orchestrator:
             self.memory = self.memory.model_copy(
                 update={
                     "retries": {},
-                    "flags": {},
                     "last_feedback": feedback,
                     "regrasps": regrasps,
+                    "this_brick": (),
                 }
             )
             self._check_bricks_left()
@@ -179,8 +170,10 @@ class Orchestrator:
                 self.calls.conclude(Outcome.REGRASP, str(regrasp))
                 raise
             self.calls.conclude(Outcome.ACCEPTED)
-            flags = {**self.memory.flags, key: True}
-            self.memory = self.memory.model_copy(update={"flags": flags, "last_feedback": ""})
+            earlier = (*self.memory.this_brick, EarlierAnswer.of(key, answer))
+            self.memory = self.memory.model_copy(
+                update={"last_feedback": "", "this_brick": earlier}
+            )
             if self.on_stage is not None and self.memory.current_brick is not None:
                 self.on_stage(self.memory.current_brick, label or key)
             return outcome

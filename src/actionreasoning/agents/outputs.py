@@ -41,9 +41,8 @@ class WaypointProposal(_Output):
         None,
         gt=0.0,
         le=MAX_MOVE_S,
-        description="Least time the move takes (K_t x time step); a slower move loads the "
-        "grip less. None: as fast as the controller's speed limits allow, which is also the "
-        "fastest any move goes.",
+        description="Least time the move takes; a slower move loads the grip less. null: as "
+        "fast as the controller's speed limits allow.",
     )
 
 
@@ -67,9 +66,9 @@ class AgentAnswer(_Output):
     """Fields every agent answers with."""
 
     tool_calls: list[ToolCall] = Field(
-        default_factory=list, max_length=8, description="Tools to run before deciding."
+        default_factory=list, max_length=8, description="Tools to run first."
     )
-    rationale: str = Field("", max_length=600, description="One or two sentences of reasoning.")
+    rationale: str = Field("", max_length=600, description="One or two sentences: why.")
 
 
 class PreGraspAnswer(AgentAnswer):
@@ -105,8 +104,7 @@ class PlacementAnswer(AgentAnswer):
     waypoint: WaypointProposal | None = None
     regrasp: bool = Field(
         False,
-        description="Set the brick down on free ground near by and grasp it again (for a "
-        "brick that rolled in the hand further than the tool can tilt to set it level).",
+        description="Set the brick down near by and grasp it again.",
     )
 
 

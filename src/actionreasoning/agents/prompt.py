@@ -1,21 +1,26 @@
 """Prompt rendering: <S_t, M_t, R_i, K_i, Gamma_i, Omega_i> through a template file.
 
 The template is rendered with Jinja's StrictUndefined, so a missing variable is an error,
-never an empty hole in a prompt. Numbers in the state are rounded to 0.01 mm / 1e-5 rad so
-that prompts stay short without losing what the gates measure.
+never an empty hole in a prompt. The state is the agent's :class:`StateView`; numbers are
+rounded to 0.01 mm / 1e-5 so that prompts stay short without losing what the gates
+measure. Tools and the answer are described field by field (``schema_text.py``).
 """
 
 from __future__ import annotations
 
 import json
+from functools import cache
+from importlib import resources
 from typing import Any
 
 from jinja2 import Environment, PackageLoader, StrictUndefined
 
 from actionreasoning.agents.memory import TaskMemory
+from actionreasoning.agents.schema_text import describe_fields
 from actionreasoning.agents.spec import AgentSpec
+from actionreasoning.agents.view import StateView
 from actionreasoning.tools.registry import TOOLS
-from actionreasoning.world.models import WorldState
+from actionreasoning.world.geometry import round_floats
 from actionreasoning.world.tolerances import Tolerances
 
 DIGITS = 5
@@ -25,44 +30,57 @@ _ENVIRONMENT = Environment(
     keep_trailing_newline=True,
     autoescape=False,
 )
-
-
-def _rounded(value: Any) -> Any:
-    if isinstance(value, float):
-        return round(value, DIGITS) + 0.0  # + 0.0 turns -0.0 into 0.0
-    if isinstance(value, list | tuple):
-        return [_rounded(v) for v in value]
-    if isinstance(value, dict):
-        return {k: _rounded(v) for k, v in value.items()}
-    return value
+#: Where the state and the memory sit in a prompt (the reference model reads them back).
+STATE_HEADING = "## State S_t"
+MEMORY_HEADING = "## Memory M_t"
+THRESHOLDS_HEADING = "## Thresholds"
 
 
 def compact_json(data: Any) -> str:
     """Compact JSON with floats rounded as in prompts."""
-    return json.dumps(_rounded(data), separators=(",", ":"))
+    return json.dumps(round_floats(data, DIGITS), separators=(",", ":"))
+
+
+@cache
+def _text(name: str) -> str:
+    return resources.files("actionreasoning.agents").joinpath(f"prompts/{name}").read_text()
+
+
+def conventions(frames: bool) -> str:
+    """Units and formats, and if ``frames`` the brick and tool frames with a worked example."""
+    return _text("conventions.md") + (_text("frames.md") if frames else "")
+
+
+def thresholds_line(tolerances: Tolerances, names: tuple[str, ...]) -> str:
+    """The gate thresholds ``names`` as one line of ``name=value`` pairs."""
+    values = tolerances.model_dump()
+    return ", ".join(f"{name}={values[name]:g}" for name in names)
 
 
 def render_prompt(
-    spec: AgentSpec, state: WorldState, memory: TaskMemory, tolerances: Tolerances
+    spec: AgentSpec, view: StateView, memory: TaskMemory, tolerances: Tolerances
 ) -> str:
-    """The full prompt of agent ``spec`` for this state and memory."""
+    """The full prompt of agent ``spec`` for this view of the state and this memory."""
     template = _ENVIRONMENT.get_template("agent.md.j2")
     tools = [
         {
             "name": name,
             "description": TOOLS[name].description,
-            "schema_json": compact_json(TOOLS[name].input_model.model_json_schema()),
+            "arguments": "\n".join(describe_fields(TOOLS[name].input_model)),
+            "result": "\n".join(describe_fields(TOOLS[name].output_model)),
         }
         for name in spec.tools
     ]
     return template.render(
         number=spec.number,
         name=spec.name,
+        conventions=conventions(spec.frames),
         role=spec.role,
-        state_json=compact_json(state.model_dump(mode="json")),
-        memory_json=compact_json(memory.model_dump(mode="json")),
-        tolerances=tolerances.model_dump(),
+        gate=spec.gate,
+        state_json=compact_json(view.model_dump(mode="json", exclude_none=True)),
+        memory_json=compact_json(memory.model_dump(mode="json", exclude_defaults=True)),
+        tolerances=thresholds_line(tolerances, spec.thresholds),
         tools=tools,
         thinking=spec.thinking,
-        output_schema_json=compact_json(spec.output_model.model_json_schema()),
+        answer_fields="\n".join(describe_fields(spec.output_model)),
     )

@@ -9,6 +9,7 @@ from typing import Any, Protocol
 from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.outputs import AgentAnswer
 from actionreasoning.agents.spec import AgentSpec
+from actionreasoning.agents.view import StateView
 from actionreasoning.records import LLMUsage
 from actionreasoning.tools.base import ToolModel
 from actionreasoning.world.models import WorldState
@@ -21,13 +22,28 @@ ToolRunner = Callable[[str, Mapping[str, Any]], ToolModel]
 class AgentRequest:
     """What an agent is asked: its rendered prompt and the same context in structured form.
 
-    ``call_tool`` runs a whitelisted tool of the agent's knowledge base on the current
-    world; it is the only way a reasoner learns more than the prompt says.
+    ``view``, ``memory`` and ``tolerances`` are what the prompt shows; ``call_tool`` runs a
+    whitelisted tool of the agent's knowledge base on the current world, the only way a
+    reasoner learns more than the prompt says. ``state`` is the whole measured state, for
+    validating an answer's ids (a reasoner does not read it).
     """
 
     spec: AgentSpec
     prompt: str
+    view: StateView
     state: WorldState
+    memory: TaskMemory
+    tolerances: Tolerances
+    call_tool: ToolRunner
+
+
+@dataclass(frozen=True)
+class Briefing:
+    """What a prompt tells an agent, in structured form, and the agent's tools: all a
+    policy may read, whether it gets it as objects or parses it from the prompt's text."""
+
+    agent: str
+    view: StateView
     memory: TaskMemory
     tolerances: Tolerances
     call_tool: ToolRunner
@@ -39,7 +55,8 @@ class AgentReply:
 
     ``repairs`` are the errors that sent the model's earlier outputs back for repair,
     ``tool_turns`` how many rounds of tool calls it made, and ``fallback`` whether the
-    built-in reasoner answered after the repair budget was spent.
+    built-in reasoner answered after the repair budget was spent. ``prompt_chars`` is how
+    many characters went to the model over all its turns (None: the prompt once).
     """
 
     answer: AgentAnswer
@@ -47,6 +64,7 @@ class AgentReply:
     repairs: tuple[str, ...] = ()
     tool_turns: int = 0
     fallback: bool = False
+    prompt_chars: int | None = None
 
 
 class Reasoner(Protocol):

@@ -15,17 +15,30 @@ import yaml
 
 from actionreasoning.agents import outputs
 from actionreasoning.agents.outputs import AgentAnswer, SingleAgentAnswer
+from actionreasoning.agents.view import Scope
 from actionreasoning.tools.registry import TOOLS
+from actionreasoning.world.tolerances import Tolerances
 
 
 @dataclass(frozen=True)
 class AgentSpec:
-    """One agent: number (1-6), key, name, role, tool names, thinking chain, output model."""
+    """One agent: number (1-6), key, name, role, tool names, thinking chain, output model.
+
+    ``role`` is the task, ``gate`` what checks the answer and what follows a refusal;
+    ``scope`` which bricks it is shown, ``thresholds`` the gate thresholds it reads and
+    ``frames`` whether its prompt explains the brick and tool frames, ``robot_extras``
+    the robot fields beyond the tool pose and opening it is shown.
+    """
 
     number: int
     key: str
     name: str
     role: str
+    gate: str
+    scope: Scope
+    thresholds: tuple[str, ...]
+    frames: bool
+    robot_extras: tuple[str, ...]
     tools: tuple[str, ...]
     thinking: tuple[str, ...]
     output_model: type[AgentAnswer]
@@ -38,14 +51,20 @@ def agent_specs() -> tuple[AgentSpec, ...]:
     specs = []
     for number, entry in enumerate(yaml.safe_load(text), start=1):
         unknown = [name for name in entry["tools"] if name not in TOOLS]
+        unknown += [name for name in entry["thresholds"] if name not in Tolerances.model_fields]
         if unknown:
-            raise ValueError(f"agent {entry['key']} lists unknown tools {unknown}")
+            raise ValueError(f"agent {entry['key']} lists unknown tools or thresholds {unknown}")
         specs.append(
             AgentSpec(
                 number=number,
                 key=entry["key"],
                 name=entry["name"],
                 role=entry["role"],
+                gate=entry["gate"],
+                scope=Scope(entry["scope"]),
+                thresholds=tuple(entry["thresholds"]),
+                frames=entry["frames"],
+                robot_extras=tuple(entry.get("robot_extras", ())),
                 tools=tuple(entry["tools"]),
                 thinking=tuple(entry["thinking"]),
                 output_model=getattr(outputs, entry["output"]),
@@ -61,8 +80,10 @@ SINGLE_AGENT_CYCLE = (
     "target_index; the approach pose above the brick, then open the gripper), descent (straight "
     "down to the grasp pose), grasp (close), lift (straight up), transfer (above the target "
     "slot), placement (down onto the slot), release (open), retreat (straight up). After the "
-    "last brick answer done, with the ready pose as waypoint. Task memory's step is the step "
-    "executed last; nothing checks your waypoints before they run."
+    "last brick answer done, with the ready pose as waypoint. Memory's step is the step "
+    "executed last. Nothing checks your waypoints before they run and nothing is retried: "
+    "each answer runs as given, a brick that slips stays where it falls, and a pose the arm "
+    "cannot reach ends the build."
 )
 
 
@@ -78,6 +99,11 @@ def single_agent_spec() -> AgentSpec:
         key="single_agent",
         name="Single agent (all six roles merged)",
         role=role,
+        gate="",
+        scope=Scope.ALL,
+        thresholds=tuple(dict.fromkeys(name for spec in specs for name in spec.thresholds)),
+        frames=True,
+        robot_extras=("pad_forces_n", "ready_pose"),
         tools=tools,
         thinking=thinking,
         output_model=SingleAgentAnswer,

@@ -83,7 +83,10 @@ class AgentCall(BaseModel):
     brick: int | None
     target: int | None
     attempt: int = Field(description="Attempt of this agent on this brick, from 1.")
-    prompt_chars: int
+    prompt_chars: int = Field(
+        description="Characters sent to the model for this call, every turn's conversation "
+        "counted (the built-in reasoner: the prompt once)."
+    )
     answer: dict[str, Any]
     tool_calls: list[ToolRecord] = Field(default_factory=list)
     gates: list[GateRecord] = Field(default_factory=list)

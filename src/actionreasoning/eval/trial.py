@@ -23,15 +23,14 @@ from actionreasoning.reasoners.factory import LLMConfig, make_reasoner
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.perceive import Sensor
 from actionreasoning.sim.scene import Scene, TrialBudget
-from actionreasoning.world.geometry import Vec3, top_down_quat
+from actionreasoning.world.geometry import Vec3
 from actionreasoning.world.layout import sample_pick_poses
-from actionreasoning.world.models import GoalPattern, Pose
+from actionreasoning.world.models import READY_POSE, GoalPattern
 from actionreasoning.world.noise import LEVELS, NoiseLevel, vary_bricks
 from actionreasoning.world.physics import PAPER, PhysicsProfile
 from actionreasoning.world.scene_spec import SceneSpec
 
 #: Where the arm waits between bricks and at the end: above the middle of the workspace.
-READY_POSE = Pose(position_m=(0.45, -0.25, 0.40), quat_xyzw=top_down_quat(0.0))
 SPAWN_SETTLE_S = 0.25
 FINAL_SETTLE_S = 1.0
 
@@ -181,7 +180,7 @@ def _run_agents(
 ) -> BuildResult:
     """The six gated agents, or the merged single agent, with the spec's reasoner."""
     world = SimWorld(controller, spec.goal, sensor)
-    reasoner = make_reasoner(spec.llm, READY_POSE, controller.scene.deadline)
+    reasoner = make_reasoner(spec.llm, controller.scene.deadline)
     runner = (
         SingleAgent(world, reasoner, on_stage=stage)
         if spec.method is Method.SINGLE_AGENT

@@ -21,7 +21,6 @@ from actionreasoning.reasoners.llamacpp_chat import LlamaCppChat
 from actionreasoning.reasoners.llm import LLMLimits, LLMReasoner
 from actionreasoning.reasoners.openai_chat import OpenAIChat, ServerOptions
 from actionreasoning.reasoners.recording import RecordingChat, ReplayChat
-from actionreasoning.world.models import Pose
 
 KINDS = ("builtin", "openai", "llamacpp", "replay")
 CHECK_PROMPT = (
@@ -123,10 +122,10 @@ def check_backend(config: LLMConfig) -> CheckReport:
     )
 
 
-def make_reasoner(config: LLMConfig, ready: Pose, deadline: float | None = None) -> Reasoner:
+def make_reasoner(config: LLMConfig, deadline: float | None = None) -> Reasoner:
     """A fresh reasoner for one trial, from a prepared configuration; a server's answers
     are given up at ``deadline`` (``time.monotonic()`` seconds), the trial's end."""
-    builtin = BuiltinReasoner(ready)
+    builtin = BuiltinReasoner()
     if config.kind == "builtin":
         return builtin
     backend = _backend(config, deadline)

@@ -21,6 +21,10 @@ from actionreasoning.errors import LLMError, ToolError
 from actionreasoning.reasoners.chat import ChatBackend, ChatRequest, Message
 from actionreasoning.records import LLMUsage
 
+#: How a tool turn's results and its last turn are announced to the model.
+TOOL_RESULTS = "Tool results: "
+NO_MORE_TOOLS = "No more tool calls now"
+
 
 @dataclass(frozen=True)
 class LLMLimits:
@@ -48,8 +52,9 @@ class LLMReasoner:
         """Ask the model until it gives a valid answer, within the turn budgets."""
         schema = request.spec.output_model.model_json_schema()
         messages: list[Message] = [{"role": "user", "content": request.prompt}]
-        usage, repairs, tool_turns = LLMUsage(), [], 0
+        usage, repairs, tool_turns, sent = LLMUsage(), [], 0, 0
         while True:
+            sent += sum(len(message["content"]) for message in messages)
             try:
                 reply = self.backend.complete(
                     ChatRequest(
@@ -67,7 +72,7 @@ class LLMReasoner:
             except OutputError as error:
                 repairs.append(str(error))
                 if len(repairs) > self.limits.repairs:
-                    return self._give_up(request, usage, tuple(repairs))
+                    return self._give_up(request, usage, tuple(repairs), sent)
                 messages.append({"role": "user", "content": _repair_prompt(str(error))})
                 continue
             if answer.tool_calls and tool_turns < self.limits.tool_turns:
@@ -76,11 +81,15 @@ class LLMReasoner:
                 messages.append({"role": "user", "content": _tool_results(request, answer, last)})
                 continue
             return AgentReply(
-                answer=answer, usage=usage, repairs=tuple(repairs), tool_turns=tool_turns
+                answer=answer,
+                usage=usage,
+                repairs=tuple(repairs),
+                tool_turns=tool_turns,
+                prompt_chars=sent,
             )
 
     def _give_up(
-        self, request: AgentRequest, usage: LLMUsage, repairs: tuple[str, ...]
+        self, request: AgentRequest, usage: LLMUsage, repairs: tuple[str, ...], sent: int
     ) -> AgentReply:
         if self.fallback is None:
             raise LLMError(
@@ -90,7 +99,9 @@ class LLMReasoner:
                 usage=usage,
             )
         reply = self.fallback.decide(request)
-        return AgentReply(answer=reply.answer, usage=usage, repairs=repairs, fallback=True)
+        return AgentReply(
+            answer=reply.answer, usage=usage, repairs=repairs, fallback=True, prompt_chars=sent
+        )
 
 
 def _repair_prompt(error: str) -> str:
@@ -110,8 +121,8 @@ def _tool_results(request: AgentRequest, answer: AgentAnswer, last: bool) -> str
         except ToolError as error:
             results.append({"tool": call.name, "error": str(error)})
     then = (
-        "No more tool calls now: answer with your decision and an empty tool_calls."
+        f"{NO_MORE_TOOLS}: answer with your decision and an empty tool_calls."
         if last
         else "Call more tools, or answer with your decision and an empty tool_calls."
     )
-    return f"Tool results: {compact_json(results)}\n{then}"
+    return f"{TOOL_RESULTS}{compact_json(results)}\n{then}"

@@ -25,30 +25,25 @@ JOINT_STEP_RAD = 0.05
 class CollisionQuery(ToolModel):
     """A tool pose, optionally the start of a straight path to it, and the gripper opening."""
 
-    pose: Pose = Field(description="Tool-centre-point pose to check (the path's end).")
+    pose: Pose = Field(description="Tool pose at the end of the move.")
     start_pose: Pose | None = Field(
-        None, description="If given, check the straight path from here to `pose` (1 cm steps)."
+        None, description="path linear: the straight path from here (else only `pose`)."
     )
     path: Literal["linear", "joint"] = Field(
-        "linear",
-        description="linear: the tool moves on a straight line from start_pose; joint: the arm "
-        "moves in joint space from where it is now (start_pose unused), as a joint waypoint does.",
+        "linear", description="joint: the arm's joint move from where it is now."
     )
-    gripper_opening_m: float = Field(0.16, ge=0.06, le=0.16, description="Gap between the pads.")
+    gripper_opening_m: float = Field(0.16, ge=0.06, le=0.16)
     ignore_brick_id: int | None = Field(
-        None,
-        ge=0,
-        description="A brick left out of the check, neither obstacle nor carried (the one "
-        "being grasped or released).",
+        None, ge=0, description="A brick left out (the one being grasped or released)."
     )
 
 
 class CollisionReport(ToolModel):
     """The smallest clearance found (m; negative is penetration) and where."""
 
-    reachable: bool = Field(description="Every checked pose had an IK solution.")
+    reachable: bool = Field(description="The arm reaches every pose checked.")
     collision_free: bool = Field(description="Reachable and clearance > 0 everywhere.")
-    clearance_m: float = Field(description="Smallest distance; capped at 0.25 m.")
+    clearance_m: float = Field(description="Least distance (< 0: overlap), at most 0.25.")
     closest: str = Field(description="The two things at that distance.")
     poses_checked: int
 
@@ -89,7 +84,7 @@ def _held_box(state: WorldState, held: BrickState, tool_pose: Pose) -> Box:
 
 
 def collision_check(context: ToolContext, query: CollisionQuery) -> CollisionReport:
-    """Clearance (m) of arm, gripper and held brick from the ground and the other bricks."""
+    """Clearance of arm, gripper and held brick from the ground and the other bricks."""
     obstacles, held = _obstacles(context.state, query.ignore_brick_id)
     worst = Clearance(math.inf, "")
     try:

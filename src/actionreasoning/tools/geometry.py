@@ -22,13 +22,13 @@ GROUND_TOL_M = 2e-3
 class BrickQuery(ToolModel):
     """Which brick to look at."""
 
-    brick_id: int = Field(ge=0, description="Id of a brick in the world state.")
+    brick_id: int = Field(ge=0)
 
 
 class AlignmentQuery(ToolModel):
     """A brick and the pattern target it is compared with."""
 
-    brick_id: int = Field(ge=0, description="Id of a brick in the world state.")
+    brick_id: int = Field(ge=0)
     target_index: int = Field(ge=0, description="Index of a target in the goal pattern.")
 
 
@@ -45,12 +45,12 @@ class AlignmentErrors(ToolModel):
 class GraspQuery(ToolModel):
     """Options of a top-down grasp."""
 
-    brick_id: int = Field(ge=0, description="Id of a brick in the world state.")
+    brick_id: int = Field(ge=0)
     approach_height_m: float = Field(
         0.12, gt=0.0, le=0.3, description="Height of the approach pose above the grasp pose."
     )
     side_clearance_m: float = Field(
-        0.02, ge=0.0, le=0.03, description="Free space wanted on each side of the brick (delta)."
+        0.02, ge=0.0, le=0.03, description="Free space wanted on each side of the brick."
     )
 
 
@@ -93,7 +93,8 @@ def brick_state(state: WorldState, brick_id: int) -> BrickState:
         raise ToolError(f"no brick with id {brick_id} (ids: {ids})") from None
 
 
-def _target(state: WorldState, index: int) -> TargetBrick:
+def target_of(state: WorldState, index: int) -> TargetBrick:
+    """The target ``index`` of the goal, or a ToolError naming how many there are."""
     if not 0 <= index < len(state.goal.targets):
         raise ToolError(f"no target {index} (the pattern has {len(state.goal.targets)})")
     return state.goal.targets[index]
@@ -106,7 +107,7 @@ def _box(brick: BrickState) -> BrickBox:
 def alignment_errors(context: ToolContext, query: AlignmentQuery) -> AlignmentErrors:
     """Planar offset, yaw error and height above the seat of a brick against a target."""
     brick = brick_state(context.state, query.brick_id)
-    target = _target(context.state, query.target_index)
+    target = target_of(context.state, query.target_index)
     (bx, by, bz), (tx, ty, tz) = brick.pose.position_m, target.pose.position_m
     e_theta = wrap_angle(quat_yaw(target.pose.quat_xyzw) - quat_yaw(brick.pose.quat_xyzw))
     return AlignmentErrors(
@@ -160,5 +161,4 @@ def support_contact(context: ToolContext, query: BrickQuery) -> SupportReport:
 
 
 ALIGNMENT = tool("alignment_errors", alignment_errors)
-GRASP_CANDIDATES = tool("grasp_candidates", grasp_candidates)
 SUPPORT = tool("support_contact", support_contact)

@@ -11,19 +11,23 @@ from actionreasoning.errors import ToolError
 from actionreasoning.tools.base import Tool, ToolContext, ToolModel
 from actionreasoning.tools.collision import COLLISION
 from actionreasoning.tools.contact import FINGER_CONTACTS, SLIP
-from actionreasoning.tools.geometry import ALIGNMENT, GRASP_CANDIDATES, SUPPORT
+from actionreasoning.tools.geometry import ALIGNMENT, SUPPORT
+from actionreasoning.tools.grasp_plan import GRASP_OPTIONS
+from actionreasoning.tools.placement import HELD_POSE, PLACEMENT_POSE
 from actionreasoning.tools.reach import REACHABILITY
 
 TOOLS: Mapping[str, Tool] = {
     tool.name: tool
     for tool in (
         ALIGNMENT,
-        GRASP_CANDIDATES,
+        GRASP_OPTIONS,
         SUPPORT,
         REACHABILITY,
         COLLISION,
         FINGER_CONTACTS,
         SLIP,
+        HELD_POSE,
+        PLACEMENT_POSE,
     )
 }
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -53,3 +54,15 @@ def box_corners(position: Vec3, quat_xyzw: QuatXYZW, size: Vec3) -> np.ndarray:
     half = np.asarray(size, dtype=float) / 2.0
     signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
     return Rotation.from_quat(quat_xyzw).apply(signs * half) + np.asarray(position, dtype=float)
+
+
+def round_floats(value: Any, digits: int) -> Any:
+    """``value`` with every float in it (in lists, tuples and dicts too) rounded to
+    ``digits`` decimals; -0.0 becomes 0.0."""
+    if isinstance(value, float):
+        return round(value, digits) + 0.0
+    if isinstance(value, list | tuple):
+        return [round_floats(v, digits) for v in value]
+    if isinstance(value, dict):
+        return {k: round_floats(v, digits) for k, v in value.items()}
+    return value

@@ -12,7 +12,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from actionreasoning.world.geometry import QuatXYZW, Vec3
+from actionreasoning.world.geometry import QuatXYZW, Vec3, top_down_quat
 
 BrickStatus = Literal["in_pick_area", "grasped", "placed", "dropped", "toppled"]
 
@@ -26,6 +26,16 @@ class Pose(_Model):
 
     position_m: Vec3
     quat_xyzw: QuatXYZW = (0.0, 0.0, 0.0, 1.0)
+
+
+#: Where the tool waits between bricks, pointing down at yaw 0, clear of every brick.
+READY_POSE = Pose(position_m=(0.45, -0.25, 0.40), quat_xyzw=top_down_quat(0.0))
+
+
+def is_pickable(status: str, position_m: Vec3, size_m: Vec3) -> bool:
+    """Free to be picked: in the pick area, or dropped but lying on the ground."""
+    on_ground = position_m[2] < size_m[2]
+    return status == "in_pick_area" or (status == "dropped" and on_ground)
 
 
 class RobotState(_Model):
@@ -45,6 +55,9 @@ class RobotState(_Model):
     grip_force_limit_n: float = Field(110.0, description="Largest grip force per pad.")
     ee_linear_velocity_mps: Vec3 = (0.0, 0.0, 0.0)
     ee_angular_velocity_radps: Vec3 = (0.0, 0.0, 0.0)
+    ready_pose: Pose = Field(
+        READY_POSE, description="Where the tool returns to after each brick, clear of them all."
+    )
 
 
 class BrickState(_Model):
@@ -64,8 +77,7 @@ class BrickState(_Model):
     @property
     def pickable(self) -> bool:
         """Free to be picked: in the pick area, or dropped but lying on the ground."""
-        on_ground = self.pose.position_m[2] < self.size_m[2]
-        return self.status == "in_pick_area" or (self.status == "dropped" and on_ground)
+        return is_pickable(self.status, self.pose.position_m, self.size_m)
 
 
 class TargetBrick(_Model):

@@ -1,0 +1,50 @@
+"""The prompt an agent is really sent: trial 0 run with the built-in reasoner until the
+agent is first asked."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from actionreasoning.agents.orchestrator import Orchestrator
+from actionreasoning.agents.reasoner import AgentReply, AgentRequest
+from actionreasoning.agents.single_agent import SingleAgent
+from actionreasoning.control.waypoint import WaypointController
+from actionreasoning.eval.sim_world import SimWorld
+from actionreasoning.eval.trial import TrialSpec, trial_world
+from actionreasoning.reasoners.builtin import BuiltinReasoner
+
+
+class _Caught(Exception):
+    """Raised with the prompt once the agent asked for is asked."""
+
+    def __init__(self, prompt: str) -> None:
+        super().__init__("prompt caught")
+        self.prompt = prompt
+
+
+@dataclass
+class _Catcher:
+    """The built-in reasoner, stopping the build at the first request of ``agent``."""
+
+    agent: str
+    name: str = "builtin"
+
+    def decide(self, request: AgentRequest) -> AgentReply:
+        if request.spec.key == self.agent:
+            raise _Caught(request.prompt)
+        return BuiltinReasoner().decide(request)
+
+
+def first_prompt(spec: TrialSpec, agent: str) -> str:
+    """The prompt ``agent`` (a key, or ``single_agent``) gets first in ``spec``'s trial."""
+    with trial_world(spec) as world:
+        sim = SimWorld(WaypointController(world.scene, world.arm), spec.goal, world.sensor)
+        catcher = _Catcher(agent)
+        runner = (
+            SingleAgent(sim, catcher) if agent == "single_agent" else Orchestrator(sim, catcher)
+        )
+        try:
+            result = runner.build(spec.goal)
+        except _Caught as caught:
+            return caught.prompt
+    raise RuntimeError(f"agent {agent} was never asked: {result.failure}")

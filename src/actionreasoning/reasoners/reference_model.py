@@ -1,0 +1,195 @@
+"""The prompt-only reference model: answers a chat conversation from its text alone.
+
+It is what a perfect reader of our prompts would answer. It never sees the simulator or
+any object of the run: everything it knows is parsed from the messages a chat server
+receives. From the first message, the agent's prompt, it reads which agent it is, the
+state S_t, the memory M_t and the thresholds; from its own earlier answers and the
+``Tool results`` messages after them, what each tool call returned. It then runs the
+built-in policy on that :class:`Briefing`, whose tools answer from those results. When the
+policy needs a tool result the conversation does not hold yet, the model answers with
+that one tool call, as a language model does, and is asked again with the result.
+
+A prompt missing a fact the policy needs (the state block, a field of it, a tool result
+field) cannot be answered: :class:`UnreadableConversation` says which.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import re
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from pydantic import BaseModel, ValidationError
+
+from actionreasoning.agents.memory import TaskMemory
+from actionreasoning.agents.outputs import AgentAnswer, ToolCall
+from actionreasoning.agents.prompt import MEMORY_HEADING, STATE_HEADING, THRESHOLDS_HEADING
+from actionreasoning.agents.reasoner import Briefing
+from actionreasoning.agents.spec import agent_specs, single_agent_spec
+from actionreasoning.agents.view import StateView
+from actionreasoning.reasoners import builtin
+from actionreasoning.reasoners.llm import NO_MORE_TOOLS, TOOL_RESULTS
+from actionreasoning.tools.registry import TOOLS
+from actionreasoning.world.tolerances import Tolerances
+
+Message = Mapping[str, Any]
+_AGENT_HEADING = re.compile(r"^# Agent (\d) of 6: ", re.M)
+_SINGLE_HEADING = "# Single agent"
+
+
+class UnreadableConversation(ValueError):
+    """A conversation the reference model cannot answer; the message says why."""
+
+
+class _NeedTool(Exception):
+    """The policy asked for a tool result the conversation does not hold."""
+
+    def __init__(self, call: ToolCall) -> None:
+        super().__init__(call.name)
+        self.call = call
+
+
+def reply(messages: Sequence[Message]) -> str:
+    """The assistant's answer (JSON text) to ``messages``."""
+    if not messages:
+        raise UnreadableConversation("the conversation has no messages")
+    prompt = _text(messages[0])
+    agent = _agent(prompt)
+    if agent is None:
+        return _literal_answer(messages[-1])
+    spec = single_agent_spec() if agent == "single_agent" else _spec(agent)
+    results = _tool_results(messages)
+    exhausted = NO_MORE_TOOLS in _text(messages[-1])
+
+    def call_tool(name: str, arguments: Mapping[str, Any]) -> BaseModel:
+        key = _key(name, arguments)
+        if key not in results:
+            if exhausted:
+                raise UnreadableConversation(
+                    f"needs {name} {_args(arguments)} but may call no more tools"
+                )
+            raise _NeedTool(ToolCall(name=name, arguments=dict(arguments)))
+        outcome = results[key]
+        if "error" in outcome:
+            raise UnreadableConversation(f"{name} failed: {outcome['error']}")
+        try:
+            return TOOLS[name].output_model.model_validate(outcome.get("result"))
+        except ValidationError as error:
+            raise UnreadableConversation(
+                f"the result of {name} is incomplete: {_first(error)}"
+            ) from None
+
+    briefing = Briefing(
+        agent=agent,
+        view=_block(prompt, STATE_HEADING, StateView),
+        memory=_block(prompt, MEMORY_HEADING, TaskMemory),
+        tolerances=_thresholds(prompt),
+        call_tool=call_tool,
+    )
+    try:
+        answer: AgentAnswer = builtin.answer(briefing)
+    except _NeedTool as need:
+        answer = spec.output_model(
+            tool_calls=[need.call], rationale=f"measure with {need.call.name} first"
+        )
+    except (KeyError, ValueError, StopIteration) as error:
+        if isinstance(error, UnreadableConversation):
+            raise
+        raise UnreadableConversation(
+            f"the prompt does not say enough to answer: {error!r}"
+        ) from None
+    return answer.model_dump_json(exclude_defaults=True)
+
+
+def _text(message: Message) -> str:
+    return str(message.get("content") or "")
+
+
+def _agent(prompt: str) -> str | None:
+    """The agent key a prompt is written for, or None for a message that is no agent prompt."""
+    if prompt.startswith(_SINGLE_HEADING):
+        return "single_agent"
+    found = _AGENT_HEADING.match(prompt)
+    return None if found is None else agent_specs()[int(found.group(1)) - 1].key
+
+
+def _spec(agent: str) -> Any:
+    return next(spec for spec in agent_specs() if spec.key == agent)
+
+
+def _block(prompt: str, heading: str, model: type[BaseModel]) -> Any:
+    """The JSON block under ``heading``, validated as ``model``."""
+    found = re.search(re.escape(heading) + r"\n```json\n(.*?)\n```", prompt, re.S)
+    if found is None:
+        raise UnreadableConversation(f"the prompt has no JSON block under {heading!r}")
+    try:
+        return model.model_validate_json(found.group(1))
+    except ValidationError as error:
+        raise UnreadableConversation(f"{heading[3:]}: {_first(error)}") from None
+
+
+def _thresholds(prompt: str) -> Tolerances:
+    """The gate thresholds, from the ``name=value`` line under the thresholds heading."""
+    found = re.search(re.escape(THRESHOLDS_HEADING) + r"\n(.*)\n", prompt)
+    if found is None:
+        raise UnreadableConversation(f"the prompt has no {THRESHOLDS_HEADING!r} line")
+    pairs = dict(part.split("=", 1) for part in found.group(1).split(", ") if "=" in part)
+    try:
+        shown = {name: float(value) for name, value in pairs.items()}
+        Tolerances.model_validate(shown)  # each shown value within its bounds
+    except (ValueError, ValidationError) as error:
+        raise UnreadableConversation(f"thresholds: {error}") from None
+    # A threshold the prompt does not show is NaN: a policy that read it would fail its
+    # comparisons, never fall back on a default it was not told.
+    unknown = {name: math.nan for name in Tolerances.model_fields if name not in shown}
+    return Tolerances.model_construct(**unknown, **shown)
+
+
+def _tool_results(messages: Sequence[Message]) -> dict[str, dict[str, Any]]:
+    """Each tool call of the model's earlier answers, keyed by name and arguments, with
+    what came back for it (``result`` or ``error``)."""
+    results: dict[str, dict[str, Any]] = {}
+    for asked, answered in itertools.pairwise(messages[1:]):
+        text = _text(answered)
+        if asked.get("role") != "assistant" or not text.startswith(TOOL_RESULTS):
+            continue
+        try:
+            calls = json.loads(_text(asked)).get("tool_calls", [])
+            outcomes = json.loads(text[len(TOOL_RESULTS) :].split("\n", 1)[0])
+        except (json.JSONDecodeError, AttributeError) as error:
+            raise UnreadableConversation(f"unreadable tool turn: {error}") from None
+        for call, outcome in zip(calls, outcomes, strict=False):
+            results[_key(call["name"], call.get("arguments", {}))] = outcome
+    return results
+
+
+def _key(name: str, arguments: Mapping[str, Any]) -> str:
+    return name + json.dumps(arguments, sort_keys=True)
+
+
+def _args(arguments: Mapping[str, Any]) -> str:
+    return json.dumps(arguments, sort_keys=True)[:120]
+
+
+def _first(error: ValidationError) -> str:
+    item = error.errors()[0]
+    return ".".join(str(part) for part in item["loc"]) + f": {item['msg']}"
+
+
+def _literal_answer(message: Message) -> str:
+    """For a message that is no agent's prompt: the first JSON object written in it."""
+    text = _text(message)
+    decoder = json.JSONDecoder()
+    for start, char in enumerate(text):
+        if char != "{":
+            continue
+        try:
+            value, _ = decoder.raw_decode(text, start)
+        except json.JSONDecodeError:
+            continue
+        if isinstance(value, dict):
+            return json.dumps(value)
+    raise UnreadableConversation("the last message is no agent prompt and holds no JSON object")

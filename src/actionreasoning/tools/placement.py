@@ -1,0 +1,109 @@
+"""Placement tools: where the held brick sits in the hand, and the tool pose that sets it
+on a target as it sits there.
+
+The pose in the hand is the brick's measured pose in the tool frame (x along the pads'
+faces, y the axis the pads close along, z pointing down out of the gripper). The slot
+pose carries that grip rigidly: the tool pose at which the brick's centre, yaw and level
+match the target's, tilting the tool by the brick's roll in the hand.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import Field
+from scipy.spatial.transform import Rotation
+
+from actionreasoning.tools.base import ToolContext, ToolModel, tool
+from actionreasoning.tools.collision import CollisionQuery, collision_check
+from actionreasoning.tools.geometry import BrickQuery, brick_state, target_of
+from actionreasoning.world.geometry import axis_angle_deg
+from actionreasoning.world.models import Pose
+
+#: The way down is checked to this far above the seat: the set-down ends in contact.
+SEAT_CLEARANCE_M = 0.003
+
+
+class HeldPose(ToolModel):
+    """A brick's pose in the tool frame."""
+
+    held: bool
+    offset_in_hand_m: tuple[float, float, float] = Field(description="Centre, tool frame.")
+    quat_in_hand_xyzw: tuple[float, float, float, float] = Field(
+        description="[1,0,0,0]: level under the tool, aligned."
+    )
+    tilt_in_hand_deg: float = Field(description="Roll in the hand (0 to 90).")
+
+
+class PlacementQuery(ToolModel):
+    """The held brick, its target, and how the tool gets over the slot."""
+
+    brick_id: int = Field(ge=0)
+    target_index: int = Field(ge=0)
+    approach: Literal["joint", "linear"] = Field(
+        "joint", description="The move over the slot: joint to carry, linear when hovering."
+    )
+
+
+class PlacementPose(ToolModel):
+    """The slot pose for the held brick, and whether the way there is clear."""
+
+    slot_pose: Pose
+    tilt_in_hand_deg: float = Field(description="Roll in the hand (0 to 90).")
+    reachable: bool
+    way_clearance_m: float = Field(description="Over the slot, then down to 3 mm above it.")
+    closest: str = Field(description="The two things that close.")
+
+
+def held_pose(context: ToolContext, query: BrickQuery) -> HeldPose:
+    """A brick's pose in the tool frame and its roll in the hand."""
+    state = context.state
+    brick = brick_state(state, query.brick_id)
+    tool_pose = state.robot.ee_pose
+    grip = Rotation.from_quat(tool_pose.quat_xyzw)
+    offset = grip.inv().apply(np.subtract(brick.pose.position_m, tool_pose.position_m))
+    turn = grip.inv() * Rotation.from_quat(brick.pose.quat_xyzw)
+    return HeldPose(
+        held=brick.status == "grasped",
+        offset_in_hand_m=tuple(float(v) for v in offset),  # type: ignore[arg-type]
+        quat_in_hand_xyzw=tuple(float(q) for q in turn.as_quat()),  # type: ignore[arg-type]
+        tilt_in_hand_deg=axis_angle_deg(brick.pose.quat_xyzw, tool_pose.quat_xyzw),
+    )
+
+
+def placement_pose(context: ToolContext, query: PlacementQuery) -> PlacementPose:
+    """The tool pose that sets the held brick, as it sits in the hand, level on a target."""
+    state = context.state
+    hand = held_pose(context, BrickQuery(brick_id=query.brick_id))
+    goal = target_of(state, query.target_index)
+    slot_rot = (
+        Rotation.from_quat(goal.pose.quat_xyzw) * Rotation.from_quat(hand.quat_in_hand_xyzw).inv()
+    )
+    position = np.asarray(goal.pose.position_m) - slot_rot.apply(hand.offset_in_hand_m)
+    quat = tuple(float(q) for q in slot_rot.as_quat())
+    slot = Pose(position_m=tuple(float(v) for v in position), quat_xyzw=quat)  # type: ignore[arg-type]
+    tool_pose = state.robot.ee_pose
+    x, y, z = slot.position_m
+    above = Pose(position_m=(x, y, max(z, tool_pose.position_m[2])), quat_xyzw=quat)  # type: ignore[arg-type]
+    seat = Pose(position_m=(x, y, z + SEAT_CLEARANCE_M), quat_xyzw=quat)  # type: ignore[arg-type]
+    opening = state.robot.gripper_width_m
+    over = (
+        CollisionQuery(pose=above, path="joint", gripper_opening_m=opening)
+        if query.approach == "joint"
+        else CollisionQuery(pose=above, start_pose=tool_pose, gripper_opening_m=opening)
+    )
+    down = CollisionQuery(pose=seat, start_pose=above, gripper_opening_m=opening)
+    reports = [collision_check(context, q) for q in (over, down)]
+    worst = min(reports, key=lambda r: r.clearance_m if r.reachable else -np.inf)
+    return PlacementPose(
+        slot_pose=slot,
+        tilt_in_hand_deg=hand.tilt_in_hand_deg,
+        reachable=all(r.reachable for r in reports),
+        way_clearance_m=worst.clearance_m,
+        closest=worst.closest,
+    )
+
+
+HELD_POSE = tool("held_pose", held_pose)
+PLACEMENT_POSE = tool("placement_pose", placement_pose)
