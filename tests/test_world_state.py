@@ -33,7 +33,7 @@ def test_round_trip_of_a_measured_state(scene: Scene) -> None:
 def test_json_schema_describes_every_part() -> None:
     schema = WorldState.model_json_schema()
     assert set(schema["required"]) >= {"time_s", "robot", "bricks", "goal"}
-    for part in ("Pose", "RobotState", "BrickState", "GoalPattern", "Progress"):
+    for part in ("Pose", "RobotState", "PadContact", "BrickState", "GoalPattern", "Progress"):
         assert part in schema["$defs"]
     statuses = schema["$defs"]["BrickState"]["properties"]["status"]["enum"]
     assert statuses == ["in_pick_area", "grasped", "placed", "dropped", "toppled"]

@@ -2,8 +2,10 @@
 
 A :class:`Sensor` adds the trial's perception noise to every brick position and yaw and
 to the pad forces it reports, each observation a new draw from the trial's own generator
-(no draw at all where the noise is zero). The agents and the classical script read the
-world only through it; metrics and pictures read the true poses from the scene.
+(no draw at all where the noise is zero). The forces of a brick that touches a pad but is
+not the held one draw from a second generator of the trial's seed, so that measuring them
+leaves the draws of everything else as they were. The agents and the classical script read
+the world only through it; metrics and pictures read the true poses from the scene.
 """
 
 from __future__ import annotations
@@ -14,12 +16,13 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from actionreasoning.sim.robot_model import FINGER_MAX_M, FINGER_MIN_M, FINGER_PAD_BELOW_TCP_M
-from actionreasoning.sim.scene import GRASP_CONTACT_N, Scene
+from actionreasoning.sim.scene import GRASP_CONTACT_N, FingerContact, Scene
 from actionreasoning.world.geometry import QuatXYZW, Vec3, tilt_deg
 from actionreasoning.world.models import (
     BrickState,
     BrickStatus,
     GoalPattern,
+    PadContact,
     Pose,
     Progress,
     RobotState,
@@ -29,6 +32,9 @@ from actionreasoning.world.models import (
 from actionreasoning.world.noise import PERCEPTION_STREAM, NoiseLevel
 
 TOPPLED_TILT_DEG = 20.0
+#: The perception sub-stream of the pad forces of bricks other than the held one (not 0:
+#: the seed [seed, stream, 0] draws the same numbers as [seed, stream]).
+CONTACT_SUBSTREAM = 1
 
 
 class Sensor:
@@ -38,6 +44,9 @@ class Sensor:
         self.scene = scene
         self.noise = noise
         self._rng = np.random.default_rng([trial_seed, PERCEPTION_STREAM])
+        self._contact_rng = np.random.default_rng(
+            [trial_seed, PERCEPTION_STREAM, CONTACT_SUBSTREAM]
+        )
         perception, variation = noise.perception, noise.variation
         self.sensing = Sensing(
             position_std_m=perception.position_std_m,
@@ -59,12 +68,33 @@ class Sensor:
             quat = tuple(float(q) for q in (turn * Rotation.from_quat(quat)).as_quat())  # type: ignore[assignment]
         return position, quat
 
-    def _forces(self, values: tuple[float, float]) -> tuple[float, float]:
+    def _forces(self, values: tuple[float, float], rng: np.random.Generator) -> tuple[float, float]:
         rel = self.noise.perception.force_rel_std
         if rel == 0.0:
             return values
-        factors = 1.0 + self._rng.normal(0.0, rel, size=2)
+        factors = 1.0 + rng.normal(0.0, rel, size=2)
         return (max(0.0, values[0] * factors[0]), max(0.0, values[1] * factors[1]))
+
+    def _pad_contacts(
+        self,
+        contacts: list[tuple[FingerContact, FingerContact]],
+        held: int | None,
+        held_forces: tuple[tuple[float, float], tuple[float, float]],
+    ) -> tuple[PadContact, ...]:
+        """Every brick that presses on a pad with its measured forces: brick ``held`` with
+        ``held_forces`` (its measurement for finger_forces_n), the others with their own."""
+        measured = []
+        for brick, (left, right) in enumerate(contacts):
+            if left.normal_n <= 0.0 and right.normal_n <= 0.0:
+                continue
+            if brick == held:
+                normal, tangential = held_forces
+            else:
+                rng = self._contact_rng
+                normal = self._forces((left.normal_n, right.normal_n), rng)
+                tangential = self._forces((left.tangential_n, right.tangential_n), rng)
+            measured.append(PadContact(brick_id=brick, normal_n=normal, tangential_n=tangential))
+        return tuple(measured)
 
     def perceive(self, goal: GoalPattern, progress: Progress = Progress()) -> WorldState:
         """Measure the scene: robot, every brick with its status, the goal and the progress."""
@@ -75,10 +105,12 @@ class Sensor:
         contacts = [scene.finger_contacts(i) for i in range(len(scene.bricks))]
         held = [all(c.normal_n > GRASP_CONTACT_N for c in pads) for pads in contacts]
         normal, tangential = (0.0, 0.0), (0.0, 0.0)
-        if any(held):
-            left_c, right_c = contacts[held.index(True)]
-            normal = self._forces((left_c.normal_n, right_c.normal_n))
-            tangential = self._forces((left_c.tangential_n, right_c.tangential_n))
+        first_held = held.index(True) if any(held) else None
+        if first_held is not None:
+            left_c, right_c = contacts[first_held]
+            normal = self._forces((left_c.normal_n, right_c.normal_n), self._rng)
+            tangential = self._forces((left_c.tangential_n, right_c.tangential_n), self._rng)
+        pad_contacts = self._pad_contacts(contacts, first_held, (normal, tangential))
         linear, angular = scene.tcp_velocity()
         physics = scene.physics
         robot = RobotState(
@@ -89,6 +121,7 @@ class Sensor:
             finger_depth_m=FINGER_PAD_BELOW_TCP_M,
             finger_forces_n=normal,
             finger_tangential_n=tangential,
+            pad_contacts=pad_contacts,
             finger_friction=physics.pad_friction,
             grip_force_limit_n=physics.grip_force_n,
             ee_linear_velocity_mps=linear,

@@ -1,4 +1,5 @@
-"""Contact tools over the measured grip: finger forces and slip of the held brick.
+"""Contact tools over the measured pads: the forces of any brick a finger pad touches, held
+or not, and the slip of the held brick.
 
 Forces are what the simulator measured on the finger pads (N); velocities are world-frame.
 """
@@ -19,7 +20,8 @@ GRAVITY_MPS2 = 9.81
 
 
 class ContactForces(ToolModel):
-    """Per-pad contact between the gripper and a brick (zeros if it is not held)."""
+    """Per-pad contact between the gripper and a brick, held or not (zeros on a pad it does
+    not touch)."""
 
     brick_id: int
     held: bool = Field(description="Both pads press on this brick.")
@@ -55,17 +57,18 @@ class SlipEstimate(ToolModel):
 
 
 def finger_contacts(context: ToolContext, query: BrickQuery) -> ContactForces:
-    """Normal and tangential force on each finger pad from a brick, and the friction margin."""
+    """Normal and tangential force on each finger pad from a brick, held or not (a pad
+    resting on its top or pressing one side wall shows here), and the friction margin."""
     state = context.state
     brick = brick_state(state, query.brick_id)
     robot = state.robot
-    held = brick.status == "grasped"
-    normal = robot.finger_forces_n if held else (0.0, 0.0)
-    tangential = robot.finger_tangential_n if held else (0.0, 0.0)
+    contact = next((c for c in robot.pad_contacts if c.brick_id == brick.id), None)
+    normal = contact.normal_n if contact else (0.0, 0.0)
+    tangential = contact.tangential_n if contact else (0.0, 0.0)
     mu = robot.finger_friction * brick.friction
     return ContactForces(
         brick_id=brick.id,
-        held=held,
+        held=brick.status == "grasped",
         normal_n=normal,
         tangential_n=tangential,
         friction_coefficient=mu,

@@ -38,6 +38,18 @@ def is_pickable(status: str, position_m: Vec3, size_m: Vec3) -> bool:
     return status == "in_pick_area" or (status == "dropped" and on_ground)
 
 
+class PadContact(_Model):
+    """A brick that touches a finger pad, and its force on each pad."""
+
+    brick_id: int
+    normal_n: tuple[float, float] = Field(
+        description="Normal contact force of this brick on the left and right finger pads."
+    )
+    tangential_n: tuple[float, float] = Field(
+        description="Friction (tangential) force of this brick on each pad."
+    )
+
+
 class RobotState(_Model):
     """The arm and gripper as measured by the simulator."""
 
@@ -50,6 +62,11 @@ class RobotState(_Model):
     )
     finger_tangential_n: tuple[float, float] = Field(
         (0.0, 0.0), description="Friction (tangential) force on each pad from the held brick."
+    )
+    pad_contacts: tuple[PadContact, ...] = Field(
+        (),
+        description="Every brick that touches a finger pad, held or not, with its forces on "
+        "the pads; a brick not listed touches neither pad.",
     )
     finger_friction: float = Field(1.2, description="Friction coefficient of the finger pads.")
     grip_force_limit_n: float = Field(110.0, description="Largest grip force per pad.")
