@@ -204,12 +204,14 @@ def assert_usage_error(result: subprocess.CompletedProcess[str], option: str) ->
         (("eval", "--max-trial-s", "inf"), "--max-trial-s"),
         (("eval", "--max-trial-s", "nan"), "--max-trial-s"),
         (("eval", "--llm-timeout", "inf"), "--llm-timeout"),
+        (("serve-reference", "--port", "65536"), "--port"),
     ],
 )
 def test_out_of_range_numbers_are_refused_as_bad_options(
     tmp_path: Path, args: tuple[str, ...], option: str
 ) -> None:
-    out = () if args[0] == "prompt" else ("--out", str(tmp_path / "o"))  # prompt has no --out
+    has_out = args[0] in ("eval", "demo")
+    out = ("--out", str(tmp_path / "o")) if has_out else ()
     result = cli(*args, *out)
     assert_usage_error(result, option)
     assert not (tmp_path / "o").exists()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import os
+import signal
 from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
@@ -29,6 +30,7 @@ from actionreasoning.eval.trial import Method, TrialSpec
 from actionreasoning.reasoners.factory import LLMConfig, check_backend
 from actionreasoning.reasoners.llm import LLMLimits
 from actionreasoning.reasoners.openai_chat import ServerOptions
+from actionreasoning.reasoners.reference_server import ReferenceServer
 from actionreasoning.sim.scene import TrialBudget
 from actionreasoning.world.geometry import quat_yaw
 from actionreasoning.world.noise import load_noise
@@ -440,6 +442,44 @@ def pattern_command(
             str(target.index), f"{x:.3f}", f"{y:.3f}", f"{z:.3f}", f"{math.degrees(yaw):.1f}"
         )
     console.print(table)
+
+
+@app.command("serve-reference")
+def serve_reference(
+    port: Annotated[
+        int, typer.Option(min=0, max=65535, help="TCP port to listen on; 0 picks a free one.")
+    ],
+    host: Annotated[
+        str, typer.Option(help="Loopback address to listen on (127.0.0.1, ::1 or localhost).")
+    ] = "127.0.0.1",
+    verbose: Annotated[bool, typer.Option(help="Log one line per request to stderr.")] = False,
+) -> None:
+    """Serve the prompt-only reference model as an OpenAI-compatible chat server on loopback.
+
+    The model answers every chat completion from the text of the messages alone, never from
+    the simulator: it is the benchmark's reference row, a perfect reader of the agents'
+    prompts. Point a run at it with --llm openai:reference --base-url URL. Its token counts
+    are estimates. The first line printed is the base URL; Ctrl-C or SIGTERM stops it.
+    """
+    try:
+        server = ReferenceServer(host, port, verbose)
+    except ActionReasoningError as error:
+        _fail(error)
+    previous = signal.getsignal(signal.SIGTERM)
+    try:
+        signal.signal(signal.SIGTERM, _interrupt)
+        print(f"serving the prompt-only reference model at {server.url}", flush=True)
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        server.server_close()
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    """SIGTERM stops a server as Ctrl-C does."""
+    raise KeyboardInterrupt
 
 
 llm_app = typer.Typer(help="Language-model backends.", no_args_is_help=True)

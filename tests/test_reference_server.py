@@ -1,0 +1,195 @@
+"""The reference model's chat server: real sockets, the official openai client, no mocks."""
+
+from __future__ import annotations
+
+import http.client
+import json
+import re
+import signal
+import subprocess
+import sys
+import threading
+from collections.abc import Iterator
+
+import openai
+import pytest
+from conftest import assert_clean_error, cli
+
+from actionreasoning.errors import ConfigError, LLMError
+from actionreasoning.reasoners.chat import ChatRequest, StructuredMode
+from actionreasoning.reasoners.openai_chat import OpenAIChat, ServerOptions
+from actionreasoning.reasoners.reference_model import UnreadableConversation, reply
+from actionreasoning.reasoners.reference_server import (
+    MAX_BODY_BYTES,
+    ReferenceServer,
+    estimate_tokens,
+)
+
+PROBE = [{"role": "user", "content": 'Answer with the JSON object {"ok": true}.'}]
+PROBE_SCHEMA = {"type": "object", "properties": {"ok": {"type": "boolean"}}, "required": ["ok"]}
+#: No agent's prompt and no JSON object: nothing the reference model can answer.
+UNREADABLE = [{"role": "user", "content": "Stack the bricks, please."}]
+
+
+@pytest.fixture
+def server() -> Iterator[ReferenceServer]:
+    server = ReferenceServer(port=0)
+    thread = threading.Thread(target=server.serve_forever, args=(0.05,), daemon=True)
+    thread.start()
+    yield server
+    server.shutdown()
+    server.server_close()
+
+
+def client(server: ReferenceServer) -> openai.OpenAI:
+    return openai.OpenAI(base_url=server.url, api_key="no-key", max_retries=0)
+
+
+def raw_request(
+    server: ReferenceServer, method: str, path: str, body: bytes = b"", **headers: str
+) -> tuple[int, dict]:
+    """Status and JSON body of one request sent as given."""
+    host, port = server.server_address[:2]
+    connection = http.client.HTTPConnection(host, port, timeout=10)
+    try:
+        connection.putrequest(method, path)
+        for name, value in {"Content-Length": str(len(body)), **headers}.items():
+            connection.putheader(name.replace("_", "-"), value)
+        connection.endheaders(body)
+        response = connection.getresponse()
+        return response.status, json.loads(response.read())
+    finally:
+        connection.close()
+
+
+def test_estimate_tokens_counts_words_digit_runs_and_other_characters() -> None:
+    # { " position _ m " : [ 0 . 125 , - 1 . 5 ] , " id " : 123 45 }
+    assert estimate_tokens('{"position_m": [0.125, -1.5], "id": 12345}') == 25
+    assert estimate_tokens("  \n ") == 0
+
+
+def test_the_probe_comes_back_as_its_json_object_with_estimated_usage(
+    server: ReferenceServer,
+) -> None:
+    completion = client(server).chat.completions.create(
+        model="anything",
+        messages=PROBE,
+        response_format={
+            "type": "json_schema",
+            "json_schema": {"name": "probe", "schema": PROBE_SCHEMA},
+        },
+        temperature=0.0,
+        seed=0,
+        max_tokens=20,
+    )
+    assert completion.object == "chat.completion" and completion.model == "anything"
+    choice = completion.choices[0]
+    assert choice.index == 0 and choice.finish_reason == "stop"
+    assert choice.message.role == "assistant"
+    assert json.loads(choice.message.content) == {"ok": True}
+    # Answer with the JSON object { " ok " : true } . -> 13, +4 for the message
+    usage = completion.usage
+    assert (usage.prompt_tokens, usage.completion_tokens, usage.total_tokens) == (17, 7, 24)
+
+
+def test_our_client_settles_on_json_schema(server: ReferenceServer) -> None:
+    chat = OpenAIChat("anything", ServerOptions(base_url=server.url))
+    assert chat.negotiate() is StructuredMode.JSON_SCHEMA
+
+
+@pytest.mark.parametrize(
+    ("body", "needle"),
+    [
+        (b'{"messages": [', "not valid JSON"),
+        (b"\xff\xfe", "not valid JSON"),
+        (b"[" * 100_000, "not valid JSON"),
+        (b"[1]", "a JSON object"),
+        (b'{"model": "m"}', "'messages' must be a list"),
+        (b'{"messages": [{"content": "hi"}]}', "messages[0] must be an object"),
+        (b'{"messages": [{"role": "user", "content": 7}]}', "messages[0].content"),
+        (b'{"messages": [], "stream": true}', "'stream' is not supported"),
+    ],
+)
+def test_a_malformed_body_gets_400_naming_the_problem(
+    server: ReferenceServer, body: bytes, needle: str
+) -> None:
+    status, answer = raw_request(server, "POST", "/v1/chat/completions", body)
+    assert status == 400
+    assert answer["error"]["type"] == "invalid_request_error"
+    assert needle in answer["error"]["message"]
+    assert answer["error"]["code"] is None
+
+
+@pytest.mark.parametrize(
+    ("method", "path", "headers", "status"),
+    [
+        ("GET", "/v1/nothing", {}, 404),
+        ("POST", "/v1/completions", {}, 404),
+        ("GET", "/v1/chat/completions", {}, 404),
+        ("DELETE", "/v1/models", {}, 501),
+        ("POST", "/v1/chat/completions", {"Content-Length": str(MAX_BODY_BYTES + 1)}, 413),
+        ("POST", "/v1/chat/completions", {"Transfer-Encoding": "chunked"}, 411),
+    ],
+)
+def test_other_requests_get_an_openai_error_body(
+    server: ReferenceServer, method: str, path: str, headers: dict[str, str], status: int
+) -> None:
+    got, answer = raw_request(server, method, path, **headers)
+    assert got == status
+    assert answer["error"]["message"] and answer["error"]["type"] == "invalid_request_error"
+
+
+def test_an_unreadable_conversation_is_refused_with_the_reason(server: ReferenceServer) -> None:
+    with pytest.raises(UnreadableConversation) as unreadable:
+        reply(UNREADABLE)
+    with pytest.raises(openai.BadRequestError) as refused:
+        client(server).chat.completions.create(model="reference", messages=UNREADABLE)
+    assert refused.value.status_code == 400
+    assert str(unreadable.value) in refused.value.message
+    chat = OpenAIChat("reference", ServerOptions(base_url=server.url, max_retries=0))
+    with pytest.raises(LLMError) as error:
+        chat.complete(ChatRequest(messages=tuple(UNREADABLE), schema_name="s", schema={}))
+    assert error.value.reason == "llm_bad_request" and str(unreadable.value) in error.value.detail
+
+
+def test_models_lists_the_reference_model(server: ReferenceServer) -> None:
+    assert [model.id for model in client(server).models.list()] == ["reference"]
+
+
+@pytest.mark.parametrize("host", ["0.0.0.0", "::", "192.0.2.1", "example.com", ""])
+def test_a_host_that_is_not_loopback_is_refused(host: str) -> None:
+    with pytest.raises(ConfigError, match="not a loopback address"):
+        ReferenceServer(host, 0)
+
+
+def test_the_command_refuses_a_public_host_in_one_line() -> None:
+    assert_clean_error(
+        cli("serve-reference", "--port", "0", "--host", "0.0.0.0"), "not a loopback address"
+    )
+
+
+@pytest.mark.parametrize("stop", [signal.SIGTERM, signal.SIGINT], ids=lambda s: s.name)
+def test_the_command_prints_its_url_serves_and_stops_cleanly(stop: signal.Signals) -> None:
+    process = subprocess.Popen(
+        [sys.executable, "-m", "actionreasoning", "serve-reference", "--port", "0"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        line = process.stdout.readline()
+        match = re.fullmatch(
+            r"serving the prompt-only reference model at (http://127\.0\.0\.1:\d+/v1)\n", line
+        )
+        assert match, (line, process.stderr.read() if process.poll() is not None else "")
+        chat = OpenAIChat("reference", ServerOptions(base_url=match[1]))
+        assert chat.negotiate() is StructuredMode.JSON_SCHEMA
+        process.send_signal(stop)
+        assert process.wait(timeout=30) == 0
+        assert process.stdout.read() == "" and process.stderr.read() == ""
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        process.stdout.close()
+        process.stderr.close()
