@@ -159,8 +159,8 @@ def _tool_results(messages: Sequence[Message]) -> dict[str, dict[str, Any]]:
         try:
             calls = json.loads(_text(asked)).get("tool_calls", [])
             outcomes = json.loads(text[len(TOOL_RESULTS) :].split("\n", 1)[0])
-        except (json.JSONDecodeError, AttributeError) as error:
-            raise UnreadableConversation(f"unreadable tool turn: {error}") from None
+        except (json.JSONDecodeError, AttributeError, RecursionError) as error:
+            raise UnreadableConversation(f"unreadable tool turn: {error!r}"[:200]) from None
         for call, outcome in zip(calls, outcomes, strict=False):
             results[_key(call["name"], call.get("arguments", {}))] = outcome
     return results
@@ -190,6 +190,8 @@ def _literal_answer(message: Message) -> str:
             value, _ = decoder.raw_decode(text, start)
         except json.JSONDecodeError:
             continue
+        except RecursionError:
+            raise UnreadableConversation("the JSON in the message is nested too deeply") from None
         if isinstance(value, dict):
             return json.dumps(value)
     raise UnreadableConversation("the last message is no agent prompt and holds no JSON object")

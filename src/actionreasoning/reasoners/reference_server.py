@@ -36,13 +36,15 @@ MODEL_ID = "reference"
 MAX_BODY_BYTES = 8 * 1024 * 1024
 #: Tokens added per message for its role and framing, as chat formats do.
 TOKENS_PER_MESSAGE = 4
-_TOKEN = re.compile(r"[A-Za-z]+|[0-9]{1,3}|\S")
+_TOKEN = re.compile(r"[A-Za-z]+|[0-9]{1,3}|[^\sA-Za-z0-9]{1,3}")
 
 
 def estimate_tokens(text: str) -> int:
     """An estimate of the BPE tokens in ``text``: one per run of letters, per run of up to
-    three digits (as cl100k-style tokenizers split numbers) and per other non-space
-    character. Close to cl100k on the JSON-heavy text of the agents' prompts and answers."""
+    three digits (as GPT tokenizers split numbers) and per run of up to three other
+    non-space characters (``":[`` is one token there). On the agents' conversations of a
+    nominal pyramid trial it is within 1 % of OpenAI's o200k_base tokenizer (14,352 against
+    14,274 tokens per brick, 4 per message included)."""
     return sum(1 for _ in _TOKEN.finditer(text))
 
 
