@@ -66,7 +66,7 @@ GATES = {
     "pre_grasp": ["sigma1_pre_grasp"],
     "descent": ["sigma2_descent"],
     "grasp": ["sigma3_grasp"],
-    "lift": ["sigma4_lift"],
+    "lift": ["lift_plan", "sigma4_lift"],
     "placement": [],  # carried over the slot: verified, not gated
     "release": ["sigma6_return"],
 }
@@ -93,7 +93,7 @@ def check_transcript(path: Path, method: Method) -> None:
     sigma5 = calls[5].gates[0]
     assert {c.name for c in sigma5.checks} == {"d_perp_m", "e_xy_m", "e_theta_deg"}
     assert all(math.isfinite(c.value) for c in sigma5.checks)
-    assert calls[0].tool_calls and calls[0].tool_calls[0].name == "grasp_candidates"
+    assert calls[0].tool_calls and calls[0].tool_calls[0].name == "grasp_options"
 
 
 CYCLE = ["pre_grasp", "descent", "grasp", "lift", "transfer", "placement", "release", "retreat"]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from actionreasoning.agents.gates import (
+    lift_plan,
     sigma1_pre_grasp,
     sigma2_descent,
     sigma3_grasp,
@@ -92,9 +93,28 @@ CASES = {
     "sigma5 offset": (sigma5_placement(aligned(e_xy=0.004), TOL), False, "e_xy_m = 0.004"),
     "sigma5 turned": (sigma5_placement(aligned(e_theta=-1.0), TOL), False, "e_theta_deg = 1"),
     "sigma5 hovering": (sigma5_placement(aligned(d_perp=0.01), TOL), False, "d_perp_m = 0.01"),
-    "sigma6 clear": (sigma6_return(path(0.002), TOL), True, ""),
-    "sigma6 collides": (sigma6_return(path(-0.004), TOL), False, "clearance_m = -0.004"),
-    "sigma6 within noise": (sigma6_return(path(-0.004), NOISY), True, ""),
+    "sigma6 clear": (sigma6_return(path(0.002), path(0.1), TOL), True, ""),
+    "sigma6 collides": (
+        sigma6_return(path(-0.004), path(0.1), TOL),
+        False,
+        "retreat_clearance_m = -0.004",
+    ),
+    "sigma6 within noise": (sigma6_return(path(-0.004), path(0.1), NOISY), True, ""),
+    "sigma6 return collides": (
+        sigma6_return(path(0.01), path(-0.02), TOL),
+        False,
+        "return_clearance_m = -0.02",
+    ),
+    "sigma6 ready out of reach": (
+        sigma6_return(path(0.01), path(0.0, reachable=False), TOL),
+        False,
+        "return_reachable = 0",
+    ),
+    "lift straight up": (lift_plan(0.0, 0.0, path(0.01), 0.2, TOL), True, ""),
+    "lift sideways": (lift_plan(0.05, 0.0, path(0.01), 0.2, TOL), False, "sideways_m = 0.05"),
+    "lift turned": (lift_plan(0.0, 10.0, path(0.01), 0.2, TOL), False, "turn_deg = 10"),
+    "lift collides": (lift_plan(0.0, 0.0, path(-0.01), 0.2, TOL), False, "clearance_m = -0.01"),
+    "lift too low": (lift_plan(0.0, 0.0, path(0.01), 0.01, TOL), False, "bottom_clearance_m"),
 }
 
 

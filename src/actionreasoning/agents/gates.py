@@ -135,6 +135,37 @@ def sigma5_placement(alignment: AlignmentErrors, tol: Tolerances) -> GateVerdict
     )
 
 
-def sigma6_return(path: CollisionReport, tol: Tolerances) -> GateVerdict:
-    """Retreat from the slot collision-free: no overlap beyond what sensing noise can show."""
-    return GateVerdict("sigma6_return", _path_checks(path, 0.0 - tol.overlap_m))
+def lift_plan(
+    sideways_m: float,
+    turn_deg: float,
+    path: CollisionReport,
+    bottom_clearance_m: float,
+    tol: Tolerances,
+) -> GateVerdict:
+    """Before a lift moves: straight up (no shift or turn beyond eps_g), collision-free from
+    1 cm up, and ending with the held brick's bottom c_min above every other brick's top."""
+    return GateVerdict(
+        "lift_plan",
+        (
+            Check("sideways_m", sideways_m, tol.eps_g_m, at_most=True),
+            Check("turn_deg", turn_deg, tol.eps_g_deg, at_most=True),
+            *_path_checks(path, 0.0 - tol.overlap_m),
+            Check("bottom_clearance_m", bottom_clearance_m, tol.c_min_m, at_most=False),
+        ),
+    )
+
+
+def sigma6_return(
+    retreat: CollisionReport, onward: CollisionReport, tol: Tolerances
+) -> GateVerdict:
+    """The whole return collision-free, the straight retreat from the slot and the joint move
+    on to the ready pose: no overlap beyond what sensing noise can show."""
+    return GateVerdict(
+        "sigma6_return",
+        (
+            Check("retreat_reachable", float(retreat.reachable), 1.0, at_most=False),
+            Check("retreat_clearance_m", retreat.clearance_m, -tol.overlap_m, at_most=False),
+            Check("return_reachable", float(onward.reachable), 1.0, at_most=False),
+            Check("return_clearance_m", onward.clearance_m, -tol.overlap_m, at_most=False),
+        ),
+    )

@@ -38,11 +38,14 @@ from actionreasoning.agents.world import World
 from actionreasoning.errors import UnreachableError
 from actionreasoning.tools.collision import CollisionReport
 from actionreasoning.tools.placement import SEAT_CLEARANCE_M
-from actionreasoning.world.geometry import quat_yaw
+from actionreasoning.world.geometry import quat_yaw, rotation_deg
 from actionreasoning.world.models import GoalPattern, Pose, Progress, WorldState
 from actionreasoning.world.tolerances import Tolerances
 
 RETREAT_M = 0.08
+#: The lift's path is checked from this far above the grasp: below it the brick still
+#: touches its support.
+LIFT_CHECK_FROM_M = 0.01
 #: Where the carry ends: this far above the slot, so that the brick is measured in the
 #: hand again just before the set-down (it may have crept or rolled on the way), with room
 #: below for the ends of a brick rolled up to eps_tilt.
@@ -281,6 +284,7 @@ class Orchestrator:
         if answer.waypoint is None:
             raise _Refused("the answer needs a waypoint")
         waypoint = _checked(answer.waypoint, path="linear")
+        self._gate(self._lift_plan(state, brick, waypoint), "collision")
         self.world.move(waypoint)
         after = self.world.observe(Progress(current_brick=brick, step="lift"))
         slip = self.calls.measure(after, "slip_estimate", brick_id=brick)
@@ -290,6 +294,25 @@ class Orchestrator:
             self._put_back(brick, grasp, waypoint)
             raise _Regrasp(verdict.feedback)
         return waypoint
+
+    def _lift_plan(
+        self, state: WorldState, brick: int, lift: WaypointProposal
+    ) -> gates.GateVerdict:
+        """The lift's plan checked before it moves (see :func:`gates.lift_plan`)."""
+        tool = state.robot.ee_pose
+        x, y, z = tool.position_m
+        rise = lift.position_m[2] - z
+        start = WaypointProposal(position_m=(x, y, z + LIFT_CHECK_FROM_M), quat_xyzw=tool.quat_xyzw)
+        held = state.brick(brick)
+        others = [b.pose.position_m[2] + b.size_m[2] / 2 for b in state.bricks if b.id != brick]
+        bottom = held.pose.position_m[2] - held.size_m[2] / 2 + rise
+        return gates.lift_plan(
+            sideways_m=math.hypot(lift.position_m[0] - x, lift.position_m[1] - y),
+            turn_deg=rotation_deg(tool.quat_xyzw, lift.quat_xyzw),
+            path=self._clearance(state, lift, start=start),
+            bottom_clearance_m=bottom - max(others, default=0.0),
+            tol=self.tol,
+        )
 
     def _put_back(self, brick: int, spot: WaypointProposal, lifted: WaypointProposal) -> None:
         """Put the held brick back flat on ``spot``, where it was grasped (sigma_4 = 0)."""
@@ -441,14 +464,23 @@ class Orchestrator:
         retreat = WaypointProposal(
             position_m=(x, y, z + RETREAT_M), quat_xyzw=state.robot.ee_pose.quat_xyzw, path="linear"
         )
-        path = self._clearance(
+        way_up = self._clearance(
             state,
             retreat,
             start=state.robot.ee_pose,
             opening=answer.gripper_opening_m,
             ignore=brick,
         )
-        self._gate(gates.sigma6_return(path, self.tol), "collision")
+        onward = self.calls.measure(
+            state,
+            "collision_check",
+            pose=_pose(ready),
+            start_pose=_pose(retreat),
+            path="joint",
+            gripper_opening_m=answer.gripper_opening_m,
+            ignore_brick_id=brick,
+        )
+        self._gate(gates.sigma6_return(way_up, onward, self.tol), "collision")
         self.world.grip(answer.gripper_opening_m)
         self.world.move(retreat)
         self.world.move(ready)

@@ -27,10 +27,10 @@ class CollisionQuery(ToolModel):
 
     pose: Pose = Field(description="Tool pose at the end of the move.")
     start_pose: Pose | None = Field(
-        None, description="path linear: the straight path from here (else only `pose`)."
+        None, description="Where the move starts (linear: else only `pose` is checked)."
     )
     path: Literal["linear", "joint"] = Field(
-        "linear", description="joint: the arm's joint move from where it is now."
+        "linear", description="joint: a joint move, from where the arm is if no start_pose."
     )
     gripper_opening_m: float = Field(0.16, ge=0.06, le=0.16)
     ignore_brick_id: int | None = Field(
@@ -117,7 +117,10 @@ def collision_check(context: ToolContext, query: CollisionQuery) -> CollisionRep
 def _configurations(context: ToolContext, query: CollisionQuery) -> list[tuple[float, ...]]:
     """Arm joint angles along the motion the query describes (UnreachableError if IK fails)."""
     if query.path == "joint":
-        start = np.asarray(context.state.robot.joint_positions_rad)
+        here = context.state.robot.joint_positions_rad
+        start = np.asarray(
+            here if query.start_pose is None else _solve(context, query.start_pose, here)
+        )
         end = np.asarray(_solve(context, query.pose, None))
         steps = max(1, math.ceil(float(np.max(np.abs(end - start))) / JOINT_STEP_RAD))
         return [tuple(start + s * (end - start)) for s in np.linspace(0.0, 1.0, steps + 1)]

@@ -44,6 +44,12 @@ def axis_angle_deg(a_xyzw: QuatXYZW, b_xyzw: QuatXYZW) -> float:
     return math.degrees(math.acos(float(np.clip(abs(np.dot(za, zb)), 0.0, 1.0))))
 
 
+def rotation_deg(a_xyzw: QuatXYZW, b_xyzw: QuatXYZW) -> float:
+    """Angle (deg) of the rotation that turns orientation ``a`` into ``b``."""
+    turn = Rotation.from_quat(a_xyzw).inv() * Rotation.from_quat(b_xyzw)
+    return math.degrees(float(turn.magnitude()))
+
+
 def wrap_angle(angle_rad: float) -> float:
     """Wrap an angle into [-pi, pi)."""
     return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
