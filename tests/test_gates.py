@@ -68,9 +68,15 @@ CASES = {
     "sigma1 clear": (sigma1_pre_grasp(path(0.05), TOL), True, ""),
     "sigma1 too close": (sigma1_pre_grasp(path(0.01), TOL), False, "clearance_m = 0.01"),
     "sigma1 unreachable": (sigma1_pre_grasp(path(0.3, reachable=False), TOL), False, "reachable"),
-    "sigma2 open": (sigma2_descent(0.16, W, pads(0, 0), TOL), True, ""),
-    "sigma2 narrow": (sigma2_descent(0.11, W, pads(0, 0), TOL), False, "opening_m = 0.11"),
-    "sigma2 sidewall": (sigma2_descent(0.16, W, pads(3.0, 0), TOL), False, "sidewall_force_n"),
+    "sigma2 open": (sigma2_descent(0.16, W, pads(0, 0), 0.0, TOL), True, ""),
+    "sigma2 narrow": (sigma2_descent(0.11, W, pads(0, 0), 0.0, TOL), False, "opening_m = 0.11"),
+    "sigma2 shoved": (
+        sigma2_descent(0.16, W, pads(0, 0), 0.03, TOL),
+        False,
+        "brick_shift_m = 0.03",
+    ),
+    "sigma2 shift within noise": (sigma2_descent(0.16, W, pads(0, 0), 0.005, NOISY), True, ""),
+    "sigma2 sidewall": (sigma2_descent(0.16, W, pads(3.0, 0), 0.0, TOL), False, "sidewall_force_n"),
     "sigma3 firm": (sigma3_grasp(pads(40, 38), 0.001, 0.2, TOL), True, ""),
     "sigma3 weak pad": (sigma3_grasp(pads(40, 20), 0.001, 0.2, TOL), False, "normal_force_n"),
     # f_min follows the brick: 2 x 3 kg x 9.81 / (2 x 0.6) = 49 N is more than 40 N.

@@ -298,3 +298,45 @@ def test_a_brick_rolled_about_the_pads_is_levelled_about_the_tool_centre_point()
         half_turns = Rotation.from_euler("y", 180.0 if abs(roll_deg) > 90.0 else 0.0, degrees=True)
         expected = half_turns.apply(flat_offset)
         assert np.allclose(levelled_offset(tool, brick), expected, atol=1e-9)
+
+
+@dataclass
+class Skewed:
+    """The built-in reasoner, but its first lift drifts 4 cm sideways and its first return
+    ends with the fingers in the ground."""
+
+    name: str = "skewed"
+    builtin: BuiltinReasoner = field(default_factory=BuiltinReasoner)
+    skewed: set[str] = field(default_factory=set)
+
+    def decide(self, request: AgentRequest) -> AgentReply:
+        reply = self.builtin.decide(request)
+        key = request.spec.key
+        if key not in ("lift", "release") or key in self.skewed:
+            return reply
+        self.skewed.add(key)
+        waypoint = reply.answer.waypoint
+        x, y, z = waypoint.position_m
+        moved = (x + 0.04, y, z) if key == "lift" else (0.6, -0.2, 0.005)
+        skewed = waypoint.model_copy(update={"position_m": moved})
+        return AgentReply(answer=reply.answer.model_copy(update={"waypoint": skewed}))
+
+
+def test_a_sideways_lift_and_a_return_into_the_ground_are_refused_before_they_move(
+    small_goal,
+) -> None:
+    one_brick = small_goal.model_copy(update={"targets": small_goal.targets[:1]})
+    result, _ = build(one_brick, Skewed())
+    assert result.failure is None and result.placements == {0: 0}
+    outcomes = [(c.agent, c.outcome) for c in result.transcript if c.agent in ("lift", "release")]
+    assert outcomes == [
+        ("lift", "refused"),
+        ("lift", "accepted"),
+        ("release", "refused"),
+        ("release", "accepted"),
+    ]
+    lift, release = (c for c in result.transcript if c.outcome == "refused")
+    assert [g.gate for g in lift.gates] == ["lift_plan"]
+    assert "sideways_m = 0.04" in lift.feedback
+    assert [g.gate for g in release.gates] == ["sigma6_return"]
+    assert "return_clearance_m" in release.feedback and "retreat" not in release.feedback

@@ -3,6 +3,7 @@ brick's top edge and pressing its side wall, is refused; a centred descent passe
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -17,7 +18,7 @@ from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.eval.trial import READY_POSE, Method, TrialSpec, trial_world
+from actionreasoning.eval.trial import Method, TrialSpec, trial_world
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.sim.scene import GRASP_CONTACT_N
 from actionreasoning.tools.contact import ContactForces
@@ -63,14 +64,17 @@ def _descend(offset_m: float, noise: str) -> tuple[WorldState, ContactForces, ga
     with _trial(noise) as world:
         centre, quat = world.controller.scene.brick_pose(0)
         tool_quat = top_down_quat(quat_yaw(quat))
-        width = world.observe(Progress()).brick(0).size_m[1]
+        before = world.observe(Progress()).brick(0)
+        width = before.size_m[1]
         world.move(WaypointProposal(position_m=(*centre[:2], 0.15), quat_xyzw=tool_quat))
         world.grip(width + TOL.delta_m + 0.01)
         grasp = _beside(centre, tool_quat, offset_m)
         world.move(WaypointProposal(position_m=grasp, quat_xyzw=tool_quat, path="linear"))
         state = world.observe(Progress(current_brick=0, step="descent"))
         pads = call_tool("finger_contacts", {"brick_id": 0}, world.tools(state))
-    verdict = gates.sigma2_descent(state.robot.gripper_width_m, width, pads, TOL)
+    shift = math.dist(state.brick(0).pose.position_m[:2], before.pose.position_m[:2])
+    tol = TOL.under(world.sensing)
+    verdict = gates.sigma2_descent(state.robot.gripper_width_m, width, pads, shift, tol)
     return state, pads, verdict
 
 
@@ -95,9 +99,20 @@ def test_a_pad_on_one_side_of_the_brick_is_seen_and_refused(
     assert pads.tangential_n[pad] > 0.0
     assert not verdict.passed
     assert verdict.measured["sidewall_force_n"] == pads.normal_n[pad]
-    assert verdict.feedback == (
+    assert verdict.feedback.startswith(
         f"sigma2_descent failed: sidewall_force_n = {pads.normal_n[pad]:.4g}, needs <= 1"
     )
+
+
+@pytest.mark.parametrize("noise", ["none", "medium"])
+def test_a_pad_that_shoves_the_brick_aside_is_refused_though_it_ends_touching_nothing(
+    noise: str,
+) -> None:
+    _, pads, verdict = _descend(0.05, noise)
+    assert pads.normal_n == (0.0, 0.0)  # the pad slid off the top: nothing presses now
+    assert not verdict.passed
+    assert verdict.measured["brick_shift_m"] > 0.02
+    assert "brick_shift_m = " in verdict.feedback and "sidewall" not in verdict.feedback
 
 
 @dataclass
@@ -105,7 +120,7 @@ class OffsetFirstDescent:
     """The built-in reasoner, but its first descent aims OFFSET_M beside the grasp pose."""
 
     name: str = "offset-first-descent"
-    builtin: BuiltinReasoner = field(default_factory=lambda: BuiltinReasoner(READY_POSE))
+    builtin: BuiltinReasoner = field(default_factory=lambda: BuiltinReasoner())
     shifted: bool = False
 
     def decide(self, request: AgentRequest) -> AgentReply:
@@ -132,7 +147,7 @@ def test_the_orchestrator_refuses_an_offset_descent_and_the_next_one_grasps() ->
     refused, accepted = descents
     (sigma2,) = refused.gates
     assert sigma2.gate == "sigma2_descent" and not sigma2.passed
-    opening, sidewall = sigma2.checks
+    opening, sidewall, _ = sigma2.checks
     assert opening.passed
     assert sidewall.name == "sidewall_force_n" and not sidewall.passed
     assert sidewall.value > GRASP_CONTACT_N and sidewall.threshold == TOL.sidewall_contact_n

@@ -74,14 +74,22 @@ def sigma1_pre_grasp(path: CollisionReport, tol: Tolerances) -> GateVerdict:
 
 
 def sigma2_descent(
-    opening_m: float, brick_width_m: float, pads: ContactForces, tol: Tolerances
+    opening_m: float,
+    brick_width_m: float,
+    pads: ContactForces,
+    brick_shift_m: float,
+    tol: Tolerances,
 ) -> GateVerdict:
-    """Opening w >= w_brick + delta, and no pad touching a side wall of the brick."""
+    """Opening w >= w_brick + delta, no pad pressing on the brick, and the brick where it was
+    before the descent (a pad that came down on its top and shoved it aside may touch
+    nothing at the end). The shift compares two measurements, so under noise it is allowed
+    eps_xy plus what the noise of two positions can show."""
     return GateVerdict(
         "sigma2_descent",
         (
             Check("opening_m", opening_m, brick_width_m + tol.delta_m, at_most=False),
             Check("sidewall_force_n", max(pads.normal_n), tol.sidewall_contact_n, at_most=True),
+            Check("brick_shift_m", brick_shift_m, tol.eps_xy_m + tol.overlap_m, at_most=True),
         ),
     )
 

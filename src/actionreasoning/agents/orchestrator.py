@@ -253,7 +253,10 @@ class Orchestrator:
         self.world.move(waypoint)
         after = self.world.observe(Progress(current_brick=brick, step="descent"))
         pads = self.calls.measure(after, "finger_contacts", brick_id=brick)
-        sigma2 = gates.sigma2_descent(after.robot.gripper_width_m, width, pads, self.tol)
+        shift = math.dist(
+            after.brick(brick).pose.position_m[:2], state.brick(brick).pose.position_m[:2]
+        )
+        sigma2 = gates.sigma2_descent(after.robot.gripper_width_m, width, pads, shift, self.tol)
         self._gate(sigma2, "descent_blocked")
         return waypoint
 

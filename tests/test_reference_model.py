@@ -1,0 +1,191 @@
+"""The prompt-only reference model: it answers from the messages' text alone, as well as the
+built-in reasoner answers from objects, and fails when a fact it needs is cut from a prompt.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import threading
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+from conftest import SMALL_PATTERN, cli
+
+from actionreasoning.agents.orchestrator import Orchestrator
+from actionreasoning.agents.reasoner import AgentReply, AgentRequest
+from actionreasoning.agents.transcript import AgentCall
+from actionreasoning.control.waypoint import WaypointController
+from actionreasoning.eval.sim_world import SimWorld
+from actionreasoning.eval.trial import Method, TrialSpec, trial_world
+from actionreasoning.reasoners.builtin import BuiltinReasoner
+from actionreasoning.reasoners.chat import ChatReply, ChatRequest
+from actionreasoning.reasoners.llm import LLMLimits, LLMReasoner
+from actionreasoning.reasoners.reference_model import UnreadableConversation, reply
+from actionreasoning.reasoners.reference_server import ReferenceServer
+from actionreasoning.records import LLMUsage
+from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.scene_spec import SceneSpec
+
+ONE_BRICK = {**SMALL_PATTERN, "name": "one", "bricks": SMALL_PATTERN["bricks"][:1]}
+
+
+@dataclass
+class InProcess:
+    """The reference model behind the chat interface, in this process, keeping every
+    conversation it was sent."""
+
+    label: str = "reference"
+    conversations: list[list[dict[str, str]]] = field(default_factory=list)
+
+    def complete(self, request: ChatRequest) -> ChatReply:
+        messages = [dict(m) for m in request.messages]
+        self.conversations.append(messages)
+        return ChatReply(content=reply(messages), usage=LLMUsage(calls=1))
+
+
+@dataclass
+class Both:
+    """Asks the built-in reasoner and the reference model the same request; acts on the
+    reference model's answer and keeps both."""
+
+    model: InProcess = field(default_factory=InProcess)
+    pairs: list[tuple[str, list, list]] = field(default_factory=list)
+    name: str = "both"
+
+    def decide(self, request: AgentRequest) -> AgentReply:
+        builtin = BuiltinReasoner().decide(request).answer
+        read = LLMReasoner(self.model, LLMLimits(tool_turns=3, repairs=0)).decide(request)
+        self.pairs.append((request.spec.key, _numbers(builtin), _numbers(read.answer)))
+        return read
+
+
+def _numbers(answer) -> list:
+    """An answer's fields without its rationale, flattened to a list of leaves."""
+    data = answer.model_dump(mode="json", exclude={"rationale", "tool_calls"})
+    leaves: list = []
+
+    def walk(value) -> None:
+        if isinstance(value, dict):
+            for key in sorted(value):
+                leaves.append(key)
+                walk(value[key])
+        elif isinstance(value, list):
+            for item in value:
+                walk(item)
+        else:
+            leaves.append(value)
+
+    walk(data)
+    return leaves
+
+
+@pytest.fixture(scope="module")
+def wall_run(tmp_path_factory: pytest.TempPathFactory) -> Both:
+    """The small three-brick wall built by the reference model, the built-in asked alongside."""
+    pattern = tmp_path_factory.mktemp("pattern") / "small.json"
+    pattern.write_text(json.dumps(SMALL_PATTERN))
+    goal = load_pattern(str(pattern), SceneSpec())
+    spec = TrialSpec(method=Method.AGENTS, pattern_name="small", goal=goal, run_seed=0, trial=0)
+    both = Both()
+    with trial_world(spec) as made:
+        world = SimWorld(WaypointController(made.scene, made.arm), goal, made.sensor)
+        result = Orchestrator(world, both).build(goal)
+    assert result.failure is None and sorted(result.placements) == [0, 1, 2]
+    return both
+
+
+def test_read_from_the_text_the_answers_are_the_built_in_reasoners(wall_run: Both) -> None:
+    agents = [agent for agent, _, _ in wall_run.pairs]
+    cycle = ["pre_grasp", "descent", "grasp", "lift", "placement", "placement", "release"]
+    assert agents == cycle * 3
+    for agent, builtin, read in wall_run.pairs:
+        # The prompt rounds to 0.01 mm and 1e-5: the same decisions to within that.
+        assert read == pytest.approx(builtin, abs=1e-3), agent
+
+
+def test_it_calls_tools_as_a_language_model_does(wall_run: Both) -> None:
+    tool_turns = [c for c in wall_run.model.conversations if len(c) > 1]
+    asked = [json.loads(c[1]["content"])["tool_calls"][0]["name"] for c in tool_turns]
+    assert asked == ["grasp_options", "placement_pose", "placement_pose"] * 3
+    assert all(c[2]["content"].startswith("Tool results: [") for c in tool_turns)
+
+
+def _conversation(run: Both, heading: str, turns: int) -> list[dict[str, str]]:
+    return next(
+        c
+        for c in run.model.conversations
+        if c[0]["content"].startswith(heading) and len(c) == turns
+    )
+
+
+def test_without_the_ready_pose_in_the_state_it_cannot_answer(wall_run: Both) -> None:
+    release = _conversation(wall_run, "# Agent 6 of 6", 1)
+    assert json.loads(reply(release))["waypoint"]["position_m"] == [0.45, -0.25, 0.4]
+    prompt = release[0]["content"]
+    cut = re.sub(r',"ready_pose":\{"position_m":\[[^]]*\],"quat_xyzw":\[[^]]*\]\}', "", prompt)
+    assert cut != prompt
+    with pytest.raises(UnreadableConversation, match="ready pose"):
+        reply([{"role": "user", "content": cut}])
+
+
+def test_without_the_slot_pose_in_the_tool_result_it_cannot_answer(wall_run: Both) -> None:
+    placement = _conversation(wall_run, "# Agent 5 of 6", 3)
+    answer = json.loads(reply(placement))
+    assert answer["waypoint"]["position_m"] and "tool_calls" not in answer
+    result = placement[2]["content"]
+    cut = re.sub(r'"slot_pose":\{[^}]*\},', "", result)
+    assert cut != result
+    with pytest.raises(UnreadableConversation, match="slot_pose"):
+        reply([*placement[:2], {"role": "user", "content": cut}])
+
+
+def test_a_threshold_it_is_not_shown_is_never_guessed(wall_run: Both) -> None:
+    pre_grasp = _conversation(wall_run, "# Agent 1 of 6", 3)
+    assert json.loads(reply(pre_grasp))["brick_id"] == 0
+    prompt = pre_grasp[0]["content"]
+    cut = prompt.replace("c_min_m=0.02, ", "")
+    assert cut != prompt
+    answer = json.loads(reply([{"role": "user", "content": cut}, *pre_grasp[1:]]))
+    # Without c_min_m it cannot tell brick 0's approach clearance is enough, so it looks
+    # at the next brick rather than assume a default it was not told.
+    assert "brick_id" not in answer
+    assert answer["tool_calls"][0]["arguments"]["brick_id"] == 1
+
+
+@pytest.fixture
+def server() -> Iterator[str]:
+    served = ReferenceServer(port=0)
+    thread = threading.Thread(target=served.serve_forever, args=(0.05,), daemon=True)
+    thread.start()
+    yield served.url
+    served.shutdown()
+    served.server_close()
+
+
+def test_over_http_it_builds_a_brick_with_tool_calls_and_usage(server: str, tmp_path: Path) -> None:
+    pattern = tmp_path / "one.json"
+    pattern.write_text(json.dumps(ONE_BRICK))
+    out = tmp_path / "run"
+    result = cli(
+        "eval", "--pattern", str(pattern), "--trials", "1", "--seed", "0", "--out", str(out),
+        "--llm", "openai:reference", "--base-url", server, "--transcripts",
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    line = json.loads((out / "results.jsonl").read_text())
+    assert line["success"] and line["llm"] == "openai:reference"
+    assert line["fallback_decisions"] == 0 and line["decisions"] == 7
+    assert line["llm_usage"]["prompt_tokens"] > 0 and line["llm_usage"]["completion_tokens"] > 0
+    calls = [
+        AgentCall.model_validate_json(text)
+        for text in (out / "transcripts" / "trial_000.jsonl").read_text().splitlines()
+    ]
+    assert [c.tool_turns for c in calls] == [1, 0, 0, 0, 1, 1, 0]
+    assert [t.name for c in calls for t in c.tool_calls] == [
+        "grasp_options",
+        "placement_pose",
+        "placement_pose",
+    ]
+    assert all(c.usage.prompt_tokens > 0 and not c.fallback for c in calls)
