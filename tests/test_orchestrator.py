@@ -138,7 +138,8 @@ def test_a_slip_in_the_lift_puts_the_brick_back_and_grasps_it_again(small_goal) 
     lifts = [call for call in result.transcript if call.agent == "lift"]
     slipped, *others = lifts
     assert slipped.outcome == "regrasp"
-    (sigma4,) = slipped.gates
+    plan, sigma4 = slipped.gates
+    assert (plan.gate, plan.passed, sigma4.gate) == ("lift_plan", True, "sigma4_lift")
     failed = {check.name: check.value for check in sigma4.checks if not check.passed}
     assert failed  # a 40 kg brick is not held: too little pad force for it, or it slides
     assert all(call.outcome == "accepted" for call in others)

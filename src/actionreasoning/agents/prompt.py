@@ -18,7 +18,7 @@ from jinja2 import Environment, PackageLoader, StrictUndefined
 from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.schema_text import describe_fields
 from actionreasoning.agents.spec import AgentSpec
-from actionreasoning.agents.view import StateView
+from actionreasoning.agents.view import Scope, StateView
 from actionreasoning.tools.registry import TOOLS
 from actionreasoning.world.geometry import round_floats
 from actionreasoning.world.tolerances import Tolerances
@@ -57,6 +57,15 @@ def thresholds_line(tolerances: Tolerances, names: tuple[str, ...]) -> str:
     return ", ".join(f"{name}={values[name]:g}" for name in names)
 
 
+def _unread(spec: AgentSpec) -> set[str]:
+    """Memory fields an agent's decision does not need: the step, which is the agent itself
+    (the single agent reads it), and the bricks placed, for agents 2-6 (their state view
+    marks placed bricks)."""
+    if spec.scope is Scope.ALL:
+        return set()
+    return {"step"} if spec.scope is Scope.PICK else {"step", "placed"}
+
+
 def render_prompt(
     spec: AgentSpec, view: StateView, memory: TaskMemory, tolerances: Tolerances
 ) -> str:
@@ -78,7 +87,9 @@ def render_prompt(
         role=spec.role,
         gate=spec.gate,
         state_json=compact_json(view.model_dump(mode="json", exclude_none=True)),
-        memory_json=compact_json(memory.model_dump(mode="json", exclude_defaults=True)),
+        memory_json=compact_json(
+            memory.model_dump(mode="json", exclude_defaults=True, exclude=_unread(spec))
+        ),
         tolerances=thresholds_line(tolerances, spec.thresholds),
         tools=tools,
         thinking=spec.thinking,
