@@ -19,7 +19,7 @@ from actionreasoning.tools.base import ToolContext, ToolModel, tool
 from actionreasoning.tools.collision import CollisionQuery, collision_check
 from actionreasoning.tools.geometry import BrickQuery, brick_state, target_of
 from actionreasoning.world.geometry import axis_angle_deg
-from actionreasoning.world.models import Pose
+from actionreasoning.world.models import Pose, WorldState
 
 #: The way down is checked to this far above the seat: the set-down ends in contact.
 SEAT_CLEARANCE_M = 0.003
@@ -61,9 +61,7 @@ def held_pose(context: ToolContext, query: BrickQuery) -> HeldPose:
     state = context.state
     brick = brick_state(state, query.brick_id)
     tool_pose = state.robot.ee_pose
-    grip = Rotation.from_quat(tool_pose.quat_xyzw)
-    offset = grip.inv().apply(np.subtract(brick.pose.position_m, tool_pose.position_m))
-    turn = grip.inv() * Rotation.from_quat(brick.pose.quat_xyzw)
+    offset, turn = _in_hand(state, query.brick_id)
     return HeldPose(
         held=brick.status == "grasped",
         offset_in_hand_m=tuple(float(v) for v in offset),  # type: ignore[arg-type]
@@ -75,12 +73,11 @@ def held_pose(context: ToolContext, query: BrickQuery) -> HeldPose:
 def placement_pose(context: ToolContext, query: PlacementQuery) -> PlacementPose:
     """The tool pose that sets the held brick, as it sits in the hand, level on a target."""
     state = context.state
-    hand = held_pose(context, BrickQuery(brick_id=query.brick_id))
+    brick = brick_state(state, query.brick_id)
+    offset, turn = _in_hand(state, brick.id)
     goal = target_of(state, query.target_index)
-    slot_rot = (
-        Rotation.from_quat(goal.pose.quat_xyzw) * Rotation.from_quat(hand.quat_in_hand_xyzw).inv()
-    )
-    position = np.asarray(goal.pose.position_m) - slot_rot.apply(hand.offset_in_hand_m)
+    slot_rot = Rotation.from_quat(goal.pose.quat_xyzw) * turn.inv()
+    position = np.asarray(goal.pose.position_m) - slot_rot.apply(offset)
     quat = tuple(float(q) for q in slot_rot.as_quat())
     slot = Pose(position_m=tuple(float(v) for v in position), quat_xyzw=quat)  # type: ignore[arg-type]
     tool_pose = state.robot.ee_pose
@@ -98,11 +95,19 @@ def placement_pose(context: ToolContext, query: PlacementQuery) -> PlacementPose
     worst = min(reports, key=lambda r: r.clearance_m if r.reachable else -np.inf)
     return PlacementPose(
         slot_pose=slot,
-        tilt_in_hand_deg=hand.tilt_in_hand_deg,
+        tilt_in_hand_deg=axis_angle_deg(brick.pose.quat_xyzw, tool_pose.quat_xyzw),
         reachable=all(r.reachable for r in reports),
         way_clearance_m=worst.clearance_m,
         closest=worst.closest,
     )
+
+
+def _in_hand(state: WorldState, brick_id: int) -> tuple[np.ndarray, Rotation]:
+    """The brick's centre and orientation in the tool frame, as measured."""
+    tool_pose, brick = state.robot.ee_pose, state.brick(brick_id)
+    grip = Rotation.from_quat(tool_pose.quat_xyzw)
+    offset = grip.inv().apply(np.subtract(brick.pose.position_m, tool_pose.position_m))
+    return offset, grip.inv() * Rotation.from_quat(brick.pose.quat_xyzw)
 
 
 HELD_POSE = tool("held_pose", held_pose)
