@@ -420,7 +420,10 @@ def prompt_command(
         physics=profile,
         noise=level,
     )
-    print(first_prompt(trial, spec.key), end="")
+    try:
+        print(first_prompt(trial, spec.key), end="")
+    except ActionReasoningError as error:
+        _fail(error)
 
 
 @app.command("pattern")

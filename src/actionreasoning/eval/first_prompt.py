@@ -9,6 +9,7 @@ from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.agents.single_agent import SingleAgent
 from actionreasoning.control.waypoint import WaypointController
+from actionreasoning.errors import ActionReasoningError
 from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.eval.trial import TrialSpec, trial_world
 from actionreasoning.reasoners.builtin import BuiltinReasoner
@@ -47,4 +48,6 @@ def first_prompt(spec: TrialSpec, agent: str) -> str:
             result = runner.build(spec.goal)
         except _Caught as caught:
             return caught.prompt
-    raise RuntimeError(f"agent {agent} was never asked: {result.failure}")
+    failure = result.failure
+    why = f"the build stopped first ({failure.reason}: {failure.detail})" if failure else "done"
+    raise ActionReasoningError(f"agent {agent} is never asked in trial 0: {why}")
