@@ -28,7 +28,7 @@ from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.outputs import AgentAnswer, ToolCall
 from actionreasoning.agents.prompt import MEMORY_HEADING, STATE_HEADING, THRESHOLDS_HEADING
 from actionreasoning.agents.reasoner import Briefing
-from actionreasoning.agents.spec import agent_specs, single_agent_spec
+from actionreasoning.agents.spec import AgentSpec, agent_specs, single_agent_spec
 from actionreasoning.agents.view import StateView
 from actionreasoning.reasoners import builtin
 from actionreasoning.reasoners.llm import NO_MORE_TOOLS, TOOL_RESULTS
@@ -36,7 +36,7 @@ from actionreasoning.tools.registry import TOOLS
 from actionreasoning.world.tolerances import Tolerances
 
 Message = Mapping[str, Any]
-_AGENT_HEADING = re.compile(r"^# Agent (\d) of 6: ", re.M)
+_AGENT_HEADING = re.compile(r"# Agent ([1-6]) of 6: ")
 _SINGLE_HEADING = "# Single agent"
 
 
@@ -57,10 +57,9 @@ def reply(messages: Sequence[Message]) -> str:
     if not messages:
         raise UnreadableConversation("the conversation has no messages")
     prompt = _text(messages[0])
-    agent = _agent(prompt)
-    if agent is None:
+    spec = _spec_of(prompt)
+    if spec is None:
         return _literal_answer(messages[-1])
-    spec = single_agent_spec() if agent == "single_agent" else _spec(agent)
     results = _tool_results(messages)
     exhausted = NO_MORE_TOOLS in _text(messages[-1])
 
@@ -83,7 +82,7 @@ def reply(messages: Sequence[Message]) -> str:
             ) from None
 
     briefing = Briefing(
-        agent=agent,
+        agent=spec.key,
         view=_block(prompt, STATE_HEADING, StateView),
         memory=_block(prompt, MEMORY_HEADING, TaskMemory),
         tolerances=_thresholds(prompt),
@@ -95,9 +94,9 @@ def reply(messages: Sequence[Message]) -> str:
         answer = spec.output_model(
             tool_calls=[need.call], rationale=f"measure with {need.call.name} first"
         )
+    except UnreadableConversation:
+        raise
     except (KeyError, ValueError, StopIteration) as error:
-        if isinstance(error, UnreadableConversation):
-            raise
         raise UnreadableConversation(
             f"the prompt does not say enough to answer: {error!r}"
         ) from None
@@ -108,16 +107,12 @@ def _text(message: Message) -> str:
     return str(message.get("content") or "")
 
 
-def _agent(prompt: str) -> str | None:
-    """The agent key a prompt is written for, or None for a message that is no agent prompt."""
+def _spec_of(prompt: str) -> AgentSpec | None:
+    """The agent a prompt is written for, or None for a message that is no agent prompt."""
     if prompt.startswith(_SINGLE_HEADING):
-        return "single_agent"
+        return single_agent_spec()
     found = _AGENT_HEADING.match(prompt)
-    return None if found is None else agent_specs()[int(found.group(1)) - 1].key
-
-
-def _spec(agent: str) -> Any:
-    return next(spec for spec in agent_specs() if spec.key == agent)
+    return None if found is None else agent_specs()[int(found.group(1)) - 1]
 
 
 def _block(prompt: str, heading: str, model: type[BaseModel]) -> Any:
