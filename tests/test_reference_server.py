@@ -175,6 +175,9 @@ def test_the_command_prints_its_url_serves_and_stops_cleanly(stop: signal.Signal
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        # As from a terminal: Ctrl-C at its default in the child, even where this test runs
+        # with SIGINT ignored (in the background of a non-interactive shell, say).
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     try:
         line = process.stdout.readline()

@@ -197,22 +197,24 @@ def append_result(sink: IO[bytes], result: TrialResult) -> None:
     """Append one result line, check that all of it was written and push it to the disk.
 
     ``sink`` is the results file opened unbuffered for appending (``open(path, "ab", 0)``).
-    If anything fails (a full disk), the file is cut back to its whole lines and the error
-    raised.
+    If writing or syncing fails (a full disk), the file is cut back to its whole lines and
+    the error raised. An interrupt (Ctrl-C) cuts back only a line not yet written whole: a
+    whole line is a finished trial, kept.
     """
     line = (result.model_dump_json() + "\n").encode()
     start = os.fstat(sink.fileno()).st_size
+    written = 0
     try:
-        written = 0
         while written < len(line):  # one call, unless the disk takes only part of the line
             count = sink.write(line[written:])
             if not count:
                 raise OSError(errno.EIO, "the line was not written")
             written += count
         os.fsync(sink.fileno())
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.ftruncate(sink.fileno(), start)
+    except BaseException as error:
+        if isinstance(error, OSError) or written < len(line):
+            with contextlib.suppress(OSError):
+                os.ftruncate(sink.fileno(), start)
         raise
 
 
