@@ -40,9 +40,9 @@ from actionreasoning.tools.collision import CollisionReport
 from actionreasoning.tools.placement import SEAT_CLEARANCE_M
 from actionreasoning.world.geometry import quat_yaw, rotation_deg
 from actionreasoning.world.models import GoalPattern, Pose, Progress, WorldState
+from actionreasoning.world.scene_spec import GRIPPER_GAP_M, RETREAT_M
 from actionreasoning.world.tolerances import Tolerances
 
-RETREAT_M = 0.08
 #: The lift's path is checked from this far above the grasp: below it the brick still
 #: touches its support.
 LIFT_CHECK_FROM_M = 0.01
@@ -278,7 +278,7 @@ class Orchestrator:
         )
         verdict = self.calls.judge(gates.sigma3_grasp(pads, offset, turn, self.tol))
         if not verdict.passed:
-            self.world.grip(0.16)
+            self.world.grip(GRIPPER_GAP_M[1])
             raise _Refused(verdict.feedback, "grasp_failed")
 
     def _lift(

@@ -13,6 +13,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.world.geometry import QuatXYZW, Vec3
+from actionreasoning.world.scene_spec import GRIPPER_GAP_M
 
 #: How far from 1 a quaternion's norm may be and still be normalised rather than refused.
 QUAT_NORM_TOLERANCE = 1e-3
@@ -82,7 +83,7 @@ class PreGraspAnswer(AgentAnswer):
 class DescentAnswer(AgentAnswer):
     """Agent 2: the gripper opening and the grasp pose to descend to."""
 
-    gripper_opening_m: float | None = Field(None, ge=0.06, le=0.16)
+    gripper_opening_m: float | None = Field(None, ge=GRIPPER_GAP_M[0], le=GRIPPER_GAP_M[1])
     waypoint: WaypointProposal | None = None
 
 
@@ -111,7 +112,7 @@ class PlacementAnswer(AgentAnswer):
 class ReleaseAnswer(AgentAnswer):
     """Agent 6: the opening to release with and the ready pose to return to."""
 
-    gripper_opening_m: float | None = Field(None, ge=0.06, le=0.16)
+    gripper_opening_m: float | None = Field(None, ge=GRIPPER_GAP_M[0], le=GRIPPER_GAP_M[1])
     waypoint: WaypointProposal | None = None
 
 
@@ -141,4 +142,4 @@ class SingleAgentAnswer(AgentAnswer):
     target_index: int | None = Field(None, ge=0)
     waypoint: WaypointProposal | None = None
     gripper: Literal["open", "close", "hold"] = "hold"
-    gripper_opening_m: float | None = Field(None, ge=0.06, le=0.16)
+    gripper_opening_m: float | None = Field(None, ge=GRIPPER_GAP_M[0], le=GRIPPER_GAP_M[1])

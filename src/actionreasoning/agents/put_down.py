@@ -22,9 +22,10 @@ from actionreasoning.agents.world import World
 from actionreasoning.world.geometry import Vec3, quat_yaw, top_down_quat
 from actionreasoning.world.ground import free_spots
 from actionreasoning.world.models import Pose, WorldState
+from actionreasoning.world.scene_spec import GRIPPER_GAP_M
 from actionreasoning.world.support import BrickBox
 
-GRIPPER_OPEN_M = 0.16
+GRIPPER_OPEN_M = GRIPPER_GAP_M[1]
 #: Mean speed of every move with a brick to put down, and the shortest move.
 PUT_BACK_SPEED_MPS = 0.05
 MIN_MOVE_S = 0.1

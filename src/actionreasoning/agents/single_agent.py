@@ -28,12 +28,12 @@ from actionreasoning.agents.transcript import Outcome
 from actionreasoning.agents.validation import OutputError, check_answer
 from actionreasoning.agents.world import World
 from actionreasoning.world.models import GoalPattern, WorldState
-from actionreasoning.world.scene_spec import WorkspaceBox
+from actionreasoning.world.scene_spec import GRIPPER_GAP_M, WorkspaceBox
 from actionreasoning.world.tolerances import Tolerances
 
 #: Waypoints the agent may spend per brick (a full cycle takes eight), plus one to finish.
 WAYPOINTS_PER_BRICK = 12
-FULL_OPENING_M = 0.16
+FULL_OPENING_M = GRIPPER_GAP_M[1]
 
 
 class SingleAgent:

@@ -30,14 +30,13 @@ from actionreasoning.agents.spec import SINGLE_AGENT_START
 from actionreasoning.agents.view import BrickView
 from actionreasoning.tools.grasp_plan import GraspOption
 from actionreasoning.world.models import Pose
-from actionreasoning.world.scene_spec import GRIPPER_GAP_M
+from actionreasoning.world.scene_spec import GRIPPER_GAP_M, RETREAT_M
 from actionreasoning.world.tolerances import Tolerances
 
 LIFT_CLEARANCE_M = 0.12
 MIN_LIFT_M = 0.30
 RELEASE_SIDE_M = 0.005
 DESCENT_EXTRA_M = 0.01
-RETREAT_M = 0.08
 #: Mean speeds of the moves with a brick in the hand. A lift breaks the brick away from
 #: its support slowly, so that an edge still touching does not roll it in the grip; the
 #: carry is slow enough that the grip is not loaded much beyond the brick's weight.

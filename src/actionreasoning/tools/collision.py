@@ -17,6 +17,7 @@ from actionreasoning.errors import UnreachableError
 from actionreasoning.sim.collision import Box, Clearance
 from actionreasoning.tools.base import ToolContext, ToolModel, tool
 from actionreasoning.world.models import BrickState, Pose, WorldState
+from actionreasoning.world.scene_spec import GRIPPER_GAP_M
 
 PATH_STEP_M = 0.01
 JOINT_STEP_RAD = 0.05
@@ -32,7 +33,7 @@ class CollisionQuery(ToolModel):
     path: Literal["linear", "joint"] = Field(
         "linear", description="joint: a joint move, from where the arm is if no start_pose."
     )
-    gripper_opening_m: float = Field(0.16, ge=0.06, le=0.16)
+    gripper_opening_m: float = Field(GRIPPER_GAP_M[1], ge=GRIPPER_GAP_M[0], le=GRIPPER_GAP_M[1])
     ignore_brick_id: int | None = Field(
         None, ge=0, description="A brick left out (the one being grasped or released)."
     )

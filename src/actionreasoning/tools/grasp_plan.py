@@ -17,6 +17,7 @@ from actionreasoning.tools.collision import CollisionQuery, collision_check
 from actionreasoning.tools.geometry import GraspQuery, brick_state, grasp_candidates, target_of
 from actionreasoning.world.geometry import quat_yaw, top_down_quat
 from actionreasoning.world.models import Pose
+from actionreasoning.world.scene_spec import GRIPPER_GAP_M
 
 #: The place pose checked is this far above the target centre.
 PLACE_CHECK_ABOVE_M = 0.1
@@ -28,7 +29,10 @@ class GraspOptionsQuery(ToolModel):
     brick_id: int = Field(ge=0)
     target_index: int = Field(ge=0, description="The target it goes to.")
     descent_opening_m: float = Field(
-        0.16, ge=0.06, le=0.16, description="Opening while descending."
+        GRIPPER_GAP_M[1],
+        ge=GRIPPER_GAP_M[0],
+        le=GRIPPER_GAP_M[1],
+        description="Opening while descending.",
     )
 
 
