@@ -61,10 +61,13 @@ class GateVerdict:
         return f"{self.gate} failed: " + "; ".join(failed) if failed else ""
 
 
-def _path_checks(report: CollisionReport, min_clearance_m: float) -> tuple[Check, ...]:
+def _path_checks(
+    report: CollisionReport, min_clearance_m: float, prefix: str = ""
+) -> tuple[Check, ...]:
+    """A path reachable and clear by ``min_clearance_m``; ``prefix`` names which path."""
     return (
-        Check("reachable", float(report.reachable), 1.0, at_most=False),
-        Check("clearance_m", report.clearance_m, min_clearance_m, at_most=False),
+        Check(f"{prefix}reachable", float(report.reachable), 1.0, at_most=False),
+        Check(f"{prefix}clearance_m", report.clearance_m, min_clearance_m, at_most=False),
     )
 
 
@@ -171,9 +174,7 @@ def sigma6_return(
     return GateVerdict(
         "sigma6_return",
         (
-            Check("retreat_reachable", float(retreat.reachable), 1.0, at_most=False),
-            Check("retreat_clearance_m", retreat.clearance_m, -tol.overlap_m, at_most=False),
-            Check("return_reachable", float(onward.reachable), 1.0, at_most=False),
-            Check("return_clearance_m", onward.clearance_m, -tol.overlap_m, at_most=False),
+            *_path_checks(retreat, -tol.overlap_m, prefix="retreat_"),
+            *_path_checks(onward, -tol.overlap_m, prefix="return_"),
         ),
     )

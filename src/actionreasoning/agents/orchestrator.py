@@ -445,11 +445,14 @@ class Orchestrator:
         start: WaypointProposal | Pose | None = None,
         opening: float | None = None,
         ignore: int | None = None,
+        joint: bool = False,
     ) -> CollisionReport:
-        """Clearance on the way to ``to``: straight from ``start`` if given, else a joint move
-        from where the arm is; at ``opening`` (default: the gripper's now), the held brick
-        carried, brick ``ignore`` left out."""
-        way: dict[str, Any] = {"path": "joint"} if start is None else {"start_pose": _pose(start)}
+        """Clearance on the way to ``to``: straight from ``start`` if given (a joint move from
+        it if ``joint``), else a joint move from where the arm is; at ``opening`` (default: the
+        gripper's now), the held brick carried, brick ``ignore`` left out."""
+        way: dict[str, Any] = {"path": "joint"} if joint or start is None else {}
+        if start is not None:
+            way["start_pose"] = _pose(start)
         return self.calls.measure(
             state,
             "collision_check",
@@ -474,14 +477,13 @@ class Orchestrator:
             opening=answer.gripper_opening_m,
             ignore=brick,
         )
-        onward = self.calls.measure(
+        onward = self._clearance(
             state,
-            "collision_check",
-            pose=_pose(ready),
-            start_pose=_pose(retreat),
-            path="joint",
-            gripper_opening_m=answer.gripper_opening_m,
-            ignore_brick_id=brick,
+            ready,
+            start=retreat,
+            opening=answer.gripper_opening_m,
+            ignore=brick,
+            joint=True,
         )
         self._gate(gates.sigma6_return(way_up, onward, self.tol), "collision")
         self.world.grip(answer.gripper_opening_m)

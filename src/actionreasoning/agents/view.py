@@ -102,13 +102,6 @@ class StateView(_View):
                 return brick
         raise KeyError(f"brick {brick_id} is not in the state")
 
-    def target(self, index: int) -> TargetView:
-        """The target ``index`` (KeyError if it is not shown)."""
-        for target in self.targets:
-            if target.index == index:
-                return target
-        raise KeyError(f"target {index} is not in the state")
-
     @classmethod
     def of(
         cls, state: WorldState, memory: TaskMemory, scope: Scope, extras: tuple[str, ...] = ()

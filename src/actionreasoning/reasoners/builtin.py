@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
 
 from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.outputs import (
@@ -29,6 +28,7 @@ from actionreasoning.agents.reasoner import AgentReply, AgentRequest, Briefing
 from actionreasoning.agents.spec import SINGLE_AGENT_START
 from actionreasoning.agents.view import BrickView
 from actionreasoning.tools.grasp_plan import GraspOption
+from actionreasoning.tools.placement import PlacementPose
 from actionreasoning.world.models import Pose
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M, RETREAT_M
 from actionreasoning.world.tolerances import Tolerances
@@ -178,7 +178,7 @@ def _placement(briefing: Briefing) -> AgentAnswer:
     )
 
 
-def _placement_pose(briefing: Briefing, approach: str) -> Any:
+def _placement_pose(briefing: Briefing, approach: str) -> PlacementPose:
     """The placement_pose tool's report for the held brick and its target."""
     memory = briefing.memory
     return briefing.call_tool(
