@@ -5,23 +5,24 @@ from __future__ import annotations
 import itertools
 import math
 
+from actionreasoning.world.boxes import Box
+from actionreasoning.world.geometry import yaw_quat
 from actionreasoning.world.ground import GRID_STEP_M, free_spots
-from actionreasoning.world.support import BrickBox
 
 SIZE = (0.20, 0.095, 0.06)
 
 
 def footprint(x: float, y: float, yaw: float = 0.0):
-    return BrickBox(0, (x, y, 0.03), yaw, SIZE).footprint
+    return Box((x, y, 0.03), yaw_quat(yaw), SIZE).footprint
 
 
 def test_free_ground_is_the_spot_itself() -> None:
-    assert next(free_spots((0.5, 0.2), SIZE, 0.3, [], 0.08, 0.3)) == (0.5, 0.2)
+    assert next(free_spots((0.5, 0.2), SIZE, yaw_quat(0.3), [], 0.08, 0.3)) == (0.5, 0.2)
 
 
 def test_the_nearest_spot_keeps_the_margin_from_every_occupied_footprint() -> None:
     occupied = [footprint(0.5, 0.2), footprint(0.5, 0.45, 0.7)]
-    spots = free_spots((0.5, 0.2), SIZE, 0.0, occupied, 0.08, 0.4)
+    spots = free_spots((0.5, 0.2), SIZE, yaw_quat(0.0), occupied, 0.08, 0.4)
     x, y = next(spots)
     brick = footprint(x, y)
     assert all(brick.distance(o) >= 0.08 for o in occupied)
@@ -34,4 +35,4 @@ def test_the_nearest_spot_keeps_the_margin_from_every_occupied_footprint() -> No
 
 def test_no_spot_when_everything_within_range_is_taken() -> None:
     occupied = [footprint(0.5, 0.2)]
-    assert list(free_spots((0.5, 0.2), SIZE, 0.0, occupied, 0.08, 0.05)) == []
+    assert list(free_spots((0.5, 0.2), SIZE, yaw_quat(0.0), occupied, 0.08, 0.05)) == []

@@ -15,11 +15,13 @@ from actionreasoning.eval.metrics import (
     rotation_error_deg,
     symmetric_rotation_error_deg,
 )
+from actionreasoning.world.boxes import Box
 
 SIZE = (0.20, 0.095, 0.06)
 VOLUME = 0.20 * 0.095 * 0.06
 CENTRE = (0.4, -0.1, 0.03)
 IDENTITY = (0.0, 0.0, 0.0, 1.0)
+TARGET = Box(CENTRE, IDENTITY, SIZE)
 
 
 def quat(rotation: Rotation) -> tuple[float, float, float, float]:
@@ -36,7 +38,7 @@ def shifted(offset: tuple[float, float, float]) -> tuple[float, float, float]:
 
 def test_identical_boxes() -> None:
     q = rot_deg("zyx", 20, -10, 5)
-    m = brick_metrics(CENTRE, q, SIZE, CENTRE, q, SIZE)
+    m = brick_metrics(Box(CENTRE, q, SIZE), Box(CENTRE, q, SIZE))
     assert m.iou == pytest.approx(1.0, abs=1e-9)
     assert m.center_offset_cm == 0.0
     assert m.rotation_error_deg == pytest.approx(0.0, abs=1e-5)
@@ -45,9 +47,7 @@ def test_identical_boxes() -> None:
 
 def test_shift_along_long_axis() -> None:
     moved = shifted((0.01, 0.0, 0.0))
-    assert box_iou(moved, IDENTITY, SIZE, CENTRE, IDENTITY, SIZE) == pytest.approx(
-        0.19 / 0.21, abs=1e-9
-    )
+    assert box_iou(Box(moved, IDENTITY, SIZE), TARGET) == pytest.approx(0.19 / 0.21, abs=1e-9)
     assert center_offset_cm(moved, CENTRE) == pytest.approx(1.0, abs=1e-12)
 
 
@@ -57,7 +57,7 @@ def test_shift_in_3d_with_yawed_pose() -> None:
     moved = shifted(tuple(yaw.apply(own_shift)))
     inter = (0.20 - 0.01) * (0.095 - 0.02) * (0.06 - 0.005)
     expected = inter / (2 * VOLUME - inter)
-    assert box_iou(moved, quat(yaw), SIZE, CENTRE, quat(yaw), SIZE) == pytest.approx(
+    assert box_iou(Box(moved, quat(yaw), SIZE), Box(CENTRE, quat(yaw), SIZE)) == pytest.approx(
         expected, abs=1e-9
     )
     assert center_offset_cm(moved, CENTRE) == pytest.approx(
@@ -68,7 +68,7 @@ def test_shift_in_3d_with_yawed_pose() -> None:
 def test_quarter_turn_about_z() -> None:
     q = rot_deg("z", 90)
     inter = 0.095 * 0.095 * 0.06
-    m = brick_metrics(CENTRE, q, SIZE, CENTRE, IDENTITY, SIZE)
+    m = brick_metrics(Box(CENTRE, q, SIZE), TARGET)
     assert m.iou == pytest.approx(inter / (2 * VOLUME - inter), abs=1e-9)
     assert m.rotation_error_deg == pytest.approx(90.0, abs=1e-9)
     assert m.symmetric_rotation_error_deg == pytest.approx(90.0, abs=1e-9)
@@ -78,16 +78,18 @@ def test_cube_turned_45_degrees_intersects_in_an_octagon() -> None:
     a = 0.1
     cube = (a, a, a)
     inter = 2 * (math.sqrt(2) - 1) * a**2 * a
-    iou = box_iou(CENTRE, rot_deg("z", 45), cube, CENTRE, IDENTITY, cube)
+    iou = box_iou(Box(CENTRE, rot_deg("z", 45), cube), Box(CENTRE, IDENTITY, cube))
     assert iou == pytest.approx(inter / (2 * a**3 - inter), abs=1e-9)
 
 
 def test_disjoint_and_touching_boxes() -> None:
-    assert box_iou(shifted((0.3, 0.0, 0.0)), IDENTITY, SIZE, CENTRE, IDENTITY, SIZE) == 0.0
-    assert box_iou(shifted((0.0, 0.0, 0.06)), IDENTITY, SIZE, CENTRE, IDENTITY, SIZE) == 0.0
+    assert box_iou(Box(shifted((0.3, 0.0, 0.0)), IDENTITY, SIZE), TARGET) == 0.0
+    assert box_iou(Box(shifted((0.0, 0.0, 0.06)), IDENTITY, SIZE), TARGET) == 0.0
     yaw = Rotation.from_euler("z", 37, degrees=True)
     beside = shifted(tuple(yaw.apply((0.0, 0.095, 0.0))))
-    assert box_iou(beside, quat(yaw), SIZE, CENTRE, quat(yaw), SIZE) == pytest.approx(0.0, abs=1e-9)
+    assert box_iou(Box(beside, quat(yaw), SIZE), Box(CENTRE, quat(yaw), SIZE)) == pytest.approx(
+        0.0, abs=1e-9
+    )
 
 
 @pytest.mark.parametrize("axis", ["x", "y", "z"])
@@ -95,7 +97,7 @@ def test_half_turns_are_symmetric(axis: str) -> None:
     q = rot_deg(axis, 180)
     assert rotation_error_deg(q, IDENTITY) == pytest.approx(180.0, abs=1e-9)
     assert symmetric_rotation_error_deg(q, IDENTITY) == pytest.approx(0.0, abs=1e-5)
-    assert box_iou(CENTRE, q, SIZE, CENTRE, IDENTITY, SIZE) == pytest.approx(1.0, abs=1e-9)
+    assert box_iou(Box(CENTRE, q, SIZE), TARGET) == pytest.approx(1.0, abs=1e-9)
 
 
 def test_tilt_on_top_of_half_turn() -> None:
@@ -116,9 +118,9 @@ def test_non_normalised_quaternions() -> None:
     q = rot_deg("zx", 90, 2)
     target = rot_deg("y", 10)
     moved = shifted((0.01, 0.0, 0.0))
-    plain = brick_metrics(moved, q, SIZE, CENTRE, target, SIZE)
+    plain = brick_metrics(Box(moved, q, SIZE), Box(CENTRE, target, SIZE))
     scaled = brick_metrics(
-        moved, tuple(2 * np.array(q)), SIZE, CENTRE, tuple(2 * np.array(target)), SIZE
+        Box(moved, tuple(2 * np.array(q)), SIZE), Box(CENTRE, tuple(2 * np.array(target)), SIZE)
     )
     assert scaled.rotation_error_deg == pytest.approx(plain.rotation_error_deg, abs=1e-9)
     assert scaled.symmetric_rotation_error_deg == pytest.approx(
@@ -132,10 +134,10 @@ def test_general_pose_matches_monte_carlo() -> None:
     rng = np.random.default_rng(0)
     q = rot_deg("zyx", 30, 15, -20)
     moved = shifted((0.03, 0.01, -0.01))
-    iou = box_iou(moved, q, SIZE, CENTRE, IDENTITY, SIZE)
+    iou = box_iou(Box(moved, q, SIZE), TARGET)
     half = np.array(SIZE) / 2
     points = rng.uniform(-half, half, size=(400_000, 3))  # in the target box's frame
     local = Rotation.from_quat(q).inv().apply(points + np.subtract(CENTRE, moved))
     inside = np.all(np.abs(local) <= half, axis=1).mean() * VOLUME
     assert iou == pytest.approx(inside / (2 * VOLUME - inside), abs=5e-3)
-    assert box_iou(CENTRE, IDENTITY, SIZE, moved, q, SIZE) == pytest.approx(iou, abs=1e-12)
+    assert box_iou(TARGET, Box(moved, q, SIZE)) == pytest.approx(iou, abs=1e-12)

@@ -21,12 +21,12 @@ from actionreasoning.eval.metrics import center_offset_cm
 from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.eval.trial import READY_POSE, Method, TrialSpec, trial_world
 from actionreasoning.reasoners.builtin import BuiltinReasoner
-from actionreasoning.world.geometry import quat_yaw, top_down_quat
+from actionreasoning.world.boxes import Box
+from actionreasoning.world.geometry import top_down_quat
 from actionreasoning.world.models import Pose
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PRECISE
 from actionreasoning.world.scene_spec import SceneSpec
-from actionreasoning.world.support import BrickBox
 
 
 @pytest.fixture
@@ -237,10 +237,10 @@ def test_placement_can_ask_for_a_regrasp_and_the_brick_is_grasped_again(small_go
     assert aside.status == "dropped" and aside.pickable
     slot = small_goal.targets[asked.target].pose.position_m
     assert center_offset_cm(aside.pose.position_m, slot) < 100 * (SET_ASIDE_RANGE_M + 0.05)
-    footprint = BrickBox(0, aside.pose.position_m, quat_yaw(aside.pose.quat_xyzw), aside.size_m)
+    footprint = Box(aside.pose.position_m, aside.pose.quat_xyzw, aside.size_m).footprint
     for target in small_goal.targets:
-        taken = BrickBox(1, target.pose.position_m, quat_yaw(target.pose.quat_xyzw), target.size_m)
-        assert footprint.footprint.distance(taken.footprint) > SET_ASIDE_MARGIN_M / 2
+        taken = Box(target.pose.position_m, target.pose.quat_xyzw, target.size_m).footprint
+        assert footprint.distance(taken) > SET_ASIDE_MARGIN_M / 2
     for target, brick in result.placements.items():
         assert center_offset_cm(final[brick], small_goal.targets[target].pose.position_m) < 0.1
 

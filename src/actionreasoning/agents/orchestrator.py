@@ -40,6 +40,7 @@ from actionreasoning.tools.collision import CollisionReport
 from actionreasoning.tools.placement import SEAT_CLEARANCE_M
 from actionreasoning.world.geometry import quat_yaw, rotation_deg
 from actionreasoning.world.models import GoalPattern, Pose, Progress, WorldState
+from actionreasoning.world.motion import Motion
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M, RETREAT_M
 from actionreasoning.world.tolerances import Tolerances
 
@@ -349,8 +350,9 @@ class Orchestrator:
         self._stage(
             "placement", partial(self._carry_over_slot, brick=brick, back=back), label="transfer"
         )
+        failed = ""  # the last sigma_5 verdict's failed checks: the failure's detail
         for _ in range(self.budgets.placement_attempts):
-            slot = self._stage("placement", partial(self._set_down, brick=brick, back=back))
+            slot, motion = self._stage("placement", partial(self._set_down, brick=brick, back=back))
             state = self.world.observe(Progress(current_brick=brick, step="placement"))
             errors = self.calls.measure(
                 state, "alignment_errors", brick_id=brick, target_index=target
@@ -358,15 +360,17 @@ class Orchestrator:
             verdict = self.calls.judge(gates.sigma5_placement(errors, self.tol))
             if verdict.passed:
                 return
-            self.calls.conclude(Outcome.RAISED, verdict.feedback)
+            failed = verdict.feedback
+            feedback = f"{failed}; {_touch_down(motion, state, slot)}"
+            self.calls.conclude(Outcome.RAISED, feedback)
             # Misaligned in contact: raise by delta_h and ask Ag5 again.
             x, y, z = state.robot.ee_pose.position_m
             up = WaypointProposal(
                 position_m=(x, y, z + self.tol.delta_h_m), quat_xyzw=slot.quat_xyzw, path="linear"
             )
             self.world.move(up)
-            self.memory = self.memory.model_copy(update={"last_feedback": verdict.feedback})
-        raise TrialStopped("placement_misaligned", "placement", self.memory.last_feedback)
+            self.memory = self.memory.model_copy(update={"last_feedback": feedback})
+        raise TrialStopped("placement_misaligned", "placement", failed)
 
     def _carry_over_slot(
         self, answer: Any, state: WorldState, brick: int, back: Callable[[], None]
@@ -401,8 +405,9 @@ class Orchestrator:
 
     def _set_down(
         self, answer: Any, state: WorldState, brick: int, back: Callable[[], None]
-    ) -> WaypointProposal:
-        """Set the brick down on the (re-measured) slot: over it, then straight down onto it."""
+    ) -> tuple[WaypointProposal, Motion]:
+        """Set the brick down on the (re-measured) slot: over it, then straight down onto it.
+        Returns the slot and what the way down did."""
         self._regrasp_if_asked(answer, state, brick, back)
         slot = self._slot(answer)
         above = _above(slot, state, path="linear")
@@ -411,8 +416,8 @@ class Orchestrator:
         self.world.move(above)
         # Onto the slot itself, pressed flat by the position controller; the guard stops the
         # move early if the brick meets its support above the slot.
-        self.world.move(slot.model_copy(update={"path": "linear"}), stop_on_contact=brick)
-        return slot
+        down = self.world.move(slot.model_copy(update={"path": "linear"}), stop_on_contact=brick)
+        return slot, down
 
     @staticmethod
     def _slot(answer: Any) -> WaypointProposal:
@@ -496,6 +501,17 @@ def _above(slot: WaypointProposal, state: WorldState, path: str = "joint") -> Wa
     x, y, z = slot.position_m
     height = max(state.robot.ee_pose.position_m[2], z)
     return slot.model_copy(update={"position_m": (x, y, height), "path": path})
+
+
+def _touch_down(motion: Motion, after: WorldState, slot: WaypointProposal) -> str:
+    """How the set-down ended, as measured: stopped on contact (where), or ran to the slot."""
+    if not motion.stopped_on_contact:
+        return "the set-down ran all the way to the slot: the brick met no support that stopped it"
+    z = after.robot.ee_pose.position_m[2]
+    return (
+        f"the set-down stopped on contact with the tool at z = {z:.4f} m, "
+        f"{(z - slot.position_m[2]) * 1000:.1f} mm above the slot"
+    )
 
 
 def _as_pose(waypoint: WaypointProposal) -> Pose:

@@ -19,11 +19,11 @@ from shapely.geometry import Polygon
 from actionreasoning.agents.calls import AgentCaller
 from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.agents.world import World
+from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import Vec3, quat_yaw, top_down_quat
 from actionreasoning.world.ground import free_spots
 from actionreasoning.world.models import Pose, WorldState
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M
-from actionreasoning.world.support import BrickBox
 
 GRIPPER_OPEN_M = GRIPPER_GAP_M[1]
 #: Mean speed of every move with a brick to put down, and the shortest move.
@@ -114,7 +114,7 @@ class PutDown:
         spots = free_spots(
             tool.position_m[:2],
             held.size_m,
-            quat_yaw(held.pose.quat_xyzw),
+            held.pose.quat_xyzw,
             occupied,
             SET_ASIDE_MARGIN_M,
             SET_ASIDE_RANGE_M,
@@ -201,4 +201,4 @@ def levelled_offset(tool: Pose, brick: Pose) -> np.ndarray:
 
 
 def _footprint(pose: Pose, size: tuple[float, float, float]) -> Polygon:
-    return BrickBox(-1, pose.position_m, quat_yaw(pose.quat_xyzw), size).footprint
+    return Box(pose.position_m, pose.quat_xyzw, size).footprint

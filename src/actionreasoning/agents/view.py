@@ -16,7 +16,8 @@ from enum import StrEnum
 from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.agents.memory import TaskMemory
-from actionreasoning.world.geometry import Vec3, quat_yaw
+from actionreasoning.world.boxes import Box
+from actionreasoning.world.geometry import Vec3
 from actionreasoning.world.models import (
     BrickState,
     BrickStatus,
@@ -26,7 +27,7 @@ from actionreasoning.world.models import (
     WorldState,
     is_pickable,
 )
-from actionreasoning.world.support import BrickBox, carriers
+from actionreasoning.world.support import carriers
 
 #: Agents 2-6 are shown the bricks within this distance (m, in the plane) of the current
 #: brick or its target, and any brick neither in the pick area nor placed.
@@ -152,8 +153,5 @@ class StateView(_View):
 
 def target_supports(goal: GoalPattern) -> dict[int, tuple[int, ...]]:
     """For each target, the targets it rests on."""
-    boxes = [
-        BrickBox(t.index, t.pose.position_m, quat_yaw(t.pose.quat_xyzw), t.size_m)
-        for t in goal.targets
-    ]
-    return {box.index: tuple(o.index for o, _ in carriers(box, boxes)) for box in boxes}
+    boxes = [Box(t.pose.position_m, t.pose.quat_xyzw, t.size_m, id=t.index) for t in goal.targets]
+    return {box.id: tuple(o.id for o, _ in carriers(box, boxes)) for box in boxes}

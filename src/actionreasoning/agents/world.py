@@ -5,22 +5,12 @@ The simulator side implements it (``eval/sim_world.py``); the agents never touch
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Protocol
 
 from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.tools.base import ToolContext
 from actionreasoning.world.models import Progress, Sensing, WorldState
-
-
-@dataclass(frozen=True)
-class Motion:
-    """What a move did, as measured."""
-
-    converged: bool
-    stopped_on_contact: bool
-    position_error_m: float
-    orientation_error_deg: float
+from actionreasoning.world.motion import Motion
 
 
 class World(Protocol):

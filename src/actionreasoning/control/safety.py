@@ -18,8 +18,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from actionreasoning.errors import TrialAborted
+from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import Vec3
 from actionreasoning.world.scene_spec import WorkspaceBox
+
+#: How far the hand reaches sideways past a brick it passes over.
+HAND_RADIUS_M = 0.05
 
 
 @dataclass(frozen=True)
@@ -38,27 +42,18 @@ class SafetyLimits:
     max_tcp_speed_mps: float = 2.5
 
 
-@dataclass(frozen=True)
-class Obstacle:
-    """A brick the tool must pass above in transit: its centre, horizontal radius and top."""
-
-    brick: int
-    center_m: Vec3
-    radius_m: float
-    top_m: float
-
-
 def check_motion(
     path: Sequence[Vec3],
     duration_s: float,
     peak_factor: float,
-    obstacles: Sequence[Obstacle],
+    obstacles: Sequence[Box],
     limits: SafetyLimits,
 ) -> None:
     """Raise ``TrialAborted("safety_limit", ...)`` if the tool path breaks a limit.
 
     ``obstacles`` are the bricks to clear in transit: those of a free move, none for a
-    straight (linear) one."""
+    straight (linear) one. The tool is over a brick within its half diagonal plus
+    ``HAND_RADIUS_M`` of its centre."""
     points = np.asarray(path, dtype=float)
     if not np.all(np.isfinite(points)):
         _refuse("the planned tool path is not finite")
@@ -80,7 +75,7 @@ def check_motion(
     _check_transit(points, obstacles, limits)
 
 
-def _check_transit(points: np.ndarray, obstacles: Sequence[Obstacle], limits: SafetyLimits) -> None:
+def _check_transit(points: np.ndarray, obstacles: Sequence[Box], limits: SafetyLimits) -> None:
     start, end = points[0, :2], points[-1, :2]
     margin = limits.transit_margin_m
     for point in points:
@@ -88,11 +83,12 @@ def _check_transit(points: np.ndarray, obstacles: Sequence[Obstacle], limits: Sa
         if min(np.linalg.norm(xy - start), np.linalg.norm(xy - end)) <= margin:
             continue
         for obstacle in obstacles:
-            over = np.linalg.norm(xy - np.asarray(obstacle.center_m[:2])) <= obstacle.radius_m
+            radius = math.hypot(obstacle.size_m[0], obstacle.size_m[1]) / 2.0 + HAND_RADIUS_M
+            over = np.linalg.norm(xy - np.asarray(obstacle.position_m[:2])) <= radius
             if over and point[2] < obstacle.top_m + limits.transit_clearance_m:
                 _refuse(
                     f"in transit the tool would pass {point[2] - obstacle.top_m:.3f} m above "
-                    f"brick {obstacle.brick} at {_fmt(point)}, less than the "
+                    f"brick {obstacle.id} at {_fmt(point)}, less than the "
                     f"{limits.transit_clearance_m} m clearance"
                 )
 

@@ -18,18 +18,18 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy.spatial.transform import Rotation, Slerp
 
-from actionreasoning.control.safety import Obstacle, SafetyLimits, check_motion
+from actionreasoning.control.safety import SafetyLimits, check_motion
 from actionreasoning.errors import UnreachableError
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.robot_model import FINGER_MAX_M, FINGER_MIN_M
 from actionreasoning.sim.scene import Scene
+from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import Vec3
 from actionreasoning.world.models import Pose
+from actionreasoning.world.motion import Motion
 
 LINEAR_STEP_M = 0.01
-#: How far the hand reaches sideways past a brick it passes over, and how close a brick's
-#: centre is to the tool centre point when the brick is the one in the hand.
-HAND_RADIUS_M = 0.05
+#: How close a brick's centre is to the tool centre point when the brick is the one in the hand.
 HELD_DISTANCE_M = 0.06
 #: Peak over mean speed of the minimum-jerk profile: durations derived from speed limits
 #: use it so that the limits hold at the peak.
@@ -91,17 +91,6 @@ class ControllerLimits:
     gripper_s: float = 0.625
 
 
-@dataclass(frozen=True)
-class ExecutionReport:
-    """What executing a waypoint did, measured after the move."""
-
-    ticks: int
-    converged: bool
-    stopped_on_contact: bool
-    position_error_m: float
-    orientation_error_deg: float
-
-
 class WaypointController:
     """Drives the scene's arm through waypoints."""
 
@@ -148,7 +137,7 @@ class WaypointController:
             knots.append(self.solve(pose, knots[-1]))
         return knots
 
-    def execute(self, waypoint: Waypoint, settle: bool = True) -> ExecutionReport:
+    def execute(self, waypoint: Waypoint, settle: bool = True) -> Motion:
         """Move to the waypoint, apply its gripper command, and report the measured result.
 
         The planned path is checked against the safety limits first; a violation raises
@@ -167,7 +156,7 @@ class WaypointController:
         self.scene.check_physics()
         position, quat = self.scene.tcp_pose()
         relative = Rotation.from_quat(quat).inv() * Rotation.from_quat(waypoint.pose.quat_xyzw)
-        return ExecutionReport(
+        return Motion(
             ticks=ticks,
             converged=converged,
             stopped_on_contact=stopped,
@@ -202,16 +191,16 @@ class WaypointController:
             path, ticks * self.scene.physics.time_step_s, MIN_JERK_PEAK, obstacles, self.safety
         )
 
-    def _obstacles(self, start: Vec3) -> list[Obstacle]:
+    def _obstacles(self, start: Vec3) -> list[Box]:
         """Every brick a free move must pass above in transit: all but the one in the hand
-        (near the tool centre point, or pressed by both pads however far it slid)."""
+        (near the tool centre point, or pressed by both pads however far it slid), each of
+        the catalogue size."""
         size = self.scene.nominal.size_m
-        radius = math.hypot(size[0], size[1]) / 2.0 + HAND_RADIUS_M
         obstacles = []
         for brick in range(len(self.scene.bricks)):
-            center, _ = self.scene.brick_pose(brick)
+            center, quat = self.scene.brick_pose(brick)
             if math.dist(center, start) > HELD_DISTANCE_M and not self.scene.is_held(brick):
-                obstacles.append(Obstacle(brick, center, radius, center[2] + size[2] / 2.0))
+                obstacles.append(Box(center, quat, size, id=brick))
         return obstacles
 
     def _move(self, knots: list[np.ndarray], waypoint: Waypoint, total: int) -> tuple[int, bool]:

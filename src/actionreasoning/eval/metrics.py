@@ -14,6 +14,7 @@ from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, HalfspaceIntersection, QhullError
 from scipy.spatial.transform import Rotation
 
+from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import QuatXYZW, Vec3
 
 #: The symmetries of a box with three different side lengths, in its own frame:
@@ -59,11 +60,11 @@ def symmetric_rotation_error_deg(quat_xyzw: QuatXYZW, target_quat_xyzw: QuatXYZW
     return min(_geodesic_deg(rot, target @ sym) for sym in _BOX_SYMMETRIES)
 
 
-def _halfspaces(position_m: Vec3, quat_xyzw: QuatXYZW, size_m: Vec3) -> np.ndarray:
+def _halfspaces(box: Box) -> np.ndarray:
     """The box as 6 rows [a, b] meaning a . x + b <= 0 (scipy's HalfspaceIntersection form)."""
-    axes = _matrix(quat_xyzw).T  # rows: the box's own axes in the world frame
-    reach = axes @ np.asarray(position_m, dtype=float)
-    half = np.asarray(size_m, dtype=float) / 2.0
+    axes = _matrix(box.quat_xyzw).T  # rows: the box's own axes in the world frame
+    reach = axes @ np.asarray(box.position_m, dtype=float)
+    half = np.asarray(box.size_m, dtype=float) / 2.0
     return np.vstack(
         [np.column_stack([axes, -(reach + half)]), np.column_stack([-axes, reach - half])]
     )
@@ -88,41 +89,20 @@ def _intersection_volume(halfspaces: np.ndarray) -> float:
         return 0.0
 
 
-def box_iou(
-    position_m: Vec3,
-    quat_xyzw: QuatXYZW,
-    size_m: Vec3,
-    target_position_m: Vec3,
-    target_quat_xyzw: QuatXYZW,
-    target_size_m: Vec3,
-) -> float:
+def box_iou(a: Box, b: Box) -> float:
     """Exact intersection over union (in [0, 1]) of two oriented boxes (world frame, metres)."""
-    inter = _intersection_volume(
-        np.vstack(
-            [
-                _halfspaces(position_m, quat_xyzw, size_m),
-                _halfspaces(target_position_m, target_quat_xyzw, target_size_m),
-            ]
-        )
-    )
-    union = float(np.prod(size_m)) + float(np.prod(target_size_m)) - inter
+    inter = _intersection_volume(np.vstack([_halfspaces(a), _halfspaces(b)]))
+    union = float(np.prod(a.size_m)) + float(np.prod(b.size_m)) - inter
     return inter / union
 
 
-def brick_metrics(
-    position_m: Vec3,
-    quat_xyzw: QuatXYZW,
-    size_m: Vec3,
-    target_position_m: Vec3,
-    target_quat_xyzw: QuatXYZW,
-    target_size_m: Vec3,
-) -> BrickMetrics:
-    """All four metrics of a brick (pose and size) against its target (world frame, metres)."""
+def brick_metrics(brick: Box, target: Box) -> BrickMetrics:
+    """All four metrics of a brick against its target (world frame, metres)."""
     return BrickMetrics(
-        center_offset_cm=center_offset_cm(position_m, target_position_m),
-        rotation_error_deg=rotation_error_deg(quat_xyzw, target_quat_xyzw),
-        symmetric_rotation_error_deg=symmetric_rotation_error_deg(quat_xyzw, target_quat_xyzw),
-        iou=box_iou(
-            position_m, quat_xyzw, size_m, target_position_m, target_quat_xyzw, target_size_m
+        center_offset_cm=center_offset_cm(brick.position_m, target.position_m),
+        rotation_error_deg=rotation_error_deg(brick.quat_xyzw, target.quat_xyzw),
+        symmetric_rotation_error_deg=symmetric_rotation_error_deg(
+            brick.quat_xyzw, target.quat_xyzw
         ),
+        iou=box_iou(brick, target),
     )

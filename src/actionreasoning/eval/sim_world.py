@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 from actionreasoning.agents.outputs import WaypointProposal
-from actionreasoning.agents.world import Motion
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
 from actionreasoning.sim.collision import CollisionChecker
 from actionreasoning.sim.perceive import Sensor
 from actionreasoning.tools.base import ToolContext
 from actionreasoning.world.models import GoalPattern, Pose, Progress, WorldState
+from actionreasoning.world.motion import Motion
 
 
 class SimWorld:
@@ -34,19 +34,13 @@ class SimWorld:
     def move(self, waypoint: WaypointProposal, stop_on_contact: int | None = None) -> Motion:
         """Execute a gated waypoint and report what was measured."""
         duration = waypoint.duration_s
-        report = self.controller.execute(
+        return self.controller.execute(
             Waypoint(
                 pose=Pose(position_m=waypoint.position_m, quat_xyzw=waypoint.quat_xyzw),
                 path=waypoint.path,
                 min_ticks=None if duration is None else self.controller.scene.ticks_for(duration),
                 stop_on_contact=stop_on_contact,
             )
-        )
-        return Motion(
-            converged=report.converged,
-            stopped_on_contact=report.stopped_on_contact,
-            position_error_m=report.position_error_m,
-            orientation_error_deg=report.orientation_error_deg,
         )
 
     def grip(self, opening_m: float | None) -> None:

@@ -23,6 +23,7 @@ from actionreasoning.reasoners.factory import LLMConfig, make_reasoner
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.perceive import Sensor
 from actionreasoning.sim.scene import Scene, TrialBudget
+from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import Vec3
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import READY_POSE, GoalPattern
@@ -201,12 +202,8 @@ def _measure(
         brick = next(unplaced) if brick is None else brick
         position, quat = scene.brick_pose(brick)
         m = brick_metrics(
-            position,
-            quat,
-            target.size_m,
-            target.pose.position_m,
-            target.pose.quat_xyzw,
-            target.size_m,
+            Box(position, quat, target.size_m),
+            Box(target.pose.position_m, target.pose.quat_xyzw, target.size_m),
         )
         bricks.append(
             BrickResult(

@@ -1,4 +1,4 @@
-"""Clearance of the arm, the gripper and a held brick from boxes and the ground.
+"""Clearance of the arm, the gripper and a held brick from bricks and the ground.
 
 Runs on the kinematic copy of the arm (its own PyBullet client, never stepped), so
 collision queries cannot change the simulation. Distances come from PyBullet's closest
@@ -13,23 +13,14 @@ from dataclasses import dataclass
 import pybullet as p
 
 from actionreasoning.sim.kinematics import KinematicArm
-from actionreasoning.world.geometry import QuatXYZW, Vec3
+from actionreasoning.world.boxes import Box
+from actionreasoning.world.geometry import Vec3
 
 #: Distances beyond this are not resolved: a clearance of this value means "at least".
 SEARCH_DISTANCE_M = 0.25
 #: Arm links that can come near the ground (the elbow and everything after it).
 FIRST_GROUND_LINK = 3
 PARKED = (0.0, 0.0, -100.0)
-
-
-@dataclass(frozen=True)
-class Box:
-    """A named box in the world frame."""
-
-    name: str
-    position_m: Vec3
-    quat_xyzw: QuatXYZW
-    size_m: Vec3
 
 
 @dataclass(frozen=True)
@@ -61,10 +52,11 @@ class CollisionChecker:
         obstacles: Sequence[Box],
         held: Box | None = None,
     ) -> Clearance:
-        """Smallest distance of the arm (and ``held``) to ``obstacles`` and the ground."""
+        """Smallest distance of the arm (and ``held``) to ``obstacles`` and the ground; each
+        box is named after its brick id."""
         self.arm.set_configuration(joints_rad, finger_half_width_m)
         bodies = self._place([*obstacles, *([held] if held else [])])
-        named = {body: box.name for body, box in zip(bodies, obstacles, strict=False)}
+        named = {body: _name(box) for body, box in zip(bodies, obstacles, strict=False)}
         best = Clearance(SEARCH_DISTANCE_M, "nothing within reach of the query")
         cid, robot = self.arm.client, self.arm.robot
         for link, link_name in self._link_names.items():
@@ -76,7 +68,7 @@ class CollisionChecker:
         if held is not None:
             held_body = bodies[-1]
             for body, name in [*named.items(), (self._ground, "ground")]:
-                best = _closer(best, held_body, body, -1, f"held {held.name} vs {name}", cid)
+                best = _closer(best, held_body, body, -1, f"held {_name(held)} vs {name}", cid)
         return best
 
     def _place(self, boxes: Sequence[Box]) -> list[int]:
@@ -101,6 +93,10 @@ class CollisionChecker:
         for _, body in free:
             p.resetBasePositionAndOrientation(body, PARKED, (0, 0, 0, 1), physicsClientId=cid)
         return used
+
+
+def _name(box: Box) -> str:
+    return f"brick {box.id}"
 
 
 def _closer(

@@ -3,7 +3,7 @@
 Tools read the world only through a :class:`ToolContext` (the measured WorldState plus the
 arm's kinematic model and collision checker), so a tool call by an LLM and one by Python
 code see the same thing.
-Every tool has a JSON schema for its arguments, given to LLMs as a function definition.
+The agents' prompts describe every tool's arguments and result field by field.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ class ToolContext:
 
 @dataclass(frozen=True)
 class Tool(Generic[In, Out]):
-    """A callable piece of knowledge with typed, schema-described input and output."""
+    """A callable piece of knowledge with typed, described input and output."""
 
     name: str
     description: str
@@ -51,17 +51,6 @@ class Tool(Generic[In, Out]):
     def __call__(self, context: ToolContext, arguments: In) -> Out:
         """Run the tool on already validated arguments."""
         return self.function(context, arguments)
-
-    def function_schema(self) -> dict[str, Any]:
-        """The tool as an OpenAI-style function definition (JSON schema of its arguments)."""
-        return {
-            "type": "function",
-            "function": {
-                "name": self.name,
-                "description": self.description,
-                "parameters": self.input_model.model_json_schema(),
-            },
-        }
 
 
 def tool(name: str, function: Callable[[ToolContext, Any], Any]) -> Tool:

@@ -14,8 +14,9 @@ from pydantic import Field
 from scipy.spatial.transform import Rotation, Slerp
 
 from actionreasoning.errors import UnreachableError
-from actionreasoning.sim.collision import Box, Clearance
+from actionreasoning.sim.collision import Clearance
 from actionreasoning.tools.base import ToolContext, ToolModel, tool
+from actionreasoning.world.boxes import Box
 from actionreasoning.world.models import BrickState, Pose, WorldState
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M
 
@@ -52,7 +53,7 @@ class CollisionReport(ToolModel):
 def _obstacles(state: WorldState, ignore: int | None) -> tuple[list[Box], BrickState | None]:
     held = next((b for b in state.bricks if b.status == "grasped" and b.id != ignore), None)
     boxes = [
-        Box(f"brick {b.id}", b.pose.position_m, b.pose.quat_xyzw, b.size_m)
+        Box(b.pose.position_m, b.pose.quat_xyzw, b.size_m, id=b.id)
         for b in state.bricks
         if b.id != ignore and b is not held
     ]
@@ -81,7 +82,7 @@ def _held_box(state: WorldState, held: BrickState, tool_pose: Pose) -> Box:
     turn = grip.inv() * Rotation.from_quat(held.pose.quat_xyzw)
     tool = Rotation.from_quat(tool_pose.quat_xyzw)
     position = tuple(np.asarray(tool_pose.position_m) + tool.apply(offset))
-    return Box(f"brick {held.id}", position, tuple((tool * turn).as_quat()), held.size_m)
+    return Box(position, tuple((tool * turn).as_quat()), held.size_m, id=held.id)
 
 
 def collision_check(context: ToolContext, query: CollisionQuery) -> CollisionReport:

@@ -12,9 +12,10 @@ from pydantic import Field
 
 from actionreasoning.errors import ToolError
 from actionreasoning.tools.base import ToolContext, ToolModel, tool
+from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import quat_yaw, tilt_deg, top_down_quat, wrap_angle
 from actionreasoning.world.models import BrickState, Pose, TargetBrick, WorldState
-from actionreasoning.world.support import BrickBox, carriers, centre_is_held
+from actionreasoning.world.support import carriers, centre_is_held
 
 GROUND_TOL_M = 2e-3
 
@@ -100,8 +101,8 @@ def target_of(state: WorldState, index: int) -> TargetBrick:
     return state.goal.targets[index]
 
 
-def _box(brick: BrickState) -> BrickBox:
-    return BrickBox(brick.id, brick.pose.position_m, quat_yaw(brick.pose.quat_xyzw), brick.size_m)
+def _box(brick: BrickState) -> Box:
+    return Box(brick.pose.position_m, brick.pose.quat_xyzw, brick.size_m, id=brick.id)
 
 
 def alignment_errors(context: ToolContext, query: AlignmentQuery) -> AlignmentErrors:
@@ -148,12 +149,12 @@ def support_contact(context: ToolContext, query: BrickQuery) -> SupportReport:
     brick = brick_state(state, query.brick_id)
     box = _box(brick)
     contacts = carriers(box, [_box(b) for b in state.bricks])
-    on_ground = abs(box.bottom) <= GROUND_TOL_M
+    on_ground = abs(box.bottom_m) <= GROUND_TOL_M
     areas = [area for _, area in contacts]
     return SupportReport(
         brick_id=brick.id,
         on_ground=on_ground,
-        carriers=tuple(other.index for other, _ in contacts),
+        carriers=tuple(other.id for other, _ in contacts),
         contact_area_m2=box.footprint.area if on_ground else float(sum(a.area for a in areas)),
         centre_supported=on_ground or (bool(areas) and centre_is_held(box, areas)),
         tilt_deg=tilt_deg(brick.pose.quat_xyzw),

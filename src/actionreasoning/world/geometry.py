@@ -55,13 +55,6 @@ def wrap_angle(angle_rad: float) -> float:
     return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
 
 
-def box_corners(position: Vec3, quat_xyzw: QuatXYZW, size: Vec3) -> np.ndarray:
-    """The 8 corners (8 x 3, metres, world frame) of an oriented box centred at ``position``."""
-    half = np.asarray(size, dtype=float) / 2.0
-    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
-    return Rotation.from_quat(quat_xyzw).apply(signs * half) + np.asarray(position, dtype=float)
-
-
 def round_floats(value: Any, digits: int) -> Any:
     """``value`` with every float in it (in lists, tuples and dicts too) rounded to
     ``digits`` decimals; -0.0 becomes 0.0."""

@@ -9,8 +9,8 @@ from shapely.geometry import Polygon
 from shapely.ops import unary_union
 from shapely.prepared import prep
 
-from actionreasoning.world.geometry import Vec3
-from actionreasoning.world.support import BrickBox
+from actionreasoning.world.boxes import Box
+from actionreasoning.world.geometry import QuatXYZW, Vec3
 
 #: Spacing of the candidate spots.
 GRID_STEP_M = 0.02
@@ -19,13 +19,14 @@ GRID_STEP_M = 0.02
 def free_spots(
     near: tuple[float, float],
     size: Vec3,
-    yaw: float,
+    quat_xyzw: QuatXYZW,
     occupied: Sequence[Polygon],
     margin_m: float,
     max_distance_m: float,
 ) -> Iterator[tuple[float, float]]:
-    """Spots for a brick of ``size`` lying at ``yaw``, nearest ``near`` first, whose footprint
-    keeps ``margin_m`` from every ``occupied`` footprint, within ``max_distance_m``."""
+    """Spots for a brick of ``size`` lying at the yaw of ``quat_xyzw``, nearest ``near``
+    first, whose footprint keeps ``margin_m`` from every ``occupied`` footprint, within
+    ``max_distance_m``."""
     blocked = prep(unary_union(list(occupied)).buffer(margin_m)) if occupied else None
     reach = int(max_distance_m / GRID_STEP_M)
     steps = [k * GRID_STEP_M for k in range(-reach, reach + 1)]
@@ -34,6 +35,6 @@ def free_spots(
         if math.hypot(dx, dy) > max_distance_m:
             return
         x, y = near[0] + dx, near[1] + dy
-        footprint = BrickBox(-1, (x, y, size[2] / 2.0), yaw, size).footprint
+        footprint = Box((x, y, size[2] / 2.0), quat_xyzw, size).footprint
         if blocked is None or not blocked.intersects(footprint):
             yield x, y

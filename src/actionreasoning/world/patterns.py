@@ -28,6 +28,7 @@ from typing import Annotated, Any
 from pydantic import BaseModel, ConfigDict, Field, Strict
 
 from actionreasoning.errors import PatternError
+from actionreasoning.world.boxes import Box
 from actionreasoning.world.config_files import parse_model, read_mapping
 from actionreasoning.world.geometry import Vec3, yaw_quat
 from actionreasoning.world.layout import pick_capacity
@@ -41,7 +42,6 @@ from actionreasoning.world.scene_spec import (
 from actionreasoning.world.support import (
     MIN_AREA_M2,
     SUPPORT_TOL_M,
-    BrickBox,
     carriers,
     centre_is_held,
 )
@@ -120,7 +120,7 @@ def load_pattern(name_or_path: str | Path, spec: SceneSpec) -> GoalPattern:
     _validate(source, blocks, spec)
     targets = tuple(
         TargetBrick(
-            index=b.index, pose=Pose(position_m=b.centre, quat_xyzw=yaw_quat(b.yaw)), size_m=b.size
+            index=b.id, pose=Pose(position_m=b.position_m, quat_xyzw=b.quat_xyzw), size_m=b.size_m
         )
         for b in blocks
     )
@@ -133,17 +133,17 @@ def _parse(data: dict[str, Any], source: str) -> PatternFile:
     return parse_model(PatternFile, data, source, PatternError)
 
 
-def _place(pattern: PatternFile, spec: SceneSpec) -> list[BrickBox]:
+def _place(pattern: PatternFile, spec: SceneSpec) -> list[Box]:
     """The pattern's bricks in the world frame (see the frame rule above)."""
     ox, oy, oz = pattern.origin or spec.build_center_m
     turn = spec.build_yaw_rad if pattern.origin is None else 0.0
     c, s = math.cos(turn), math.sin(turn)
     return [
-        BrickBox(
-            i,
+        Box(
             (ox + c * x - s * y, oy + s * x + c * y, oz + z),
-            turn + math.radians(brick.yaw_deg),
+            yaw_quat(turn + math.radians(brick.yaw_deg)),
             pattern.brick_size,
+            id=i,
         )
         for i, brick in enumerate(pattern.bricks)
         for x, y, z in [brick.position]
@@ -198,7 +198,7 @@ def _check_pick_area(source: str, count: int, size: Vec3, spec: SceneSpec) -> No
         )
 
 
-def _validate(source: str, blocks: list[BrickBox], spec: SceneSpec) -> None:
+def _validate(source: str, blocks: list[Box], spec: SceneSpec) -> None:
     """Refuse physically impossible or unreachable patterns."""
     for block in blocks:
         _check_ground(source, block)
@@ -212,46 +212,46 @@ def _fmt(values: tuple[float, ...]) -> str:
     return "(" + ", ".join(f"{v:.3f}" for v in values) + ")"
 
 
-def _check_ground(source: str, block: BrickBox) -> None:
-    if block.bottom < -OVERLAP_TOL_M:
-        where = f"bottom face at z = {block.bottom:.3f} m"
-        raise PatternError(f"{source}: brick {block.index} is below the ground ({where})")
+def _check_ground(source: str, block: Box) -> None:
+    if block.bottom_m < -OVERLAP_TOL_M:
+        where = f"bottom face at z = {block.bottom_m:.3f} m"
+        raise PatternError(f"{source}: brick {block.id} is below the ground ({where})")
 
 
-def _check_reach(source: str, block: BrickBox, spec: SceneSpec) -> None:
+def _check_reach(source: str, block: Box, spec: SceneSpec) -> None:
     band = spec.reach
-    if not band.contains(*block.centre):
+    if not band.contains(*block.position_m):
         limits = f"radius {band.min_radius_m}-{band.max_radius_m} m, height 0-{band.max_height_m} m"
         raise PatternError(
-            f"{source}: brick {block.index} at world {_fmt(block.centre)} "
+            f"{source}: brick {block.id} at world {_fmt(block.position_m)} "
             f"is out of the arm's reach ({limits})"
         )
 
 
-def _check_overlaps(source: str, blocks: list[BrickBox]) -> None:
+def _check_overlaps(source: str, blocks: list[Box]) -> None:
     for a, b in itertools.combinations(blocks, 2):
-        z_overlap = min(a.top, b.top) - max(a.bottom, b.bottom)
+        z_overlap = min(a.top_m, b.top_m) - max(a.bottom_m, b.bottom_m)
         if z_overlap > OVERLAP_TOL_M and a.footprint.intersection(b.footprint).area > MIN_AREA_M2:
-            raise PatternError(f"{source}: bricks {a.index} and {b.index} overlap")
+            raise PatternError(f"{source}: bricks {a.id} and {b.id} overlap")
 
 
-def _check_support(source: str, block: BrickBox, blocks: list[BrickBox]) -> None:
+def _check_support(source: str, block: Box, blocks: list[Box]) -> None:
     """A raised brick must rest, centre inside its support, on bricks built before it."""
-    if block.bottom <= OVERLAP_TOL_M:
+    if block.bottom_m <= OVERLAP_TOL_M:
         return
-    brick = f"{source}: brick {block.index}"
+    brick = f"{source}: brick {block.id}"
     contacts = carriers(block, blocks)
     if not contacts:
         raise PatternError(
             f"{brick} has nothing under it (no brick top within "
-            f"{SUPPORT_TOL_M * 1e3:.0f} mm of z = {block.bottom:.3f} m)"
+            f"{SUPPORT_TOL_M * 1e3:.0f} mm of z = {block.bottom_m:.3f} m)"
         )
-    later = [other.index for other, _ in contacts if other.index > block.index]
+    later = [other.id for other, _ in contacts if other.id > block.id]
     if later:
         raise PatternError(f"{brick} rests on brick {later[0]}, which is built later")
     if not centre_is_held(block, [area for _, area in contacts]):
-        below = ", ".join(str(other.index) for other, _ in contacts)
+        below = ", ".join(str(other.id) for other, _ in contacts)
         raise PatternError(
-            f"{brick} would topple: its centre {_fmt(block.centre[:2])} lies "
+            f"{brick} would topple: its centre {_fmt(block.position_m[:2])} lies "
             f"outside its support on brick(s) {below}"
         )
