@@ -116,5 +116,5 @@ def test_a_held_brick_is_no_transit_obstacle_however_far_it_slid(
     # As if it had slid 8 cm down the pads: past the distance rule, still pressed by both.
     tcp, _ = scene.tcp_pose()
     obstacles = controller._obstacles((tcp[0], tcp[1], tcp[2] + 0.08))
-    assert 0 not in {obstacle.brick for obstacle in obstacles}
-    assert {obstacle.brick for obstacle in obstacles} == set(range(1, len(scene.bricks)))
+    assert 0 not in {obstacle.id for obstacle in obstacles}
+    assert {obstacle.id for obstacle in obstacles} == set(range(1, len(scene.bricks)))

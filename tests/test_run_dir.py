@@ -10,7 +10,7 @@ from rich.console import Console
 
 from actionreasoning.errors import ConfigError
 from actionreasoning.eval.progress import ConsoleProgress
-from actionreasoning.eval.results import TrialMetrics, TrialResult
+from actionreasoning.eval.results import PlacementMetrics, TrialResult
 from actionreasoning.eval.run_dir import RunManifest, append_result, open_run, read_results
 from actionreasoning.eval.trial import trial_seed
 from actionreasoning.records import Failure
@@ -36,7 +36,7 @@ def result(trial: int, success: bool = True) -> TrialResult:
         method="agents", pattern="pyramid", seed=0, trial=trial, trial_seed=trial_seed(0, trial),
         success=success,
         llm="builtin", bricks=(), bricks_placed=0,
-        metrics=TrialMetrics(
+        metrics=PlacementMetrics(
             center_offset_cm=0.01, rotation_error_deg=0.02, symmetric_rotation_error_deg=0.02,
             iou=0.99,
         ),

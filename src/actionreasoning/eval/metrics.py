@@ -7,13 +7,13 @@ normalised before use, so any non-zero scaling gives the same answer.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, HalfspaceIntersection, QhullError
 from scipy.spatial.transform import Rotation
 
+from actionreasoning.eval.results import PlacementMetrics
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import QuatXYZW, Vec3
 
@@ -23,16 +23,6 @@ _BOX_SYMMETRIES = tuple(np.diag(d) for d in ((1, 1, 1), (1, -1, -1), (-1, 1, -1)
 
 #: Chebyshev radius (m) below which two boxes count as disjoint or only touching.
 _MIN_DEPTH_M = 1e-9
-
-
-@dataclass(frozen=True)
-class BrickMetrics:
-    """All placement metrics of one brick against its target."""
-
-    center_offset_cm: float
-    rotation_error_deg: float
-    symmetric_rotation_error_deg: float
-    iou: float
 
 
 def center_offset_cm(position_m: Vec3, target_position_m: Vec3) -> float:
@@ -96,9 +86,9 @@ def box_iou(a: Box, b: Box) -> float:
     return inter / union
 
 
-def brick_metrics(brick: Box, target: Box) -> BrickMetrics:
+def brick_metrics(brick: Box, target: Box) -> PlacementMetrics:
     """All four metrics of a brick against its target (world frame, metres)."""
-    return BrickMetrics(
+    return PlacementMetrics(
         center_offset_cm=center_offset_cm(brick.position_m, target.position_m),
         rotation_error_deg=rotation_error_deg(brick.quat_xyzw, target.quat_xyzw),
         symmetric_rotation_error_deg=symmetric_rotation_error_deg(

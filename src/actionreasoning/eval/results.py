@@ -11,7 +11,7 @@ from pydantic import BaseModel, ConfigDict
 from actionreasoning.records import Failure, LLMUsage
 from actionreasoning.world.geometry import QuatXYZW, Vec3
 
-__all__ = ["BrickResult", "Failure", "LLMUsage", "TrialMetrics", "TrialResult"]
+__all__ = ["BrickResult", "Failure", "LLMUsage", "PlacementMetrics", "TrialResult"]
 
 
 class _Record(BaseModel):
@@ -34,8 +34,9 @@ class BrickResult(_Record):
     llm_usage: LLMUsage = LLMUsage()
 
 
-class TrialMetrics(_Record):
-    """Means over a trial's bricks."""
+class PlacementMetrics(_Record):
+    """The paper's placement metrics of a brick against its target, or their means over a
+    trial's bricks."""
 
     center_offset_cm: float
     rotation_error_deg: float
@@ -59,7 +60,7 @@ class TrialResult(_Record):
     llm: str
     bricks: tuple[BrickResult, ...]
     bricks_placed: int
-    metrics: TrialMetrics
+    metrics: PlacementMetrics
     failure: Failure | None
     llm_usage: LLMUsage = LLMUsage()
     llm_usage_by_agent: dict[str, LLMUsage] = {}

@@ -17,7 +17,13 @@ from actionreasoning.control.classical import StageEvent, run_classical
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
 from actionreasoning.errors import TrialAborted, UnreachableError
 from actionreasoning.eval.metrics import brick_metrics
-from actionreasoning.eval.results import BrickResult, Failure, LLMUsage, TrialMetrics, TrialResult
+from actionreasoning.eval.results import (
+    BrickResult,
+    Failure,
+    LLMUsage,
+    PlacementMetrics,
+    TrialResult,
+)
 from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.reasoners.factory import LLMConfig, make_reasoner
 from actionreasoning.sim.kinematics import KinematicArm
@@ -244,7 +250,7 @@ def _measure(
         llm=spec.llm.label if spec.method is not Method.CLASSICAL else "none",
         bricks=tuple(bricks),
         bricks_placed=sum(within),
-        metrics=TrialMetrics(
+        metrics=PlacementMetrics(
             center_offset_cm=float(np.mean([b.center_offset_cm for b in bricks])),
             rotation_error_deg=float(np.mean([b.rotation_error_deg for b in bricks])),
             symmetric_rotation_error_deg=float(

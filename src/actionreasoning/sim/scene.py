@@ -31,7 +31,7 @@ from actionreasoning.sim.robot_model import (
 )
 from actionreasoning.world.geometry import QuatXYZW, Vec3
 from actionreasoning.world.models import Pose
-from actionreasoning.world.physics import PAPER, PhysicsProfile
+from actionreasoning.world.physics import GRAVITY_MPS2, PAPER, PhysicsProfile
 from actionreasoning.world.scene_spec import BrickBody, SceneSpec
 
 #: A pad pressing on a brick with more than this (N) is in contact with it.
@@ -107,7 +107,7 @@ class Scene:
     # --- set-up -----------------------------------------------------------------------
     def _setup_physics(self) -> None:
         cfg, cid = self.physics, self.client
-        p.setGravity(0, 0, -9.81, physicsClientId=cid)
+        p.setGravity(0, 0, -GRAVITY_MPS2, physicsClientId=cid)
         p.setPhysicsEngineParameter(
             fixedTimeStep=cfg.time_step_s,
             numSolverIterations=cfg.solver_iterations,

@@ -14,7 +14,7 @@ from pydantic import Field
 from scipy.spatial.transform import Rotation, Slerp
 
 from actionreasoning.errors import UnreachableError
-from actionreasoning.sim.collision import Clearance
+from actionreasoning.sim.collision import SEARCH_DISTANCE_M, Clearance
 from actionreasoning.tools.base import ToolContext, ToolModel, tool
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.models import BrickState, Pose, WorldState
@@ -45,7 +45,9 @@ class CollisionReport(ToolModel):
 
     reachable: bool = Field(description="The arm reaches every pose checked.")
     collision_free: bool = Field(description="Reachable and clearance > 0 everywhere.")
-    clearance_m: float = Field(description="Least distance (< 0: overlap), at most 0.25.")
+    clearance_m: float = Field(
+        description=f"Least distance (< 0: overlap), at most {SEARCH_DISTANCE_M:g}."
+    )
     closest: str = Field(description="The two things at that distance.")
     poses_checked: int
 

@@ -15,8 +15,7 @@ from scipy.spatial.transform import Rotation
 from actionreasoning.tools.base import ToolContext, ToolModel, tool
 from actionreasoning.tools.geometry import BrickQuery, brick_state
 from actionreasoning.world.geometry import axis_angle_deg
-
-GRAVITY_MPS2 = 9.81
+from actionreasoning.world.physics import GRAVITY_MPS2
 
 
 class ContactForces(ToolModel):

@@ -13,6 +13,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.world.geometry import QuatXYZW, Vec3, top_down_quat
+from actionreasoning.world.physics import GRIP_FORCE_N, PAD_FRICTION
 
 BrickStatus = Literal["in_pick_area", "grasped", "placed", "dropped", "toppled"]
 
@@ -68,8 +69,10 @@ class RobotState(_Model):
         description="Every brick that touches a finger pad, held or not, with its forces on "
         "the pads; a brick not listed touches neither pad.",
     )
-    finger_friction: float = Field(1.2, description="Friction coefficient of the finger pads.")
-    grip_force_limit_n: float = Field(110.0, description="Largest grip force per pad.")
+    finger_friction: float = Field(
+        PAD_FRICTION, description="Friction coefficient of the finger pads."
+    )
+    grip_force_limit_n: float = Field(GRIP_FORCE_N, description="Largest grip force per pad.")
     ee_linear_velocity_mps: Vec3 = (0.0, 0.0, 0.0)
     ee_angular_velocity_radps: Vec3 = (0.0, 0.0, 0.0)
     ready_pose: Pose = Field(

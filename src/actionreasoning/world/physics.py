@@ -28,6 +28,11 @@ from actionreasoning.world.config_files import load_named
 
 NonNegative = Annotated[float, Field(ge=0.0)]
 
+GRAVITY_MPS2 = 9.81
+#: Our gripper's pad friction and grip force limit per pad (the same in both built-ins).
+PAD_FRICTION = 1.2
+GRIP_FORCE_N = 110.0
+
 
 class PhysicsProfile(BaseModel):
     """Every simulator setting of a trial. Lengths in metres, forces in newtons."""
@@ -46,9 +51,11 @@ class PhysicsProfile(BaseModel):
     brick_rolling_friction: NonNegative
     ground_lateral_friction: NonNegative
     # Our gripper and arm drive.
-    pad_friction: NonNegative = 1.2
+    pad_friction: NonNegative = PAD_FRICTION
     pad_spinning_friction: NonNegative = 0.001
-    grip_force_n: float = Field(110.0, gt=0.0, le=500.0, description="Grip force limit per pad.")
+    grip_force_n: float = Field(
+        GRIP_FORCE_N, gt=0.0, le=500.0, description="Grip force limit per pad."
+    )
     finger_speed_mps: float = Field(0.10, gt=0.0, le=1.0)
     arm_force_nm: float = Field(300.0, gt=0.0, le=2000.0)
 
