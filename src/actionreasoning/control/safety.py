@@ -78,12 +78,12 @@ def check_motion(
 def _check_transit(points: np.ndarray, obstacles: Sequence[Box], limits: SafetyLimits) -> None:
     start, end = points[0, :2], points[-1, :2]
     margin = limits.transit_margin_m
+    radii = [math.hypot(o.size_m[0], o.size_m[1]) / 2.0 + HAND_RADIUS_M for o in obstacles]
     for point in points:
         xy = point[:2]
         if min(np.linalg.norm(xy - start), np.linalg.norm(xy - end)) <= margin:
             continue
-        for obstacle in obstacles:
-            radius = math.hypot(obstacle.size_m[0], obstacle.size_m[1]) / 2.0 + HAND_RADIUS_M
+        for obstacle, radius in zip(obstacles, radii, strict=True):
             over = np.linalg.norm(xy - np.asarray(obstacle.position_m[:2])) <= radius
             if over and point[2] < obstacle.top_m + limits.transit_clearance_m:
                 _refuse(
