@@ -189,6 +189,10 @@ def test_a_misaligned_set_down_is_raised_and_placed_again(small_goal) -> None:
     measured = {check.name: check.value for check in sigma5.checks}
     assert 0.004 < measured["e_xy_m"] < 0.008
     assert "e_xy_m" in misplaced.feedback
+    # 6 mm off, the brick comes down on the ground beside its seat: nothing stops the move.
+    assert misplaced.feedback.endswith(
+        "; the set-down ran all the way to the slot: the brick met no support that stopped it"
+    )
     assert corrected.gates[0].passed
     requests = [r for r in reasoner.requests if r.spec.key == "placement"]
     assert requests[2].memory.last_feedback == misplaced.feedback
