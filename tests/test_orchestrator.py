@@ -18,11 +18,12 @@ from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.agents.view import target_supports
 from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.eval.metrics import center_offset_cm
+from actionreasoning.eval.rules import Method
 from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.eval.trial import READY_POSE, Method, TrialSpec, trial_world
+from actionreasoning.eval.trial import TrialSpec, trial_world
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.world.geometry import quat_yaw, top_down_quat
-from actionreasoning.world.models import Pose
+from actionreasoning.world.models import READY_POSE, Pose
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PRECISE
 from actionreasoning.world.scene_spec import SceneSpec

@@ -28,7 +28,7 @@ from actionreasoning.agents.transcript import Outcome
 from actionreasoning.agents.validation import OutputError, check_answer
 from actionreasoning.agents.world import World
 from actionreasoning.world.models import GoalPattern, WorldState
-from actionreasoning.world.scene_spec import GRIPPER_GAP_M, WorkspaceBox
+from actionreasoning.world.scene_spec import GRIPPER_GAP_M, WORKSPACE
 from actionreasoning.world.tolerances import Tolerances
 
 #: Waypoints the agent may spend per brick (a full cycle takes eight), plus one to finish.
@@ -72,7 +72,7 @@ class SingleAgent:
         """Check the answer's data (as any model answer is checked), move, grip, and keep the
         memory of the cycle."""
         try:
-            answer = cast(SingleAgentAnswer, check_answer(answer, self.spec, state, WorkspaceBox()))
+            answer = cast(SingleAgentAnswer, check_answer(answer, self.spec, state, WORKSPACE))
         except OutputError as error:
             raise TrialStopped("invalid_output", self.spec.key, str(error)) from None
         update: dict[str, object] = {"step": answer.step}

@@ -9,7 +9,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 from actionreasoning.eval.results import LLMUsage, TrialResult
-from actionreasoning.eval.trial import SuccessRule
+from actionreasoning.eval.rules import SuccessRule
 from actionreasoning.records import FAILURE_CODES
 from actionreasoning.world.noise import NoiseLevel
 from actionreasoning.world.physics import PhysicsProfile

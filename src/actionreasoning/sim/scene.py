@@ -29,6 +29,7 @@ from actionreasoning.sim.robot_model import (
     TCP_LINK,
     load_robot,
 )
+from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.geometry import QuatXYZW, Vec3
 from actionreasoning.world.models import Pose
 from actionreasoning.world.physics import PAPER, PhysicsProfile
@@ -45,15 +46,6 @@ BRICK_COLORS = (
     (0.75, 0.35, 0.30, 1.0),
     (0.65, 0.30, 0.15, 1.0),
 )
-
-
-@dataclass(frozen=True)
-class TrialBudget:
-    """What a trial may spend: simulation steps and wall-clock seconds."""
-
-    max_steps: int = 400_000
-    max_wall_s: float = 3600.0
-
 
 #: Wall time is looked at every this many steps (and before every agent call).
 WALL_CHECK_TICKS = 240

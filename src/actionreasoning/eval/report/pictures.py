@@ -11,9 +11,9 @@ from pathlib import Path
 import imageio.v3 as iio
 import numpy as np
 
+from actionreasoning.eval.images import FRAMES_DIR, image_grid
 from actionreasoning.eval.report.collect import STAGE_ORDER, Group
 from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.snapshots import FRAMES_DIR, image_grid
 
 CLOSEUP = re.compile(r"b(?P<brick>\d+)_(?P<n>\d+)_(?P<stage>\w+)\.png")
 FRAME_S = 0.35
