@@ -11,9 +11,10 @@ from pathlib import Path
 import imageio.v3 as iio
 import numpy as np
 
-from actionreasoning.eval.report.collect import STAGE_ORDER, Group
+from actionreasoning.eval.report.collect import Group
 from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.snapshots import FRAMES_DIR, image_grid
+from actionreasoning.world.stages import Stage
 
 CLOSEUP = re.compile(r"b(?P<brick>\d+)_(?P<n>\d+)_(?P<stage>\w+)\.png")
 FRAME_S = 0.35
@@ -52,8 +53,7 @@ def stage_grid(groups: Sequence[Group], path: Path) -> Path | None:
         if not pictures:
             continue
         cells = [
-            (stage, iio.imread(pictures[stage]) if stage in pictures else None)
-            for stage in STAGE_ORDER
+            (stage, iio.imread(pictures[stage]) if stage in pictures else None) for stage in Stage
         ]
         while cells and cells[-1][1] is None:
             cells.pop()
