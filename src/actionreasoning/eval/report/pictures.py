@@ -52,7 +52,7 @@ def stage_grid(groups: Sequence[Group], path: Path) -> Path | None:
         pictures = stage_pictures(directory, result.bricks[-1].id)
         if not pictures:
             continue
-        cells = [
+        cells: list[tuple[str, np.ndarray | None]] = [
             (stage, iio.imread(pictures[stage]) if stage in pictures else None) for stage in Stage
         ]
         while cells and cells[-1][1] is None:
