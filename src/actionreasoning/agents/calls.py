@@ -89,8 +89,8 @@ class AgentCaller:
     def ask(
         self, spec: AgentSpec, memory: TaskMemory, attempt: int, expected: type[A]
     ) -> tuple[A, WorldState]:
-        """The reasoner's answer for agent ``spec`` now, an ``expected`` (the spec's output
-        model), and the state it was given."""
+        """The reasoner's answer for agent ``spec`` now and the state it was given; an answer
+        that is no ``expected`` (the spec's output model) ends the trial."""
         progress = Progress(
             placed_ids=tuple(p.brick_id for p in memory.placed),
             current_brick=memory.current_brick,
