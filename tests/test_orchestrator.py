@@ -11,6 +11,7 @@ import pybullet as p
 import pytest
 from scipy.spatial.transform import Rotation
 
+from actionreasoning.agents.memory import PlacementPhase
 from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.outputs import PlacementAnswer, PreGraspAnswer
 from actionreasoning.agents.put_down import SET_ASIDE_MARGIN_M, SET_ASIDE_RANGE_M, levelled_offset
@@ -163,9 +164,7 @@ class MisplacesFirstSetDown(Scripted):
 
     def decide(self, request: AgentRequest) -> AgentReply:
         reply = super().decide(request)
-        first_set_down = request.spec.key == "placement" and any(
-            e.agent == "placement" for e in request.memory.this_brick
-        )
+        first_set_down = request.memory.phase == PlacementPhase.SET_DOWN
         if first_set_down and not self.misplaced:
             self.misplaced = True
             x, y, z = reply.answer.waypoint.position_m
@@ -204,9 +203,7 @@ class RegraspsAtFirstSetDown(Scripted):
     asked: bool = False
 
     def decide(self, request: AgentRequest) -> AgentReply:
-        first_set_down = request.spec.key == "placement" and any(
-            e.agent == "placement" for e in request.memory.this_brick
-        )
+        first_set_down = request.memory.phase == PlacementPhase.SET_DOWN
         if first_set_down and not self.asked:
             self.asked = True
             self.requests.append(request)

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from actionreasoning.errors import TrialAborted
+from actionreasoning.records import FailureCode
 from actionreasoning.world.geometry import Vec3
 from actionreasoning.world.scene_spec import WORKSPACE, WorkspaceBox
 
@@ -102,4 +103,4 @@ def _fmt(point: np.ndarray) -> str:
 
 
 def _refuse(detail: str) -> None:
-    raise TrialAborted("safety_limit", detail)
+    raise TrialAborted(FailureCode.SAFETY_LIMIT, detail)

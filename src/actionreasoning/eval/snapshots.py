@@ -16,9 +16,10 @@ from actionreasoning.eval.images import FRAMES_DIR, image_grid, png
 from actionreasoning.sim.camera import build_closeup, closeup, overview, render
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.geometry import Vec3
+from actionreasoning.world.stages import Stage
 
 WIDTH, HEIGHT = 320, 240
-PICK_STAGES = frozenset({"pre_grasp", "descent", "grasp", "lift"})
+PICK_STAGES = frozenset({Stage.PRE_GRASP, Stage.DESCENT, Stage.GRASP, Stage.LIFT})
 SHEET = "stages.png"
 
 

@@ -20,6 +20,7 @@ from actionreasoning.eval.results import BrickResult, Failure, LLMUsage, TrialMe
 from actionreasoning.eval.rules import Method, SuccessRule, trial_seed
 from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.reasoners.factory import LLMConfig, make_reasoner
+from actionreasoning.records import FailureCode
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.perceive import Sensor
 from actionreasoning.sim.scene import Scene
@@ -190,13 +191,13 @@ def _measure(
     if failure is None and not all(within):
         worst = max(bricks, key=lambda b: b.center_offset_cm)
         failure = Failure(
-            reason="misplaced",
+            reason=FailureCode.MISPLACED,
             detail=f"{within.count(False)} of {len(bricks)} bricks outside "
             f"{rule.max_center_offset_cm} cm / {rule.max_rotation_error_deg} deg; worst brick "
             f"{worst.id}: {worst.center_offset_cm:.2f} cm, {worst.rotation_error_deg:.2f} deg",
         )
     if failure is None and moving:
-        failure = Failure(reason="not_at_rest", detail=f"bricks still moving: {moving}")
+        failure = Failure(reason=FailureCode.NOT_AT_REST, detail=f"bricks still moving: {moving}")
     return TrialResult(
         method=str(spec.method),
         pattern=spec.pattern_name,

@@ -63,7 +63,7 @@ class Tool(Generic[In, Out]):
         }
 
 
-def tool(name: str, function: Callable[[ToolContext, Any], Any]) -> Tool:
+def tool(name: str, function: Callable[[ToolContext, In], Out]) -> Tool[In, Out]:
     """A tool from a typed function ``(context, arguments) -> output``: its input and output
     models come from the type hints, its description from the docstring."""
     hints = get_type_hints(function)
