@@ -29,7 +29,8 @@ from rich.table import Table
 from scipy.spatial.transform import Rotation
 
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
-from actionreasoning.eval.trial import Method, TrialSpec, run_trial, trial_world
+from actionreasoning.eval.rules import Method
+from actionreasoning.eval.trial import TrialSpec, run_trial, trial_world
 from actionreasoning.reasoners.builtin import CARRY_SPEED_MPS, LIFT_SPEEDS_MPS
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.geometry import quat_yaw, top_down_quat

@@ -12,7 +12,8 @@ import pytest
 from conftest import assert_clean_error, cli
 
 from actionreasoning.errors import PatternError
-from actionreasoning.eval.trial import Method, TrialSpec, run_trial, trial_world
+from actionreasoning.eval.rules import Method
+from actionreasoning.eval.trial import TrialSpec, run_trial, trial_world
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PRECISE

@@ -18,8 +18,9 @@ from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.agents.view import StateView
 from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.errors import LLMError
+from actionreasoning.eval.rules import Method
 from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.eval.trial import Method, TrialSpec, trial_world
+from actionreasoning.eval.trial import TrialSpec, trial_world
 from actionreasoning.reasoners.chat import StructuredMode
 from actionreasoning.reasoners.llm import LLMLimits, LLMReasoner
 from actionreasoning.reasoners.openai_chat import OpenAIChat, ServerOptions

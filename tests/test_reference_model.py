@@ -18,8 +18,9 @@ from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.control.waypoint import WaypointController
+from actionreasoning.eval.rules import Method
 from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.eval.trial import Method, TrialSpec, trial_world
+from actionreasoning.eval.trial import TrialSpec, trial_world
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.reasoners.chat import ChatReply, ChatRequest
 from actionreasoning.reasoners.llm import LLMLimits, LLMReasoner

@@ -11,8 +11,8 @@ from rich.console import Console
 from actionreasoning.errors import ConfigError
 from actionreasoning.eval.progress import ConsoleProgress
 from actionreasoning.eval.results import PlacementMetrics, TrialResult
+from actionreasoning.eval.rules import trial_seed
 from actionreasoning.eval.run_dir import RunManifest, append_result, open_run, read_results
-from actionreasoning.eval.trial import trial_seed
 from actionreasoning.records import Failure
 from actionreasoning.world.noise import LEVELS
 from actionreasoning.world.physics import PAPER, PRECISE

@@ -21,8 +21,9 @@ from itertools import islice
 
 from actionreasoning.errors import ConfigError, EngineError
 from actionreasoning.eval.results import TrialResult
+from actionreasoning.eval.rules import SuccessRule
 from actionreasoning.eval.snapshots import SnapshotRecorder
-from actionreasoning.eval.trial import SuccessRule, TrialSpec, run_trial
+from actionreasoning.eval.trial import TrialSpec, run_trial
 
 PARENT_POLL_S = 0.5
 #: Jobs handed out ahead per worker (or Ray CPU): one running, one waiting to start.

@@ -27,6 +27,7 @@ from actionreasoning.eval.jobs import (
     run_serial,
 )
 from actionreasoning.eval.results import TrialResult
+from actionreasoning.eval.rules import Method, SuccessRule
 from actionreasoning.eval.run_dir import (
     RESULTS_FILE,
     RunManifest,
@@ -38,9 +39,9 @@ from actionreasoning.eval.run_dir import (
 )
 from actionreasoning.eval.run_lock import run_lock
 from actionreasoning.eval.summary import RunSummary, describe_rule, summarize, summary_markdown
-from actionreasoning.eval.trial import Method, SuccessRule, TrialSpec
+from actionreasoning.eval.trial import TrialSpec
 from actionreasoning.reasoners.factory import LLMConfig, prepare
-from actionreasoning.sim.scene import TrialBudget
+from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.models import GoalPattern
 from actionreasoning.world.noise import LEVELS, NoiseLevel
 from actionreasoning.world.physics import PAPER, PhysicsProfile

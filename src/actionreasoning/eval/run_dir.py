@@ -21,7 +21,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 
 from actionreasoning.errors import ConfigError, StorageError
 from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.trial import trial_seed
+from actionreasoning.eval.rules import trial_seed
 from actionreasoning.world.config_files import read_user_file
 from actionreasoning.world.noise import NoiseLevel
 from actionreasoning.world.physics import PhysicsProfile

@@ -5,7 +5,6 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
-from enum import StrEnum
 
 import numpy as np
 
@@ -24,54 +23,23 @@ from actionreasoning.eval.results import (
     PlacementMetrics,
     TrialResult,
 )
+from actionreasoning.eval.rules import Method, SuccessRule, trial_seed
 from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.reasoners.factory import LLMConfig, make_reasoner
+from actionreasoning.records import FailureCode
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.perceive import Sensor
-from actionreasoning.sim.scene import Scene, TrialBudget
+from actionreasoning.sim.scene import Scene
 from actionreasoning.world.boxes import Box
-from actionreasoning.world.geometry import Vec3
+from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import READY_POSE, GoalPattern
 from actionreasoning.world.noise import LEVELS, NoiseLevel, vary_bricks
 from actionreasoning.world.physics import PAPER, PhysicsProfile
 from actionreasoning.world.scene_spec import SceneSpec
 
-#: Where the arm waits between bricks and at the end: above the middle of the workspace.
 SPAWN_SETTLE_S = 0.25
 FINAL_SETTLE_S = 1.0
-
-
-class Method(StrEnum):
-    """The reasoning methods a trial can run."""
-
-    AGENTS = "agents"
-    SINGLE_AGENT = "single-agent"
-    CLASSICAL = "classical"
-
-
-@dataclass(frozen=True)
-class SuccessRule:
-    """A trial succeeds when every brick is within these limits of its target and at rest."""
-
-    max_center_offset_cm: float = 2.0
-    max_rotation_error_deg: float = 5.0
-    max_speed_mps: float = 0.01
-    max_angular_speed_radps: float = 0.05
-
-    def is_placed(self, brick: BrickResult) -> bool:
-        """Whether a brick ended within the offset and rotation limits of its target."""
-        return (
-            brick.center_offset_cm <= self.max_center_offset_cm
-            and brick.rotation_error_deg <= self.max_rotation_error_deg
-        )
-
-    def is_at_rest(self, linear_mps: Vec3, angular_radps: Vec3) -> bool:
-        """Whether a brick moving with these velocities counts as at rest."""
-        return (
-            float(np.linalg.norm(linear_mps)) <= self.max_speed_mps
-            and float(np.linalg.norm(angular_radps)) <= self.max_angular_speed_radps
-        )
 
 
 @dataclass(frozen=True)
@@ -88,11 +56,6 @@ class TrialSpec:
     budget: TrialBudget = TrialBudget()
     physics: PhysicsProfile = PAPER
     noise: NoiseLevel = LEVELS["none"]
-
-
-def trial_seed(run_seed: int, trial: int) -> int:
-    """The seed of trial ``trial``: derived from the run seed and the index only."""
-    return int(np.random.SeedSequence([run_seed, trial]).generate_state(1)[0])
 
 
 StageHook = Callable[[Scene, StageEvent], None]
@@ -231,13 +194,13 @@ def _measure(
     if failure is None and not all(within):
         worst = max(bricks, key=lambda b: b.center_offset_cm)
         failure = Failure(
-            reason="misplaced",
+            reason=FailureCode.MISPLACED,
             detail=f"{within.count(False)} of {len(bricks)} bricks outside "
             f"{rule.max_center_offset_cm} cm / {rule.max_rotation_error_deg} deg; worst brick "
             f"{worst.id}: {worst.center_offset_cm:.2f} cm, {worst.rotation_error_deg:.2f} deg",
         )
     if failure is None and moving:
-        failure = Failure(reason="not_at_rest", detail=f"bricks still moving: {moving}")
+        failure = Failure(reason=FailureCode.NOT_AT_REST, detail=f"bricks still moving: {moving}")
     return TrialResult(
         method=str(spec.method),
         pattern=spec.pattern_name,

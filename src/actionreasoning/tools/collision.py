@@ -14,9 +14,9 @@ from pydantic import Field
 from scipy.spatial.transform import Rotation, Slerp
 
 from actionreasoning.errors import UnreachableError
-from actionreasoning.sim.collision import SEARCH_DISTANCE_M, Clearance
 from actionreasoning.tools.base import ToolContext, ToolModel, tool
 from actionreasoning.world.boxes import Box
+from actionreasoning.world.clearance import SEARCH_DISTANCE_M, Clearance
 from actionreasoning.world.models import BrickState, Pose, WorldState
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M
 
