@@ -13,6 +13,7 @@ from conftest import assert_clean_error, cli
 
 from actionreasoning.errors import PatternError
 from actionreasoning.eval.trial import Method, TrialSpec, run_trial, trial_world
+from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PRECISE
@@ -52,7 +53,7 @@ def test_the_classical_script_builds_a_pattern_of_other_bricks_with_those_bricks
     goal = load_pattern(write_pattern(tmp_path / "big.json", SIZE), SPEC)
     spec = TrialSpec(
         method=Method.CLASSICAL, pattern_name="big", goal=goal, run_seed=0, trial=0,
-        physics=PRECISE,
+        config=TrialConfig(physics=PRECISE),
     )  # fmt: skip
     seen: dict[int, tuple[tuple[float, ...], float]] = {}
 
@@ -74,7 +75,10 @@ def test_the_classical_script_builds_a_pattern_of_other_bricks_with_those_bricks
 
 def test_the_robot_senses_the_patterns_brick_size_and_its_mass(tmp_path: Path) -> None:
     goal = load_pattern(write_pattern(tmp_path / "big.json", SIZE, count=1), SPEC)
-    spec = TrialSpec(method=Method.AGENTS, pattern_name="big", goal=goal, run_seed=3, trial=1)
+    spec = TrialSpec(
+        method=Method.AGENTS, pattern_name="big", goal=goal, run_seed=3, trial=1,
+        config=TrialConfig(),
+    )  # fmt: skip
     with trial_world(spec) as world:
         (brick,) = world.sensor.perceive(goal).bricks
         (laid_out,) = world.scene.bricks

@@ -22,6 +22,7 @@ from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.errors import ActionReasoningError
 from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.eval.trial import Method, TrialSpec, trial_world
+from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.chat import ChatReply, ChatRequest
 from actionreasoning.reasoners.llm import LLMLimits, LLMReasoner
 from actionreasoning.records import FAILURE_CODES, LLMUsage
@@ -169,7 +170,10 @@ class HostileChat:
 @pytest.fixture(scope="module")
 def trial() -> TrialSpec:
     goal = load_pattern("pyramid", SceneSpec())
-    return TrialSpec(method=Method.AGENTS, pattern_name="pyramid", goal=goal, run_seed=0, trial=0)
+    return TrialSpec(
+        method=Method.AGENTS, pattern_name="pyramid", goal=goal, run_seed=0, trial=0,
+        config=TrialConfig(),
+    )  # fmt: skip
 
 
 @pytest.mark.slow

@@ -20,6 +20,7 @@ from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.eval.metrics import center_offset_cm
 from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.eval.trial import READY_POSE, Method, TrialSpec, trial_world
+from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.world.geometry import quat_yaw, top_down_quat
 from actionreasoning.world.models import Pose
@@ -59,7 +60,7 @@ def build(goal, reasoner, world=SimWorld, before=None):
         goal=goal,
         run_seed=4,
         trial=0,
-        physics=PRECISE,
+        config=TrialConfig(physics=PRECISE),
     )
     with trial_world(spec) as made:
         scene = made.scene

@@ -17,6 +17,7 @@ from actionreasoning.control.safety import SafetyLimits
 from actionreasoning.control.waypoint import Waypoint, WaypointController
 from actionreasoning.errors import TrialAborted
 from actionreasoning.eval.trial import READY_POSE, Method, TrialSpec, run_trial
+from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.scene import Scene, TrialBudget
 from actionreasoning.world.geometry import top_down_quat
@@ -101,8 +102,9 @@ def test_a_trial_out_of_budget_ends_with_its_reason_and_bricks_on_the_table(
     goal = load_pattern(str(path), SceneSpec())
     for method in Method:
         spec = TrialSpec(
-            method=method, pattern_name="small", goal=goal, run_seed=0, trial=0, budget=budget
-        )
+            method=method, pattern_name="small", goal=goal, run_seed=0, trial=0,
+            config=TrialConfig(budget=budget),
+        )  # fmt: skip
         result = run_trial(spec).result
         assert not result.success and result.failure is not None
         assert result.failure.reason == reason, result.failure

@@ -259,6 +259,9 @@ def demo(
     animation of the build. It writes only into a new or empty directory, which it marks as
     its own (.actionreasoning-demo), or into an earlier demo's, whose files it replaces.
     """
+    from actionreasoning.eval.layout import RunDir
+    from actionreasoning.eval.report.demo import write_demo_pages
+
     try:
         with demo_directory(out):
             _evaluate(
@@ -272,17 +275,10 @@ def demo(
                 physics=physics,
                 noise=noise,
             )
-            html = build_report([out], out / "report", gifs=True)
-            animation = html.gifs[0][0].relative_to(out)
-            report = out / "report.md"
-            report.write_text(
-                (out / "summary.md").read_text()
-                + "\n## Stages\n\nStages left to right, bricks top to bottom.\n\n"
-                + "![stages](snapshots/trial_000/stages.png)\n\n## Result\n\n"
-                + "![build](snapshots/trial_000/final_build.png)\n"
-                + f"![the build, stage by stage]({animation})\n"
+            pages = write_demo_pages(RunDir(out))
+            console.print(
+                f"report: {pages.markdown} and {pages.html}", highlight=False, markup=False
             )
-            console.print(f"report: {report} and {html.html}", highlight=False, markup=False)
     except ActionReasoningError as error:
         _fail(error)
 
@@ -305,26 +301,28 @@ def _evaluate(
 ) -> RunSummary:
     """Load the pattern and conditions, run the trials with progress, print the table; errors
     end the command."""
+    from actionreasoning.eval.trial_config import TrialConfig
+
     if Path(pattern).is_file():  # one file, however it is spelled: ./x.json is x.json
         pattern = os.path.normpath(pattern)
     try:
+        trial = TrialConfig(
+            llm=llm, budget=budget, physics=load_physics(physics), noise=load_noise(noise)
+        )
         config = RunConfig(
             method=method,
             pattern_name=pattern,
-            goal=load_pattern(pattern, SceneSpec()),
+            goal=load_pattern(pattern, trial.scene),
             trials=trials,
             seed=seed,
             out=out,
-            llm=llm,
+            config=trial,
             snapshots=snapshots,
             transcripts=transcripts,
             workers=workers,
             ray=ray,
-            budget=budget,
-            physics=load_physics(physics),
-            noise=load_noise(noise),
         )
-        title = f"{method} / {pattern} / {config.physics.name} / noise {config.noise.name}"
+        title = f"{method} / {pattern} / {trial.physics.name} / noise {trial.noise.name}"
         with ConsoleProgress(console, title) as progress:
             summary = run_eval(config, progress)
     except (ActionReasoningError, OSError) as error:
@@ -405,25 +403,50 @@ def prompt_command(
 ) -> None:
     """Print the prompt agent N is first sent in trial 0 (the built-in reasoner answers
     the agents before it), to read and tune it."""
+    from actionreasoning.eval.trial_config import TrialConfig
+
     try:
-        goal = load_pattern(pattern, SceneSpec())
-        profile, level = load_physics(physics), load_noise(noise)
+        config = TrialConfig(physics=load_physics(physics), noise=load_noise(noise))
+        goal = load_pattern(pattern, config.scene)
     except ActionReasoningError as error:
         _fail(error)
     spec = agent_specs()[agent - 1] if agent else single_agent_spec()
     trial = TrialSpec(
-        method=Method.AGENTS,
-        pattern_name=pattern,
-        goal=goal,
-        run_seed=seed,
-        trial=0,
-        physics=profile,
-        noise=level,
+        method=Method.AGENTS, pattern_name=pattern, goal=goal, run_seed=seed, trial=0, config=config
     )
     try:
         print(first_prompt(trial, spec.key), end="")
     except ActionReasoningError as error:
         _fail(error)
+
+
+class Schema(StrEnum):
+    """The records whose JSON Schema `schema` prints."""
+
+    RESULTS = "results"
+    SUMMARY = "summary"
+    CONFIG = "config"
+
+
+@app.command("schema")
+def schema_command(
+    records: Annotated[
+        Schema,
+        typer.Argument(
+            help="results: a line of results.jsonl; summary: summary.json; config: the trial "
+            "configuration, run.json's 'config'."
+        ),
+    ],
+) -> None:
+    """Print the JSON Schema of an eval directory's records, to check or load them elsewhere."""
+    import json
+
+    from actionreasoning.eval.results import TrialResult
+    from actionreasoning.eval.summary import RunSummary
+    from actionreasoning.eval.trial_config import TrialConfig
+
+    models = {Schema.RESULTS: TrialResult, Schema.SUMMARY: RunSummary, Schema.CONFIG: TrialConfig}
+    print(json.dumps(models[records].model_json_schema(mode="serialization"), indent=2))
 
 
 @app.command("pattern")

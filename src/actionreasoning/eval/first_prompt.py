@@ -8,7 +8,6 @@ from dataclasses import dataclass
 from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.agents.single_agent import SingleAgent
-from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.errors import ActionReasoningError
 from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.eval.trial import TrialSpec, trial_world
@@ -39,10 +38,12 @@ class _Catcher:
 def first_prompt(spec: TrialSpec, agent: str) -> str:
     """The prompt ``agent`` (a key, or ``single_agent``) gets first in ``spec``'s trial."""
     with trial_world(spec) as world:
-        sim = SimWorld(WaypointController(world.scene, world.arm), spec.goal, world.sensor)
-        catcher = _Catcher(agent)
+        sim = SimWorld(world.controller, spec.goal, world.sensor)
+        catcher, config = _Catcher(agent), spec.config
         runner = (
-            SingleAgent(sim, catcher) if agent == "single_agent" else Orchestrator(sim, catcher)
+            SingleAgent(sim, catcher, config.tolerances)
+            if agent == "single_agent"
+            else Orchestrator(sim, catcher, config.tolerances, config.retries)
         )
         try:
             result = runner.build(spec.goal)

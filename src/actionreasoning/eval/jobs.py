@@ -22,7 +22,7 @@ from itertools import islice
 from actionreasoning.errors import ConfigError, EngineError
 from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.snapshots import SnapshotRecorder
-from actionreasoning.eval.trial import SuccessRule, TrialSpec, run_trial
+from actionreasoning.eval.trial import TrialSpec, run_trial
 
 PARENT_POLL_S = 0.5
 #: Jobs handed out ahead per worker (or Ray CPU): one running, one waiting to start.
@@ -35,7 +35,6 @@ class TrialJob:
     """One trial to run and what to keep of it."""
 
     spec: TrialSpec
-    rule: SuccessRule = SuccessRule()
     snapshots: bool = False
     transcripts: bool = False
 
@@ -52,7 +51,7 @@ class TrialOutput:
 def execute(job: TrialJob) -> TrialOutput:
     """Run one trial (in whatever process this is) and collect its outputs."""
     recorder = SnapshotRecorder() if job.snapshots else None
-    run = run_trial(job.spec, job.rule, recorder)
+    run = run_trial(job.spec, recorder)
     transcript = (
         "".join(call.model_dump_json() + "\n" for call in run.transcript) if job.transcripts else ""
     )

@@ -16,6 +16,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from actionreasoning.control.classical import StageEvent
+from actionreasoning.eval.layout import RunDir
 from actionreasoning.sim.camera import build_closeup, closeup, overview, render
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.geometry import Vec3
@@ -23,7 +24,6 @@ from actionreasoning.world.geometry import Vec3
 WIDTH, HEIGHT = 320, 240
 PICK_STAGES = frozenset({"pre_grasp", "descent", "grasp", "lift"})
 FRAMES_DIR = "frames"
-SHEET = "stages.png"
 
 
 def png(image: np.ndarray) -> bytes:
@@ -65,9 +65,9 @@ class SnapshotRecorder:
 
     def _finish(self, scene: Scene) -> None:
         self.files["final_overview.png"] = png(render(scene, overview(scene)))
-        self.files["final_build.png"] = png(render(scene, build_closeup(scene)))
+        self.files[RunDir.FINAL_BUILD] = png(render(scene, build_closeup(scene)))
         if self._rows:
-            self.files[SHEET] = sheet_png(self._rows)
+            self.files[RunDir.STAGE_SHEET] = sheet_png(self._rows)
 
 
 def sheet_png(rows: dict[int, list[tuple[str, np.ndarray]]]) -> bytes:

@@ -16,9 +16,11 @@ from typing import Any, get_args
 
 from actionreasoning.agents.outputs import SingleAgentStep
 from actionreasoning.errors import ConfigError
+from actionreasoning.eval.layout import RunDir
+from actionreasoning.eval.provenance import Provenance
 from actionreasoning.eval.report.runs import Run, read_runs
 from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.run_dir import RESULTS_FILE, RunManifest
+from actionreasoning.eval.run_dir import RunManifest
 from actionreasoning.eval.summary import RunSummary, summarize
 
 #: Stages in the order a brick goes through them: the single agent's cycle, whose names
@@ -42,7 +44,7 @@ class Group:
     def snapshot_dir(self, result: TrialResult) -> Path | None:
         """Where the pictures of ``result`` are, if its run kept them."""
         for directory in self.sources[(result.seed, result.trial)]:
-            path = directory / "snapshots" / f"trial_{result.trial:03d}"
+            path = RunDir(directory).snapshots(result.trial)
             if path.is_dir():
                 return path
         return None
@@ -57,8 +59,8 @@ def method_label(manifest: RunManifest) -> str:
     """How a row names a method: with its reasoning backend where it has one, its physics
     profile and, where there is any, its noise level."""
     name = manifest.method if manifest.llm == "none" else f"{manifest.method} ({manifest.llm})"
-    noise = "" if manifest.noise.name == "none" else f", noise {manifest.noise.name}"
-    return f"{name}, {manifest.physics.name}{noise}"
+    noise = "" if manifest.noise_name == "none" else f", noise {manifest.noise_name}"
+    return f"{name}, {manifest.physics_name}{noise}"
 
 
 def show(value: Any) -> str:
@@ -130,7 +132,7 @@ def _pool(label: str, pattern: str, runs: Sequence[Run]) -> Group:
                     continue
                 raise ConfigError(
                     f"trial {result.trial} of seed {result.seed} is in "
-                    f"{sources[key][0] / RESULTS_FILE} and {run.directory / RESULTS_FILE} under "
+                    f"{RunDir(sources[key][0]).results} and {RunDir(run.directory).results} under "
                     "the same run.json conditions, with different results: report one of them"
                 )
             kept[key], sources[key] = result, (run.directory,)
@@ -148,8 +150,9 @@ def _pool(label: str, pattern: str, runs: Sequence[Run]) -> Group:
 
 def _same(first: TrialResult, second: TrialResult) -> bool:
     """Whether two lines record the same outcome (the pattern as given aside: runs.py has
-    checked that both patterns have the same content)."""
-    return first.model_dump(exclude={"pattern"}) == second.model_dump(exclude={"pattern"})
+    checked that both patterns have the same content; and which code wrote them)."""
+    aside = {"pattern", *Provenance.model_fields}
+    return first.model_dump(exclude=aside) == second.model_dump(exclude=aside)
 
 
 def labels(groups: Sequence[Group]) -> list[str]:
