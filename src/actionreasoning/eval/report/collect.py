@@ -198,17 +198,20 @@ def condition_notes(groups: Sequence[Group]) -> list[str]:
 
 
 def _compact(names: Sequence[str]) -> str:
-    """Dotted names, those under one field together: ``physics.{name, solver_iterations}``."""
+    """Dotted names, those under one field together: ``physics.{name, solver_iterations}``;
+    a field that is a value in one run and has fields in another is named both ways
+    (``llm, llm.{spec, fallback}``: none for the classical script, a backend for agents)."""
     by_top: dict[str, list[str]] = {}
     for name in names:
         top, _, rest = name.partition(".")
         by_top.setdefault(top, []).append(rest)
     parts = []
-    for top, rest in by_top.items():
-        if rest == [""]:
+    for top, rests in by_top.items():
+        if "" in rests:
             parts.append(top)
-        elif len(rest) == 1:
+        rest = [r for r in rests if r]
+        if len(rest) == 1:
             parts.append(f"{top}.{rest[0]}")
-        else:
+        elif rest:
             parts.append(f"{top}.{{{', '.join(rest)}}}")
     return ", ".join(parts)
