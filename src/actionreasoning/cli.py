@@ -306,23 +306,24 @@ def _evaluate(
     if Path(pattern).is_file():  # one file, however it is spelled: ./x.json is x.json
         pattern = os.path.normpath(pattern)
     try:
-        trial = TrialConfig(
+        trials_under = TrialConfig(
             llm=llm, budget=budget, physics=load_physics(physics), noise=load_noise(noise)
         )
         config = RunConfig(
             method=method,
             pattern_name=pattern,
-            goal=load_pattern(pattern, trial.scene),
+            goal=load_pattern(pattern, trials_under.scene),
             trials=trials,
             seed=seed,
             out=out,
-            config=trial,
+            config=trials_under,
             snapshots=snapshots,
             transcripts=transcripts,
             workers=workers,
             ray=ray,
         )
-        title = f"{method} / {pattern} / {trial.physics.name} / noise {trial.noise.name}"
+        physics_name, noise_name = trials_under.physics.name, trials_under.noise.name
+        title = f"{method} / {pattern} / {physics_name} / noise {noise_name}"
         with ConsoleProgress(console, title) as progress:
             summary = run_eval(config, progress)
     except (ActionReasoningError, OSError) as error:
