@@ -16,12 +16,11 @@ import numpy as np
 import pytest
 
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
-from actionreasoning.eval.trial import READY_POSE
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.geometry import top_down_quat
 from actionreasoning.world.layout import sample_pick_poses
-from actionreasoning.world.models import BrickState, Pose, RobotState, WorldState
+from actionreasoning.world.models import READY_POSE, BrickState, Pose, RobotState, WorldState
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PRECISE
 from actionreasoning.world.scene_spec import SceneSpec

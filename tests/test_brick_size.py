@@ -12,7 +12,8 @@ import pytest
 from conftest import assert_clean_error, cli
 
 from actionreasoning.errors import PatternError
-from actionreasoning.eval.trial import Method, TrialSpec, run_trial, trial_world
+from actionreasoning.eval.rules import Method
+from actionreasoning.eval.trial import TrialSpec, run_trial, trial_world
 from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.patterns import load_pattern
@@ -75,10 +76,7 @@ def test_the_classical_script_builds_a_pattern_of_other_bricks_with_those_bricks
 
 def test_the_robot_senses_the_patterns_brick_size_and_its_mass(tmp_path: Path) -> None:
     goal = load_pattern(write_pattern(tmp_path / "big.json", SIZE, count=1), SPEC)
-    spec = TrialSpec(
-        method=Method.AGENTS, pattern_name="big", goal=goal, run_seed=3, trial=1,
-        config=TrialConfig(),
-    )  # fmt: skip
+    spec = TrialSpec(method=Method.AGENTS, pattern_name="big", goal=goal, run_seed=3, trial=1)
     with trial_world(spec) as world:
         (brick,) = world.sensor.perceive(goal).bricks
         (laid_out,) = world.scene.bricks

@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 from conftest import SMALL_PATTERN, assert_clean_error, cli
 
+from actionreasoning.eval.rules import Method
 from actionreasoning.eval.run import RunConfig
-from actionreasoning.eval.trial import Method
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
 

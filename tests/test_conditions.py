@@ -11,7 +11,8 @@ import pybullet_data
 import pytest
 from conftest import assert_clean_error, cli
 
-from actionreasoning.eval.trial import Method, TrialSpec, run_trial, trial_world
+from actionreasoning.eval.rules import Method
+from actionreasoning.eval.trial import TrialSpec, run_trial, trial_world
 from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.sim.robot_model import FINGER_LEFT, FINGER_RIGHT
 from actionreasoning.world.noise import LEVELS, NoiseLevel, vary_bricks

@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from actionreasoning.agents.transcript import AgentCall
+from actionreasoning.eval.rules import Method, trial_seed
 from actionreasoning.eval.run import RunConfig, run_eval
-from actionreasoning.eval.trial import Method, trial_seed
 from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PRECISE

@@ -1,23 +1,57 @@
-"""Every failure reason the code can write is in the one table of codes (records.py), so
-summaries, reports and the README explain each one."""
+"""The failure codes are one enum, records.FailureCode: results store its values, and the
+README table, summaries and reports print its meanings."""
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
-from actionreasoning.records import FAILURE_CODES
+import pytest
+from pydantic import ValidationError
 
-SOURCE = Path(__file__).resolve().parents[1] / "src" / "actionreasoning"
-RAISED = re.compile(
-    r"(?:reason=|reason = |TrialStopped\(|TrialAborted\(|LLMError\(|_Refused\([^)]*?,\s*"
-    r"|_gate\([^,]*,\s*|UnreachableError\) else )\s*\"([a-z_]+)\""
-)
+from actionreasoning.records import Failure, FailureCode
+
+README = Path(__file__).resolve().parents[1] / "README.md"
 
 
-def test_every_reason_in_the_code_is_a_documented_code() -> None:
-    found = {code for path in SOURCE.rglob("*.py") for code in RAISED.findall(path.read_text())}
-    assert len(found) >= 20  # the pattern still finds the raise sites
-    assert found <= set(FAILURE_CODES), found - set(FAILURE_CODES)
-    readme = (SOURCE.parents[1] / "README.md").read_text()
-    assert all(f"| `{code}` | {meaning} |" in readme for code, meaning in FAILURE_CODES.items())
+def _readme_table() -> list[tuple[str, str]]:
+    """The rows (code, meaning) of the README's failure code table."""
+    lines = README.read_text().split("**Failure codes.**", 1)[1].splitlines()
+    start = lines.index("| code | meaning |") + 2
+    rows = []
+    for line in lines[start:]:
+        if not line.startswith("| `"):
+            break
+        code, meaning = line.strip("| ").split(" | ")
+        rows.append((code.strip("`"), meaning))
+    return rows
+
+
+def test_the_readme_table_is_the_enum_in_order() -> None:
+    assert _readme_table() == [(code.value, code.meaning) for code in FailureCode]
+
+
+def test_a_failure_reads_and_writes_its_code_as_the_plain_string() -> None:
+    line = '{"reason":"grasp_slip","agent":"lift","detail":"re-grasp budget spent"}'
+    failure = Failure.model_validate_json(line)
+    assert failure.reason is FailureCode.GRASP_SLIP
+    assert failure.model_dump_json() == line
+    assert Failure(reason=FailureCode.GRASP_SLIP, agent="lift", detail="re-grasp budget spent") == (
+        failure
+    )
+
+
+def test_an_unknown_code_is_refused_naming_it() -> None:
+    with pytest.raises(ValidationError, match="grasp_slipped"):
+        Failure(reason="grasp_slipped", detail="")  # type: ignore[arg-type]
+
+
+def test_summaries_explain_each_code_from_the_enum() -> None:
+    from test_run_dir import result
+
+    from actionreasoning.eval.summary import summarize, summary_markdown
+
+    results = [result(trial, success=trial == 0) for trial in range(3)]
+    summary = summarize(results, wall_time_s=1.0)
+    assert summary.failures == {FailureCode.MISPLACED: 2}
+    row = f"| `misplaced` | {FailureCode.MISPLACED.meaning} | 2 | 1 |"
+    assert row in summary_markdown(summary)

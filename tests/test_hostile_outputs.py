@@ -20,19 +20,18 @@ from actionreasoning.agents.spec import agent_specs, single_agent_spec
 from actionreasoning.agents.validation import OutputError, parse_answer
 from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.errors import ActionReasoningError
+from actionreasoning.eval.rules import Method
 from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.eval.trial import Method, TrialSpec, trial_world
-from actionreasoning.eval.trial_config import TrialConfig
+from actionreasoning.eval.trial import TrialSpec, trial_world
 from actionreasoning.reasoners.chat import ChatReply, ChatRequest
 from actionreasoning.reasoners.llm import LLMLimits, LLMReasoner
-from actionreasoning.records import FAILURE_CODES, LLMUsage
+from actionreasoning.records import LLMUsage
 from actionreasoning.tools.registry import TOOLS
 from actionreasoning.world.patterns import load_pattern
-from actionreasoning.world.scene_spec import SceneSpec, WorkspaceBox
+from actionreasoning.world.scene_spec import WORKSPACE, SceneSpec
 
 SPECS = (*agent_specs(), single_agent_spec())
 STATE = built_state("pyramid")
-BOX = WorkspaceBox()
 EXAMPLES = 2000
 
 numbers = st.one_of(
@@ -113,7 +112,7 @@ def assert_within_bounds(answer: Any, tools: tuple[str, ...]) -> None:
     if waypoint is not None:
         assert isinstance(waypoint, WaypointProposal)
         assert all(math.isfinite(v) for v in (*waypoint.position_m, *waypoint.quat_xyzw))
-        assert BOX.contains(waypoint.position_m)
+        assert WORKSPACE.contains(waypoint.position_m)
         assert abs(math.hypot(*waypoint.quat_xyzw) - 1.0) < 1e-9
     brick = getattr(answer, "brick_id", None)
     assert brick is None or brick in {b.id for b in STATE.bricks}
@@ -170,10 +169,7 @@ class HostileChat:
 @pytest.fixture(scope="module")
 def trial() -> TrialSpec:
     goal = load_pattern("pyramid", SceneSpec())
-    return TrialSpec(
-        method=Method.AGENTS, pattern_name="pyramid", goal=goal, run_seed=0, trial=0,
-        config=TrialConfig(),
-    )  # fmt: skip
+    return TrialSpec(method=Method.AGENTS, pattern_name="pyramid", goal=goal, run_seed=0, trial=0)
 
 
 @pytest.mark.slow
@@ -191,7 +187,7 @@ def test_no_waypoint_reaches_the_arm_without_validation_and_its_gate(
         world = SimWorld(WaypointController(scene, made.arm), trial.goal, made.sensor)
         reasoner = LLMReasoner(HostileChat(replies), LLMLimits(tool_turns=1, repairs=1))
         result = Orchestrator(world, reasoner).build(trial.goal)
-        assert result.failure is not None and result.failure.reason in FAILURE_CODES
+        assert result.failure is not None
         accepted = [call for call in result.transcript if call.outcome == "accepted"]
         if not accepted:
             assert scene.ticks == ticks

@@ -18,9 +18,9 @@ from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.agents.view import StateView
 from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.errors import LLMError
+from actionreasoning.eval.rules import Method
 from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.eval.trial import Method, TrialSpec, trial_world
-from actionreasoning.eval.trial_config import TrialConfig
+from actionreasoning.eval.trial import TrialSpec, trial_world
 from actionreasoning.reasoners.chat import StructuredMode
 from actionreasoning.reasoners.llm import LLMLimits, LLMReasoner
 from actionreasoning.reasoners.openai_chat import OpenAIChat, ServerOptions
@@ -164,10 +164,7 @@ def test_a_tool_call_goes_to_the_world_and_its_result_back_to_the_model(
     llama_server: str, tmp_path: Path
 ) -> None:
     goal = load_pattern("pyramid", SceneSpec())
-    spec = TrialSpec(
-        method=Method.AGENTS, pattern_name="pyramid", goal=goal, run_seed=0, trial=0,
-        config=TrialConfig(),
-    )  # fmt: skip
+    spec = TrialSpec(method=Method.AGENTS, pattern_name="pyramid", goal=goal, run_seed=0, trial=0)
     pre_grasp = agent_specs()[0]
     chat = OpenAIChat(MODEL, ServerOptions(base_url=llama_server, timeout_s=SLOW_S))
     mode = chat.negotiate()

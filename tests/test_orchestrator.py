@@ -11,6 +11,7 @@ import pybullet as p
 import pytest
 from scipy.spatial.transform import Rotation
 
+from actionreasoning.agents.memory import PlacementPhase
 from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.outputs import PlacementAnswer, PreGraspAnswer
 from actionreasoning.agents.put_down import SET_ASIDE_MARGIN_M, SET_ASIDE_RANGE_M, levelled_offset
@@ -18,12 +19,13 @@ from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.agents.view import target_supports
 from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.eval.metrics import center_offset_cm
+from actionreasoning.eval.rules import Method
 from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.eval.trial import READY_POSE, Method, TrialSpec, trial_world
+from actionreasoning.eval.trial import TrialSpec, trial_world
 from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.world.geometry import quat_yaw, top_down_quat
-from actionreasoning.world.models import Pose
+from actionreasoning.world.models import READY_POSE, Pose
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PRECISE
 from actionreasoning.world.scene_spec import SceneSpec
@@ -163,9 +165,7 @@ class MisplacesFirstSetDown(Scripted):
 
     def decide(self, request: AgentRequest) -> AgentReply:
         reply = super().decide(request)
-        first_set_down = request.spec.key == "placement" and any(
-            e.agent == "placement" for e in request.memory.this_brick
-        )
+        first_set_down = request.memory.phase == PlacementPhase.SET_DOWN
         if first_set_down and not self.misplaced:
             self.misplaced = True
             x, y, z = reply.answer.waypoint.position_m
@@ -204,9 +204,7 @@ class RegraspsAtFirstSetDown(Scripted):
     asked: bool = False
 
     def decide(self, request: AgentRequest) -> AgentReply:
-        first_set_down = request.spec.key == "placement" and any(
-            e.agent == "placement" for e in request.memory.this_brick
-        )
+        first_set_down = request.memory.phase == PlacementPhase.SET_DOWN
         if first_set_down and not self.asked:
             self.asked = True
             self.requests.append(request)

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from conftest import assert_clean_error, cli
 
-from actionreasoning.eval.trial import Method, TrialSpec, trial_seed, trial_world
-from actionreasoning.eval.trial_config import TrialConfig
+from actionreasoning.eval.rules import Method, trial_seed
+from actionreasoning.eval.trial import TrialSpec, trial_world
 from actionreasoning.world.layout import pick_capacity, sample_pick_poses
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
@@ -62,10 +62,7 @@ def test_eight_bricks_are_laid_out_for_every_seed(tmp_path: Path) -> None:
 
 def test_trial_one_of_the_eight_brick_pattern_gets_its_scene(tmp_path: Path) -> None:
     goal = load_pattern(wall(tmp_path / "eight.json", layers=2), SPEC)
-    spec = TrialSpec(
-        method=Method.CLASSICAL, pattern_name="eight", goal=goal, run_seed=0, trial=1,
-        config=TrialConfig(),
-    )  # fmt: skip
+    spec = TrialSpec(method=Method.CLASSICAL, pattern_name="eight", goal=goal, run_seed=0, trial=1)
     with trial_world(spec) as world:
         assert len(world.scene.bricks) == 8
 

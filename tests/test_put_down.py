@@ -14,8 +14,9 @@ from actionreasoning.agents.calls import AgentCaller, BuildResult
 from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.agents.put_down import PutDown
 from actionreasoning.control.waypoint import WaypointController
+from actionreasoning.eval.rules import Method
 from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.eval.trial import Method, TrialSpec, trial_world
+from actionreasoning.eval.trial import TrialSpec, trial_world
 from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.world.geometry import quat_yaw, tilt_deg, top_down_quat

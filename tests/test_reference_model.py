@@ -18,9 +18,9 @@ from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.control.waypoint import WaypointController
+from actionreasoning.eval.rules import Method
 from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.eval.trial import Method, TrialSpec, trial_world
-from actionreasoning.eval.trial_config import TrialConfig
+from actionreasoning.eval.trial import TrialSpec, trial_world
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.reasoners.chat import ChatReply, ChatRequest
 from actionreasoning.reasoners.llm import LLMLimits, LLMReasoner
@@ -89,10 +89,7 @@ def wall_run(tmp_path_factory: pytest.TempPathFactory) -> Both:
     pattern = tmp_path_factory.mktemp("pattern") / "small.json"
     pattern.write_text(json.dumps(SMALL_PATTERN))
     goal = load_pattern(str(pattern), SceneSpec())
-    spec = TrialSpec(
-        method=Method.AGENTS, pattern_name="small", goal=goal, run_seed=0, trial=0,
-        config=TrialConfig(),
-    )  # fmt: skip
+    spec = TrialSpec(method=Method.AGENTS, pattern_name="small", goal=goal, run_seed=0, trial=0)
     both = Both()
     with trial_world(spec) as made:
         world = SimWorld(WaypointController(made.scene, made.arm), goal, made.sensor)

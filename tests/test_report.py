@@ -131,11 +131,11 @@ def test_a_directory_without_results_is_refused(tmp_path: Path) -> None:
 
 def test_llm_cost_and_the_failure_taxonomy_are_reported(tmp_path: Path) -> None:
     """A run whose results carry usage per agent (as an LLM run writes them) gets the plot;
-    failures are counted by reason with an example trial."""
+    failures are counted by reason with its meaning and an example trial."""
     from test_run_dir import manifest, result
 
     from actionreasoning.reasoners.factory import LLMConfig
-    from actionreasoning.records import LLMUsage
+    from actionreasoning.records import FailureCode, LLMUsage
     from actionreasoning.world.physics import PRECISE
 
     run = tmp_path / "run"
@@ -159,8 +159,8 @@ def test_llm_cost_and_the_failure_taxonomy_are_reported(tmp_path: Path) -> None:
     assert image.shape[1] > 500 and image.std() > 10
     table = (tmp_path / "report" / "table.md").read_text()
     assert "| agents (openai:gemma), precise | 1/3 | 1/3 |" in table
-    assert (
-        "| agents (openai:gemma), precise | pyramid | `misplaced` | 2 | trial 1: brick 3 |" in table
-    )
+    meaning = FailureCode.MISPLACED.meaning
+    row = f"| agents (openai:gemma), precise | pyramid | `misplaced` | {meaning} | 2 | trial 1: "
+    assert row + "brick 3 |" in table
     html = (tmp_path / "report" / "report.html").read_text()
-    assert "<code>misplaced</code></td><td>2</td><td>trial 1: brick 3</td>" in html
+    assert f"<code>misplaced</code></td><td>{meaning}</td><td>2</td><td>trial 1: brick 3" in html

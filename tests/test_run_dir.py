@@ -16,8 +16,8 @@ from actionreasoning.eval.progress import ConsoleProgress
 from actionreasoning.eval.provenance import Provenance
 from actionreasoning.eval.report.runs import read_run
 from actionreasoning.eval.results import TrialMetrics, TrialResult
+from actionreasoning.eval.rules import trial_seed
 from actionreasoning.eval.run_dir import RunManifest, append_result, open_run, read_results
-from actionreasoning.eval.trial import trial_seed
 from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.factory import LLMConfig
 from actionreasoning.records import Failure

@@ -16,12 +16,14 @@ from conftest import SMALL_PATTERN
 from actionreasoning.control.safety import SafetyLimits
 from actionreasoning.control.waypoint import Waypoint, WaypointController
 from actionreasoning.errors import TrialAborted
-from actionreasoning.eval.trial import READY_POSE, Method, TrialSpec, run_trial
+from actionreasoning.eval.rules import Method
+from actionreasoning.eval.trial import TrialSpec, run_trial
 from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.sim.kinematics import KinematicArm
-from actionreasoning.sim.scene import Scene, TrialBudget
+from actionreasoning.sim.scene import Scene
+from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.geometry import top_down_quat
-from actionreasoning.world.models import Pose
+from actionreasoning.world.models import READY_POSE, Pose
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec, WorkspaceBox
 

@@ -17,8 +17,9 @@ from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.control.waypoint import WaypointController
+from actionreasoning.eval.rules import Method
 from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.eval.trial import Method, TrialSpec, trial_world
+from actionreasoning.eval.trial import TrialSpec, trial_world
 from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.sim.scene import GRASP_CONTACT_N

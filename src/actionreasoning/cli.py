@@ -1,4 +1,8 @@
-"""The `actionreasoning` command."""
+"""The `actionreasoning` command.
+
+Each command imports what it runs when it runs, so ``--help``, ``report`` and ``pattern``
+load neither the simulator nor a model client.
+"""
 
 from __future__ import annotations
 
@@ -7,36 +11,26 @@ import os
 import signal
 from enum import StrEnum
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from actionreasoning.agents.spec import agent_specs, single_agent_spec
 from actionreasoning.errors import ActionReasoningError, ConfigError
-from actionreasoning.eval.demo_dir import demo_directory
-from actionreasoning.eval.first_prompt import first_prompt
-from actionreasoning.eval.jobs import RESUME_HINT
-from actionreasoning.eval.progress import ConsoleProgress
-from actionreasoning.eval.report.build import build_report
-from actionreasoning.eval.report.tables import AVERAGE, COLUMNS
-from actionreasoning.eval.report.tables import Table as ComparisonTable
-from actionreasoning.eval.run import RunConfig, run_eval
-from actionreasoning.eval.run_dir import output_directory
-from actionreasoning.eval.summary import RunSummary
-from actionreasoning.eval.trial import Method, TrialSpec
-from actionreasoning.reasoners.factory import LLMConfig, check_backend
-from actionreasoning.reasoners.llm import LLMLimits
-from actionreasoning.reasoners.openai_chat import ServerOptions
-from actionreasoning.reasoners.reference_server import ReferenceServer
-from actionreasoning.sim.scene import TrialBudget
+from actionreasoning.eval.rules import Method
+from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.geometry import quat_yaw
 from actionreasoning.world.noise import load_noise
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import load_physics
 from actionreasoning.world.scene_spec import SceneSpec
+
+if TYPE_CHECKING:
+    from actionreasoning.eval.report.tables import Table as ComparisonTable
+    from actionreasoning.eval.summary import RunSummary
+    from actionreasoning.reasoners.factory import LLMConfig
 
 app = typer.Typer(
     help="LLM action reasoning for robot brick stacking: simulate, evaluate, report.",
@@ -215,6 +209,10 @@ def eval_command(
     --workers or on Ray. Run the same command again to resume a killed run. The API key of
     an OpenAI-compatible server comes from OPENAI_API_KEY only.
     """
+    from actionreasoning.reasoners.factory import LLMConfig
+    from actionreasoning.reasoners.llm import LLMLimits
+    from actionreasoning.reasoners.openai_chat import ServerOptions
+
     try:
         config = LLMConfig(
             spec=llm,
@@ -259,8 +257,10 @@ def demo(
     animation of the build. It writes only into a new or empty directory, which it marks as
     its own (.actionreasoning-demo), or into an earlier demo's, whose files it replaces.
     """
+    from actionreasoning.eval.demo_dir import demo_directory
     from actionreasoning.eval.layout import RunDir
     from actionreasoning.eval.report.demo import write_demo_pages
+    from actionreasoning.reasoners.factory import LLMConfig
 
     try:
         with demo_directory(out):
@@ -301,6 +301,9 @@ def _evaluate(
 ) -> RunSummary:
     """Load the pattern and conditions, run the trials with progress, print the table; errors
     end the command."""
+    from actionreasoning.eval.jobs import RESUME_HINT
+    from actionreasoning.eval.progress import ConsoleProgress
+    from actionreasoning.eval.run import RunConfig, run_eval
     from actionreasoning.eval.trial_config import TrialConfig
 
     if Path(pattern).is_file():  # one file, however it is spelled: ./x.json is x.json
@@ -340,6 +343,8 @@ def _evaluate(
 
 def _comparison(table: ComparisonTable) -> Table:
     """Table I for the terminal: one cell per pattern with its three means and successes."""
+    from actionreasoning.eval.report.tables import AVERAGE, COLUMNS
+
     shown = Table(
         title="rotation error (°), centre offset (cm), IoU (%): means over successful trials",
         caption=f"details in table.md; {AVERAGE}: mean over the patterns",
@@ -373,6 +378,9 @@ def report_command(
     Runs are pooled only under the same run.json conditions (the seed aside) and pattern
     content; others are set side by side, and the report names the fields that differ.
     """
+    from actionreasoning.eval.report.build import build_report
+    from actionreasoning.eval.run_dir import output_directory
+
     try:
         output_directory(out)
         report = build_report(runs, out, gifs=gif)
@@ -404,6 +412,9 @@ def prompt_command(
 ) -> None:
     """Print the prompt agent N is first sent in trial 0 (the built-in reasoner answers
     the agents before it), to read and tune it."""
+    from actionreasoning.agents.spec import agent_specs, single_agent_spec
+    from actionreasoning.eval.first_prompt import first_prompt
+    from actionreasoning.eval.trial import TrialSpec
     from actionreasoning.eval.trial_config import TrialConfig
 
     try:
@@ -488,6 +499,8 @@ def serve_reference(
     prompts. Point a run at it with --llm openai:reference --base-url URL. Its token counts
     are estimates. The first line printed is the base URL; Ctrl-C or SIGTERM stops it.
     """
+    from actionreasoning.reasoners.reference_server import ReferenceServer
+
     try:
         server = ReferenceServer(host, port, verbose)
     except ActionReasoningError as error:
@@ -520,6 +533,9 @@ def llm_check(
     llm_timeout: TimeoutOption = 60.0,
 ) -> None:
     """Connect to a backend, send one schema-constrained request, and report what came back."""
+    from actionreasoning.reasoners.factory import LLMConfig, check_backend
+    from actionreasoning.reasoners.openai_chat import ServerOptions
+
     try:
         server = ServerOptions(base_url=base_url, timeout_s=llm_timeout)
         report = check_backend(LLMConfig(spec=llm, server=server))

@@ -4,7 +4,7 @@ Every error a user can cause (bad files, bad options, unreachable targets) is an
 :class:`ActionReasoningError`; the CLI prints its message on one line and exits non-zero.
 """
 
-from actionreasoning.records import LLMUsage
+from actionreasoning.records import FailureCode, LLMUsage
 
 
 class ActionReasoningError(Exception):
@@ -31,7 +31,7 @@ class TrialAborted(ActionReasoningError):
     """A trial stopped to stay safe or within its budget; ``reason`` is its failure code:
     ``safety_limit``, ``step_budget``, ``time_budget`` or ``physics_blowup``."""
 
-    def __init__(self, reason: str, detail: str) -> None:
+    def __init__(self, reason: FailureCode, detail: str) -> None:
         super().__init__(f"{reason}: {detail}")
         self.reason = reason
         self.detail = detail
@@ -52,7 +52,7 @@ class LLMError(ActionReasoningError):
 
     def __init__(
         self,
-        reason: str,
+        reason: FailureCode,
         detail: str,
         repairs: tuple[str, ...] = (),
         usage: LLMUsage | None = None,

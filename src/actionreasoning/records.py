@@ -5,15 +5,72 @@ They are written into results.jsonl as they are (DESIGN section 7 fixes the fiel
 
 from __future__ import annotations
 
+from enum import StrEnum
+
 from pydantic import BaseModel, ConfigDict
 
 
+class FailureCode(StrEnum):
+    """Why a trial failed: a short stable code (its value) and what it means (``meaning``),
+    which summaries, reports and the README print."""
+
+    meaning: str
+
+    def __new__(cls, code: str, meaning: str) -> FailureCode:
+        member = str.__new__(cls, code)
+        member._value_ = code
+        member.meaning = meaning
+        return member
+
+    INVALID_OUTPUT = "invalid_output", "the model gave no valid answer within its repairs"
+    INVALID_CHOICE = "invalid_choice", "an answer named a brick or target that cannot be used now"
+    COLLISION = "collision", "a proposed path would collide or pass too close (σ1, σ6)"
+    DESCENT_BLOCKED = "descent_blocked", "the way down to the grasp is not clear (σ2)"
+    GRASP_FAILED = "grasp_failed", "the fingers did not close on the brick with enough force (σ3)"
+    GRASP_SLIP = (
+        "grasp_slip",
+        "the brick slipped or rolled in the hand and the re-grasps ran out (σ4, Ag5)",
+    )
+    NO_BRICK_LEFT = (
+        "no_brick_left",
+        "no unused brick can be picked: each left toppled, or fell onto other bricks",
+    )
+    PLACEMENT_MISALIGNED = (
+        "placement_misaligned",
+        "the brick could not be set down within tolerance (σ5)",
+    )
+    BUDGET_EXHAUSTED = (
+        "budget_exhausted",
+        "an agent's retries or the single agent's waypoints ran out",
+    )
+    UNREACHABLE = "unreachable", "a waypoint is out of the arm's reach"
+    TOOL_ERROR = "tool_error", "a tool was called with arguments that name nothing in the world"
+    SAFETY_LIMIT = "safety_limit", "the controller refused a motion outside its safety envelope"
+    STEP_BUDGET = "step_budget", "the trial spent its simulation steps"
+    TIME_BUDGET = "time_budget", "the trial spent its wall-clock time"
+    PHYSICS_BLOWUP = (
+        "physics_blowup",
+        "the simulation state became non-finite or a brick was flung away",
+    )
+    LLM_TIMEOUT = "llm_timeout", "the model server did not answer in time"
+    LLM_UNREACHABLE = "llm_unreachable", "the model server could not be reached"
+    LLM_RATE_LIMITED = "llm_rate_limited", "the model server kept answering 429"
+    LLM_SERVER_ERROR = "llm_server_error", "the model server kept failing (5xx)"
+    LLM_BAD_RESPONSE = (
+        "llm_bad_response",
+        "the model server sent something that is not a chat completion",
+    )
+    LLM_BAD_REQUEST = "llm_bad_request", "the model server refused the request"
+    MISPLACED = "misplaced", "the build finished but a brick is outside the success limits"
+    NOT_AT_REST = "not_at_rest", "the build finished but a brick was still moving"
+
+
 class Failure(BaseModel):
-    """Why a trial failed: a short stable ``reason`` code, the agent if any, and details."""
+    """Why a trial failed: its code, the agent if any, and details."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    reason: str
+    reason: FailureCode
     agent: str | None = None
     detail: str
 
@@ -35,31 +92,3 @@ class LLMUsage(BaseModel):
             completion_tokens=self.completion_tokens + other.completion_tokens,
             latency_s=self.latency_s + other.latency_s,
         )
-
-
-#: Every failure reason code, with what it means (summaries and reports print it).
-FAILURE_CODES: dict[str, str] = {
-    "invalid_output": "the model gave no valid answer within its repairs",
-    "invalid_choice": "an answer named a brick or target that cannot be used now",
-    "collision": "a proposed path would collide or pass too close (σ1, σ6)",
-    "descent_blocked": "the way down to the grasp is not clear (σ2)",
-    "grasp_failed": "the fingers did not close on the brick with enough force (σ3)",
-    "grasp_slip": "the brick slipped or rolled in the hand and the re-grasps ran out (σ4, Ag5)",
-    "no_brick_left": "no unused brick can be picked: each left toppled, or fell onto other bricks",
-    "placement_misaligned": "the brick could not be set down within tolerance (σ5)",
-    "budget_exhausted": "an agent's retries or the single agent's waypoints ran out",
-    "unreachable": "a waypoint is out of the arm's reach",
-    "tool_error": "a tool was called with arguments that name nothing in the world",
-    "safety_limit": "the controller refused a motion outside its safety envelope",
-    "step_budget": "the trial spent its simulation steps",
-    "time_budget": "the trial spent its wall-clock time",
-    "physics_blowup": "the simulation state became non-finite or a brick was flung away",
-    "llm_timeout": "the model server did not answer in time",
-    "llm_unreachable": "the model server could not be reached",
-    "llm_rate_limited": "the model server kept answering 429",
-    "llm_server_error": "the model server kept failing (5xx)",
-    "llm_bad_response": "the model server sent something that is not a chat completion",
-    "llm_bad_request": "the model server refused the request",
-    "misplaced": "the build finished but a brick is outside the success limits",
-    "not_at_rest": "the build finished but a brick was still moving",
-}

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 from actionreasoning.agents.gates import GateVerdict
 from actionreasoning.agents.memory import TaskMemory
@@ -27,11 +27,13 @@ from actionreasoning.errors import (
     TrialAborted,
     UnreachableError,
 )
-from actionreasoning.records import Failure, LLMUsage
-from actionreasoning.tools.base import ToolContext, ToolModel
+from actionreasoning.records import Failure, FailureCode, LLMUsage
+from actionreasoning.tools.base import In, Out, Tool, ToolContext, ToolModel
 from actionreasoning.tools.registry import call_tool
 from actionreasoning.world.models import Progress, WorldState
 from actionreasoning.world.tolerances import Tolerances
+
+A = TypeVar("A", bound=AgentAnswer)
 
 #: Called with (brick id, stage name) after each stage a build finished, for snapshots.
 StageHook = Callable[[int, str], None]
@@ -40,7 +42,7 @@ StageHook = Callable[[int, str], None]
 class TrialStopped(ActionReasoningError):
     """Raised inside a build when it cannot go on; carries the failure."""
 
-    def __init__(self, reason: str, agent: str | None, detail: str) -> None:
+    def __init__(self, reason: FailureCode, agent: str | None, detail: str) -> None:
         super().__init__(f"{reason} ({agent}): {detail}")
         self.failure = Failure(reason=reason, agent=agent, detail=detail)
 
@@ -55,7 +57,9 @@ def failure_of(error: Exception, agent: str | None) -> Failure:
         return error.failure
     if isinstance(error, TrialAborted):
         return Failure(reason=error.reason, agent=agent, detail=error.detail)
-    reason = "unreachable" if isinstance(error, UnreachableError) else "tool_error"
+    reason = (
+        FailureCode.UNREACHABLE if isinstance(error, UnreachableError) else FailureCode.TOOL_ERROR
+    )
     return Failure(reason=reason, agent=agent, detail=str(error))
 
 
@@ -83,9 +87,10 @@ class AgentCaller:
         self.result = result
 
     def ask(
-        self, spec: AgentSpec, memory: TaskMemory, attempt: int
-    ) -> tuple[AgentAnswer, WorldState]:
-        """The reasoner's answer for agent ``spec`` now, and the state it was given."""
+        self, spec: AgentSpec, memory: TaskMemory, attempt: int, expected: type[A]
+    ) -> tuple[A, WorldState]:
+        """The reasoner's answer for agent ``spec`` now and the state it was given; an answer
+        that is no ``expected`` (the spec's output model) ends the trial."""
         progress = Progress(
             placed_ids=tuple(p.brick_id for p in memory.placed),
             current_brick=memory.current_brick,
@@ -130,8 +135,8 @@ class AgentCaller:
         call.usage, call.repairs = reply.usage, list(reply.repairs)
         call.tool_turns, call.fallback = reply.tool_turns, reply.fallback
         call.prompt_chars = reply.prompt_chars or call.prompt_chars
-        if not isinstance(reply.answer, spec.output_model):
-            raise TrialStopped("invalid_output", spec.key, "answer of the wrong schema")
+        if not isinstance(reply.answer, expected):
+            raise TrialStopped(FailureCode.INVALID_OUTPUT, spec.key, "answer of the wrong schema")
         return reply.answer, state
 
     def conclude(self, outcome: Outcome, feedback: str = "") -> None:
@@ -144,9 +149,9 @@ class AgentCaller:
         self.result.transcript[-1].gates.append(GateRecord.of(verdict))
         return verdict
 
-    def measure(self, state: WorldState, name: str, **arguments: Any) -> Any:
+    def measure(self, state: WorldState, tool: Tool[In, Out], arguments: In) -> Out:
         """A tool run for verification and gates (not an agent's tool call)."""
-        return call_tool(name, arguments, self.world.tools(state))
+        return tool(self.world.tools(state), arguments)
 
 
 def _run_tool(

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Any
+from enum import StrEnum
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.world.geometry import round_floats
+from actionreasoning.world.stages import Stage
 
 
 class PlacedBrick(BaseModel):
@@ -44,6 +46,14 @@ class EarlierAnswer(BaseModel):
         )
 
 
+class PlacementPhase(StrEnum):
+    """Which of its two calls Ag5 is asked: to carry the brick over its slot, or, hovering
+    there, to set it down."""
+
+    CARRY = "carry"
+    SET_DOWN = "set_down"
+
+
 class TaskMemory(BaseModel):
     """The orchestrator's memory, shown to every agent."""
 
@@ -52,7 +62,8 @@ class TaskMemory(BaseModel):
     placed: tuple[PlacedBrick, ...] = ()
     current_brick: int | None = None
     current_target: int | None = None
-    step: str = "pre_grasp"
+    phase: PlacementPhase | None = Field(None, description="Ag5's call, while it is asked.")
+    step: Stage | Literal["start", "done"] = Stage.PRE_GRASP
     retries: dict[str, int] = Field(default_factory=dict, description="Attempts used per agent.")
     last_feedback: str = Field("", description="Why the last attempt was refused, if it was.")
     regrasps: int = Field(

@@ -16,19 +16,29 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import partial
-from typing import Any
+from typing import TypeVar
 
 from actionreasoning.agents import gates
 from actionreasoning.agents.calls import (
     BUILD_STOPPERS,
+    A,
     AgentCaller,
     BuildResult,
     StageHook,
     TrialStopped,
     failure_of,
 )
-from actionreasoning.agents.memory import EarlierAnswer, PlacedBrick, TaskMemory
-from actionreasoning.agents.outputs import AgentAnswer, WaypointProposal, unit_waypoint
+from actionreasoning.agents.memory import EarlierAnswer, PlacedBrick, PlacementPhase, TaskMemory
+from actionreasoning.agents.outputs import (
+    DescentAnswer,
+    GraspAnswer,
+    LiftAnswer,
+    PlacementAnswer,
+    PreGraspAnswer,
+    ReleaseAnswer,
+    WaypointProposal,
+    unit_waypoint,
+)
 from actionreasoning.agents.put_down import PutDown
 from actionreasoning.agents.reasoner import Reasoner
 from actionreasoning.agents.spec import agent_specs
@@ -36,12 +46,18 @@ from actionreasoning.agents.transcript import Outcome
 from actionreasoning.agents.view import target_supports
 from actionreasoning.agents.world import World
 from actionreasoning.errors import UnreachableError
-from actionreasoning.tools.collision import CollisionReport
+from actionreasoning.records import FailureCode
+from actionreasoning.tools.collision import COLLISION, CollisionQuery, CollisionReport
+from actionreasoning.tools.contact import FINGER_CONTACTS, SLIP
+from actionreasoning.tools.geometry import ALIGNMENT, AlignmentQuery, BrickQuery
 from actionreasoning.tools.placement import SEAT_CLEARANCE_M
 from actionreasoning.world.geometry import quat_yaw, rotation_deg
 from actionreasoning.world.models import GoalPattern, Pose, Progress, WorldState
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M, RETREAT_M
+from actionreasoning.world.stages import Stage
 from actionreasoning.world.tolerances import Tolerances
+
+T = TypeVar("T")
 
 #: The lift's path is checked from this far above the grasp: below it the brick still
 #: touches its support.
@@ -67,7 +83,7 @@ class _Refused(Exception):
     ``reason`` is the failure code the trial ends with if the agent's budget runs out.
     """
 
-    def __init__(self, feedback: str, reason: str = "invalid_output") -> None:
+    def __init__(self, feedback: str, reason: FailureCode = FailureCode.INVALID_OUTPUT) -> None:
         super().__init__(feedback)
         self.reason = reason
 
@@ -118,21 +134,30 @@ class Orchestrator:
                     "last_feedback": feedback,
                     "regrasps": regrasps,
                     "this_brick": (),
+                    "phase": None,
                 }
             )
             self._check_bricks_left()
-            brick, target = self._stage("pre_grasp", partial(self._pre_grasp, supports=supports))
-            grasp_pose = self._stage("descent", partial(self._descent, brick=brick))
-            self._stage("grasp", partial(self._grasp, brick=brick, pose=grasp_pose))
+            brick, target = self._stage(
+                Stage.PRE_GRASP, PreGraspAnswer, partial(self._pre_grasp, supports=supports)
+            )
+            grasp_pose = self._stage(
+                Stage.DESCENT, DescentAnswer, partial(self._descent, brick=brick)
+            )
+            self._stage(
+                Stage.GRASP, GraspAnswer, partial(self._grasp, brick=brick, pose=grasp_pose)
+            )
             try:
-                lifted = self._stage("lift", partial(self._lift, brick=brick, grasp=grasp_pose))
+                lifted = self._stage(
+                    Stage.LIFT, LiftAnswer, partial(self._lift, brick=brick, grasp=grasp_pose)
+                )
                 self._placement(brick, target, grasp_pose, lifted)
                 break
             except _Regrasp as regrasp:
                 feedback = str(regrasp)
         else:
-            raise TrialStopped("grasp_slip", self.memory.step, "re-grasp budget spent")
-        self._stage("release", partial(self._release, brick=brick))
+            raise TrialStopped(FailureCode.GRASP_SLIP, self.memory.step, "re-grasp budget spent")
+        self._stage(Stage.RELEASE, ReleaseAnswer, partial(self._release, brick=brick))
         placed = (*self.memory.placed, PlacedBrick(brick_id=brick, target_index=target))
         self.memory = self.memory.model_copy(
             update={"placed": placed, "current_brick": None, "current_target": None}
@@ -142,23 +167,30 @@ class Orchestrator:
     def _check_bricks_left(self) -> None:
         """Stop the trial if no unused brick can be picked (each toppled or fell on others)."""
         used = tuple(p.brick_id for p in self.memory.placed)
-        state = self.world.observe(Progress(placed_ids=used, step="pre_grasp"))
+        state = self.world.observe(Progress(placed_ids=used, step=Stage.PRE_GRASP))
         unused = [b for b in state.bricks if b.id not in used]
         if not any(b.pickable for b in unused):
             statuses = ", ".join(f"brick {b.id} {b.status}" for b in unused)
-            raise TrialStopped("no_brick_left", "pre_grasp", f"none can be picked: {statuses}")
+            raise TrialStopped(
+                FailureCode.NO_BRICK_LEFT, Stage.PRE_GRASP, f"none can be picked: {statuses}"
+            )
 
     def _stage(
-        self, key: str, act: Callable[[AgentAnswer, WorldState], Any], label: str | None = None
-    ) -> Any:
-        """Ask agent ``key`` until ``act`` accepts its answer, within the retry budget.
+        self,
+        key: Stage,
+        answers: type[A],
+        act: Callable[[A, WorldState], T],
+        label: Stage | None = None,
+    ) -> T:
+        """Ask agent ``key``, which ``answers`` with that model, until ``act`` accepts its
+        answer, within the retry budget.
 
         ``label`` names the finished stage for the stage hook (default: ``key``).
         """
         self.memory = self.memory.model_copy(update={"step": key})
-        reason = "budget_exhausted"
+        reason = FailureCode.BUDGET_EXHAUSTED
         for attempt in range(1, self.budgets.attempts_per_agent + 1):
-            answer, state = self.calls.ask(self.specs[key], self.memory, attempt)
+            answer, state = self.calls.ask(self.specs[key], self.memory, attempt, answers)
             try:
                 outcome = act(answer, state)
             except _Refused as refusal:
@@ -166,7 +198,7 @@ class Orchestrator:
                 self._remember(key, attempt, str(refusal))
                 continue
             except UnreachableError as error:
-                reason = "unreachable"
+                reason = FailureCode.UNREACHABLE
                 self._remember(key, attempt, f"unreachable: {error}")
                 continue
             except _Regrasp as regrasp:
@@ -186,19 +218,19 @@ class Orchestrator:
             f"{self.budgets.attempts_per_agent} answers refused; last: {self.memory.last_feedback}",
         )
 
-    def _remember(self, key: str, attempt: int, feedback: str) -> None:
+    def _remember(self, key: Stage, attempt: int, feedback: str) -> None:
         self.calls.conclude(Outcome.REFUSED, feedback)
         retries = {**self.memory.retries, key: attempt}
         self.memory = self.memory.model_copy(update={"retries": retries, "last_feedback": feedback})
 
-    def _gate(self, verdict: gates.GateVerdict, reason: str) -> None:
+    def _gate(self, verdict: gates.GateVerdict, reason: FailureCode) -> None:
         """Record a verdict and refuse the answer (failure code ``reason``) if it failed."""
         if not self.calls.judge(verdict).passed:
             raise _Refused(verdict.feedback, reason)
 
     # --- the agents' acts ---------------------------------------------------------------
     def _pre_grasp(
-        self, answer: Any, state: WorldState, supports: Mapping[int, tuple[int, ...]]
+        self, answer: PreGraspAnswer, state: WorldState, supports: Mapping[int, tuple[int, ...]]
     ) -> tuple[int, int]:
         if answer.brick_id is None or answer.target_index is None or answer.waypoint is None:
             raise _Refused("the answer needs brick_id, target_index and waypoint")
@@ -206,30 +238,35 @@ class Orchestrator:
         used = {p.brick_id for p in self.memory.placed}
         target, brick = answer.target_index, answer.brick_id
         if target >= len(state.goal.targets) or target in built:
-            raise _Refused(f"target {target} does not exist or is already built", "invalid_choice")
+            raise _Refused(
+                f"target {target} does not exist or is already built", FailureCode.INVALID_CHOICE
+            )
         missing = [t for t in supports[target] if t not in built]
         if missing:
             raise _Refused(
-                f"target {target} rests on targets {missing}, not built yet", "invalid_choice"
+                f"target {target} rests on targets {missing}, not built yet",
+                FailureCode.INVALID_CHOICE,
             )
         if brick in used or brick not in {b.id for b in state.bricks}:
-            raise _Refused(f"brick {brick} does not exist or is already placed", "invalid_choice")
+            raise _Refused(
+                f"brick {brick} does not exist or is already placed", FailureCode.INVALID_CHOICE
+            )
         if not state.brick(brick).pickable:
             raise _Refused(
                 f"brick {brick} is {state.brick(brick).status}, neither in the pick area nor "
                 "lying on the ground",
-                "invalid_choice",
+                FailureCode.INVALID_CHOICE,
             )
         waypoint = _checked(answer.waypoint, path="joint")
         path = self._clearance(state, waypoint, ignore=brick)
-        self._gate(gates.sigma1_pre_grasp(path, self.tol), "collision")
+        self._gate(gates.sigma1_pre_grasp(path, self.tol), FailureCode.COLLISION)
         self.memory = self.memory.model_copy(
             update={"current_brick": brick, "current_target": target}
         )
         self.world.move(waypoint)
         return brick, target
 
-    def _descent(self, answer: Any, state: WorldState, brick: int) -> WaypointProposal:
+    def _descent(self, answer: DescentAnswer, state: WorldState, brick: int) -> WaypointProposal:
         if answer.gripper_opening_m is None or answer.waypoint is None:
             raise _Refused("the answer needs gripper_opening_m and waypoint")
         waypoint = _checked(answer.waypoint, path="linear")
@@ -247,26 +284,29 @@ class Orchestrator:
         )
         if not self.tol.clear(path.clearance_m, path.reachable):
             raise _Refused(
-                f"descent path collides: {path.closest} ({path.clearance_m:.3f} m)", "collision"
+                f"descent path collides: {path.closest} ({path.clearance_m:.3f} m)",
+                FailureCode.COLLISION,
             )
         self.world.grip(answer.gripper_opening_m)
         self.world.move(waypoint)
-        after = self.world.observe(Progress(current_brick=brick, step="descent"))
-        pads = self.calls.measure(after, "finger_contacts", brick_id=brick)
+        after = self.world.observe(Progress(current_brick=brick, step=Stage.DESCENT))
+        pads = self.calls.measure(after, FINGER_CONTACTS, BrickQuery(brick_id=brick))
         shift = math.dist(
             after.brick(brick).pose.position_m[:2], state.brick(brick).pose.position_m[:2]
         )
         sigma2 = gates.sigma2_descent(after.robot.gripper_width_m, width, pads, shift, self.tol)
-        self._gate(sigma2, "descent_blocked")
+        self._gate(sigma2, FailureCode.DESCENT_BLOCKED)
         return waypoint
 
-    def _grasp(self, answer: Any, state: WorldState, brick: int, pose: WaypointProposal) -> None:
+    def _grasp(
+        self, answer: GraspAnswer, state: WorldState, brick: int, pose: WaypointProposal
+    ) -> None:
         if not answer.close:
             raise _Refused("the gripper is at the grasp pose: answer close = true")
         self.world.grip(None)
-        after = self.world.observe(Progress(current_brick=brick, step="grasp"))
-        pads = self.calls.measure(after, "finger_contacts", brick_id=brick)
-        slip = self.calls.measure(after, "slip_estimate", brick_id=brick)
+        after = self.world.observe(Progress(current_brick=brick, step=Stage.GRASP))
+        pads = self.calls.measure(after, FINGER_CONTACTS, BrickQuery(brick_id=brick))
+        slip = self.calls.measure(after, SLIP, BrickQuery(brick_id=brick))
         offset = math.hypot(*slip.offset_in_gripper_m)
         turn = math.degrees(
             abs(
@@ -279,19 +319,19 @@ class Orchestrator:
         verdict = self.calls.judge(gates.sigma3_grasp(pads, offset, turn, self.tol))
         if not verdict.passed:
             self.world.grip(GRIPPER_GAP_M[1])
-            raise _Refused(verdict.feedback, "grasp_failed")
+            raise _Refused(verdict.feedback, FailureCode.GRASP_FAILED)
 
     def _lift(
-        self, answer: Any, state: WorldState, brick: int, grasp: WaypointProposal
+        self, answer: LiftAnswer, state: WorldState, brick: int, grasp: WaypointProposal
     ) -> WaypointProposal:
         if answer.waypoint is None:
             raise _Refused("the answer needs a waypoint")
         waypoint = _checked(answer.waypoint, path="linear")
-        self._gate(self._lift_plan(state, brick, waypoint), "collision")
+        self._gate(self._lift_plan(state, brick, waypoint), FailureCode.COLLISION)
         self.world.move(waypoint)
-        after = self.world.observe(Progress(current_brick=brick, step="lift"))
-        slip = self.calls.measure(after, "slip_estimate", brick_id=brick)
-        pads = self.calls.measure(after, "finger_contacts", brick_id=brick)
+        after = self.world.observe(Progress(current_brick=brick, step=Stage.LIFT))
+        slip = self.calls.measure(after, SLIP, BrickQuery(brick_id=brick))
+        pads = self.calls.measure(after, FINGER_CONTACTS, BrickQuery(brick_id=brick))
         verdict = self.calls.judge(gates.sigma4_lift(slip, pads, self.tol))
         if not verdict.passed:
             self._put_back(brick, grasp, waypoint)
@@ -346,17 +386,25 @@ class Orchestrator:
         the cycle starts again at Ag1 (a brick that rolled in the hand is grasped level).
         """
         back = partial(self._set_aside, brick, grasp, lifted)
+        self._placement_phase(PlacementPhase.CARRY)
         self._stage(
-            "placement", partial(self._carry_over_slot, brick=brick, back=back), label="transfer"
+            Stage.PLACEMENT,
+            PlacementAnswer,
+            partial(self._carry_over_slot, brick=brick, back=back),
+            label=Stage.TRANSFER,
         )
+        self._placement_phase(PlacementPhase.SET_DOWN)
         for _ in range(self.budgets.placement_attempts):
-            slot = self._stage("placement", partial(self._set_down, brick=brick, back=back))
-            state = self.world.observe(Progress(current_brick=brick, step="placement"))
+            slot = self._stage(
+                Stage.PLACEMENT, PlacementAnswer, partial(self._set_down, brick=brick, back=back)
+            )
+            state = self.world.observe(Progress(current_brick=brick, step=Stage.PLACEMENT))
             errors = self.calls.measure(
-                state, "alignment_errors", brick_id=brick, target_index=target
+                state, ALIGNMENT, AlignmentQuery(brick_id=brick, target_index=target)
             )
             verdict = self.calls.judge(gates.sigma5_placement(errors, self.tol))
             if verdict.passed:
+                self._placement_phase(None)
                 return
             self.calls.conclude(Outcome.RAISED, verdict.feedback)
             # Misaligned in contact: raise by delta_h and ask Ag5 again.
@@ -366,10 +414,16 @@ class Orchestrator:
             )
             self.world.move(up)
             self.memory = self.memory.model_copy(update={"last_feedback": verdict.feedback})
-        raise TrialStopped("placement_misaligned", "placement", self.memory.last_feedback)
+        raise TrialStopped(
+            FailureCode.PLACEMENT_MISALIGNED, Stage.PLACEMENT, self.memory.last_feedback
+        )
+
+    def _placement_phase(self, phase: PlacementPhase | None) -> None:
+        """Tell Ag5 which of its calls comes next (None: it is done with this brick)."""
+        self.memory = self.memory.model_copy(update={"phase": phase})
 
     def _carry_over_slot(
-        self, answer: Any, state: WorldState, brick: int, back: Callable[[], None]
+        self, answer: PlacementAnswer, state: WorldState, brick: int, back: Callable[[], None]
     ) -> None:
         """Carry the brick over the proposed slot, once the way there and down is clear, and
         lower it to HOVER_M above the slot."""
@@ -388,19 +442,19 @@ class Orchestrator:
             )
 
     def _regrasp_if_asked(
-        self, answer: Any, state: WorldState, brick: int, back: Callable[[], None]
+        self, answer: PlacementAnswer, state: WorldState, brick: int, back: Callable[[], None]
     ) -> None:
         """Ag5 asked for a re-grasp: put the brick back and start again at Ag1."""
         if not answer.regrasp:
             return
-        tilt = self.calls.measure(state, "slip_estimate", brick_id=brick).tilt_in_hand_deg
+        tilt = self.calls.measure(state, SLIP, BrickQuery(brick_id=brick)).tilt_in_hand_deg
         back()
         raise _Regrasp(
             f"placement asked for a re-grasp; the brick had rolled {tilt:.1f} deg in the hand"
         )
 
     def _set_down(
-        self, answer: Any, state: WorldState, brick: int, back: Callable[[], None]
+        self, answer: PlacementAnswer, state: WorldState, brick: int, back: Callable[[], None]
     ) -> WaypointProposal:
         """Set the brick down on the (re-measured) slot: over it, then straight down onto it."""
         self._regrasp_if_asked(answer, state, brick, back)
@@ -415,7 +469,7 @@ class Orchestrator:
         return slot
 
     @staticmethod
-    def _slot(answer: Any) -> WaypointProposal:
+    def _slot(answer: PlacementAnswer) -> WaypointProposal:
         if answer.waypoint is None:
             raise _Refused("the answer needs a waypoint")
         return _checked(answer.waypoint)
@@ -425,7 +479,7 @@ class Orchestrator:
         state: WorldState,
         slot: WaypointProposal,
         start: WaypointProposal,
-        path: Any = None,
+        path: CollisionReport | None = None,
     ) -> None:
         """Refuse a slot whose way down (and ``path`` to its start, if given) collides.
 
@@ -436,7 +490,9 @@ class Orchestrator:
         descent = self._clearance(state, near, start=start)
         for report in (path, descent):
             if report is not None and not self.tol.clear(report.clearance_m, report.reachable):
-                raise _Refused(f"path to the slot collides: {report.closest}", "collision")
+                raise _Refused(
+                    f"path to the slot collides: {report.closest}", FailureCode.COLLISION
+                )
 
     def _clearance(
         self,
@@ -450,19 +506,16 @@ class Orchestrator:
         """Clearance on the way to ``to``: straight from ``start`` if given (a joint move from
         it if ``joint``), else a joint move from where the arm is; at ``opening`` (default: the
         gripper's now), the held brick carried, brick ``ignore`` left out."""
-        way: dict[str, Any] = {"path": "joint"} if joint or start is None else {}
-        if start is not None:
-            way["start_pose"] = _pose(start)
-        return self.calls.measure(
-            state,
-            "collision_check",
-            pose=_pose(to),
+        query = CollisionQuery(
+            pose=_as_pose(to),
+            start_pose=None if start is None else _as_pose(start),
+            path="joint" if joint or start is None else "linear",
             gripper_opening_m=state.robot.gripper_width_m if opening is None else opening,
             ignore_brick_id=ignore,
-            **way,
         )
+        return self.calls.measure(state, COLLISION, query)
 
-    def _release(self, answer: Any, state: WorldState, brick: int) -> None:
+    def _release(self, answer: ReleaseAnswer, state: WorldState, brick: int) -> None:
         if answer.gripper_opening_m is None or answer.waypoint is None:
             raise _Refused("the answer needs gripper_opening_m and waypoint")
         ready = _checked(answer.waypoint)
@@ -485,7 +538,7 @@ class Orchestrator:
             ignore=brick,
             joint=True,
         )
-        self._gate(gates.sigma6_return(way_up, onward, self.tol), "collision")
+        self._gate(gates.sigma6_return(way_up, onward, self.tol), FailureCode.COLLISION)
         self.world.grip(answer.gripper_opening_m)
         self.world.move(retreat)
         self.world.move(ready)
@@ -498,12 +551,8 @@ def _above(slot: WaypointProposal, state: WorldState, path: str = "joint") -> Wa
     return slot.model_copy(update={"position_m": (x, y, height), "path": path})
 
 
-def _as_pose(waypoint: WaypointProposal) -> Pose:
+def _as_pose(waypoint: WaypointProposal | Pose) -> Pose:
     return Pose(position_m=waypoint.position_m, quat_xyzw=waypoint.quat_xyzw)
-
-
-def _pose(waypoint: WaypointProposal | Pose) -> dict[str, Any]:
-    return {"position_m": list(waypoint.position_m), "quat_xyzw": list(waypoint.quat_xyzw)}
 
 
 def _checked(waypoint: WaypointProposal, path: str | None = None) -> WaypointProposal:

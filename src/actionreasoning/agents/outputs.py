@@ -14,6 +14,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.world.geometry import QuatXYZW, Vec3
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M
+from actionreasoning.world.stages import Stage
 
 #: How far from 1 a quaternion's norm may be and still be normalised rather than refused.
 QUAT_NORM_TOLERANCE = 1e-3
@@ -116,15 +117,16 @@ class ReleaseAnswer(AgentAnswer):
     waypoint: WaypointProposal | None = None
 
 
+#: The single agent's steps: every stage in order, then ``done``.
 SingleAgentStep = Literal[
-    "pre_grasp",
-    "descent",
-    "grasp",
-    "lift",
-    "transfer",
-    "placement",
-    "release",
-    "retreat",
+    Stage.PRE_GRASP,
+    Stage.DESCENT,
+    Stage.GRASP,
+    Stage.LIFT,
+    Stage.TRANSFER,
+    Stage.PLACEMENT,
+    Stage.RELEASE,
+    Stage.RETREAT,
     "done",
 ]
 

@@ -19,6 +19,8 @@ from shapely.geometry import Polygon
 from actionreasoning.agents.calls import AgentCaller
 from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.agents.world import World
+from actionreasoning.tools.collision import COLLISION, CollisionQuery
+from actionreasoning.tools.reach import REACHABILITY, ReachQuery
 from actionreasoning.world.geometry import Vec3, quat_yaw, top_down_quat
 from actionreasoning.world.ground import free_spots
 from actionreasoning.world.models import Pose, WorldState
@@ -141,14 +143,13 @@ class PutDown:
         left out of the check: it ends on the ground by design)."""
         x, y, _ = spot.position_m
         start = Pose(position_m=(x, y, height), quat_xyzw=spot.quat_xyzw)
-        report = self.calls.measure(
-            state,
-            "collision_check",
-            pose=spot.model_dump(),
-            start_pose=start.model_dump(),
+        query = CollisionQuery(
+            pose=spot,
+            start_pose=start,
             gripper_opening_m=state.robot.gripper_width_m,
             ignore_brick_id=brick,
         )
+        report = self.calls.measure(state, COLLISION, query)
         return bool(report.reachable)
 
     def _reach_band(
@@ -166,7 +167,7 @@ class PutDown:
             x, y = radius * math.cos(azimuth), radius * math.sin(azimuth)
             poses = (Pose(position_m=(x, y, z), quat_xyzw=quat) for z in heights)
             return all(
-                self.calls.measure(state, "reachability", pose=pose.model_dump()).reachable
+                self.calls.measure(state, REACHABILITY, ReachQuery(pose=pose)).reachable
                 for pose in poses
             )
 

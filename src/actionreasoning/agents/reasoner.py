@@ -8,10 +8,10 @@ from typing import Any, Protocol
 
 from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.outputs import AgentAnswer
-from actionreasoning.agents.spec import AgentSpec
+from actionreasoning.agents.spec import AgentKey, AgentSpec
 from actionreasoning.agents.view import StateView
 from actionreasoning.records import LLMUsage
-from actionreasoning.tools.base import ToolModel
+from actionreasoning.tools.base import In, Out, Tool, ToolModel
 from actionreasoning.world.models import WorldState
 from actionreasoning.world.tolerances import Tolerances
 
@@ -42,11 +42,19 @@ class Briefing:
     """What a prompt tells an agent, in structured form, and the agent's tools: all a
     policy may read, whether it gets it as objects or parses it from the prompt's text."""
 
-    agent: str
+    agent: AgentKey
     view: StateView
     memory: TaskMemory
     tolerances: Tolerances
     call_tool: ToolRunner
+
+    def use(self, tool: Tool[In, Out], arguments: In) -> Out:
+        """Run one of the agent's tools as a language model calls it: by name, with the
+        arguments given as JSON."""
+        result = self.call_tool(tool.name, arguments.model_dump(mode="json", exclude_unset=True))
+        if not isinstance(result, tool.output_model):
+            raise TypeError(f"{tool.name} answered a {type(result).__name__}")
+        return result
 
 
 @dataclass(frozen=True)

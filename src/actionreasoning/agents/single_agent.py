@@ -27,8 +27,10 @@ from actionreasoning.agents.spec import SINGLE_AGENT_START, single_agent_spec
 from actionreasoning.agents.transcript import Outcome
 from actionreasoning.agents.validation import OutputError, check_answer
 from actionreasoning.agents.world import World
+from actionreasoning.records import FailureCode
 from actionreasoning.world.models import GoalPattern, WorldState
-from actionreasoning.world.scene_spec import GRIPPER_GAP_M, WorkspaceBox
+from actionreasoning.world.scene_spec import GRIPPER_GAP_M, WORKSPACE
+from actionreasoning.world.stages import Stage
 from actionreasoning.world.tolerances import Tolerances
 
 #: Waypoints the agent may spend per brick (a full cycle takes eight), plus one to finish.
@@ -58,12 +60,14 @@ class SingleAgent:
         budget = WAYPOINTS_PER_BRICK * len(goal.targets) + 1
         try:
             for call in range(budget):
-                answer, state = self.calls.ask(self.spec, self.memory, attempt=call + 1)
-                self._execute(cast(SingleAgentAnswer, answer), state)
+                answer, state = self.calls.ask(self.spec, self.memory, call + 1, SingleAgentAnswer)
+                self._execute(answer, state)
                 self.calls.conclude(Outcome.EXECUTED)
                 if answer.step == "done":
                     return self.result
-            raise TrialStopped("budget_exhausted", self.spec.key, f"{budget} waypoints spent")
+            raise TrialStopped(
+                FailureCode.BUDGET_EXHAUSTED, self.spec.key, f"{budget} waypoints spent"
+            )
         except BUILD_STOPPERS as error:
             self.result.failure = failure_of(error, self.spec.key)
         return self.result
@@ -72,14 +76,16 @@ class SingleAgent:
         """Check the answer's data (as any model answer is checked), move, grip, and keep the
         memory of the cycle."""
         try:
-            answer = cast(SingleAgentAnswer, check_answer(answer, self.spec, state, WorkspaceBox()))
+            answer = cast(SingleAgentAnswer, check_answer(answer, self.spec, state, WORKSPACE))
         except OutputError as error:
-            raise TrialStopped("invalid_output", self.spec.key, str(error)) from None
+            raise TrialStopped(FailureCode.INVALID_OUTPUT, self.spec.key, str(error)) from None
         update: dict[str, object] = {"step": answer.step}
-        if answer.step == "pre_grasp":
+        if answer.step == Stage.PRE_GRASP:
             if answer.brick_id is None or answer.target_index is None:
                 raise TrialStopped(
-                    "invalid_output", self.spec.key, "pre_grasp names no brick_id or target_index"
+                    FailureCode.INVALID_OUTPUT,
+                    self.spec.key,
+                    "pre_grasp names no brick_id or target_index",
                 )
             update |= {"current_brick": answer.brick_id, "current_target": answer.target_index}
         if answer.waypoint is not None:
@@ -92,7 +98,7 @@ class SingleAgent:
         brick, target = self.memory.current_brick, self.memory.current_target
         if brick is None or target is None:
             return
-        if answer.step == "release":
+        if answer.step == Stage.RELEASE:
             self.result.placements[target] = brick
             placed = (*self.memory.placed, PlacedBrick(brick_id=brick, target_index=target))
             self.memory = self.memory.model_copy(update={"placed": placed})

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import cache
 from importlib import resources
+from typing import Final, Literal
 
 import yaml
 
@@ -17,7 +18,12 @@ from actionreasoning.agents import outputs
 from actionreasoning.agents.outputs import AgentAnswer, SingleAgentAnswer
 from actionreasoning.agents.view import Scope
 from actionreasoning.tools.registry import TOOLS
+from actionreasoning.world.stages import Stage
 from actionreasoning.world.tolerances import Tolerances
+
+#: The merged agent's key; the six agents are keyed by their stages.
+SINGLE_AGENT: Final = "single_agent"
+AgentKey = Stage | Literal["single_agent"]
 
 
 @dataclass(frozen=True)
@@ -31,7 +37,7 @@ class AgentSpec:
     """
 
     number: int
-    key: str
+    key: AgentKey
     name: str
     role: str
     gate: str
@@ -57,7 +63,7 @@ def agent_specs() -> tuple[AgentSpec, ...]:
         specs.append(
             AgentSpec(
                 number=number,
-                key=entry["key"],
+                key=Stage(entry["key"]),
                 name=entry["name"],
                 role=entry["role"],
                 gate=entry["gate"],
@@ -74,7 +80,7 @@ def agent_specs() -> tuple[AgentSpec, ...]:
 
 
 #: The single agent's task-memory step before its first waypoint.
-SINGLE_AGENT_START = "start"
+SINGLE_AGENT_START: Final = "start"
 SINGLE_AGENT_CYCLE = (
     "Per brick, answer one waypoint per call in this order: pre_grasp (name brick_id and "
     "target_index; the approach pose above the brick, then open the gripper), descent (straight "
@@ -96,7 +102,7 @@ def single_agent_spec() -> AgentSpec:
     thinking = tuple(f"{spec.name}: {step}" for spec in specs for step in spec.thinking)
     return AgentSpec(
         number=0,
-        key="single_agent",
+        key=SINGLE_AGENT,
         name="Single agent (all six roles merged)",
         role=role,
         gate="",

@@ -21,7 +21,7 @@ from actionreasoning.agents.spec import AgentSpec
 from actionreasoning.errors import ActionReasoningError
 from actionreasoning.tools.registry import TOOLS
 from actionreasoning.world.models import WorldState
-from actionreasoning.world.scene_spec import WorkspaceBox
+from actionreasoning.world.scene_spec import WORKSPACE, WorkspaceBox
 
 MAX_ANSWER_CHARS = 20_000
 MAX_ERRORS_SHOWN = 3
@@ -33,7 +33,7 @@ class OutputError(ActionReasoningError):
 
 
 def parse_answer(
-    text: str, spec: AgentSpec, state: WorldState, workspace: WorkspaceBox = WorkspaceBox()
+    text: str, spec: AgentSpec, state: WorldState, workspace: WorkspaceBox = WORKSPACE
 ) -> AgentAnswer:
     """The answer in ``text`` as ``spec``'s output model, checked and normalised."""
     data = _json_object(text)

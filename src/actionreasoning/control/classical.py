@@ -17,6 +17,7 @@ from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointC
 from actionreasoning.sim.perceive import Sensor
 from actionreasoning.world.geometry import QuatXYZW, Vec3, quat_yaw, top_down_quat
 from actionreasoning.world.models import GoalPattern, Pose
+from actionreasoning.world.stages import Stage
 
 
 @dataclass(frozen=True)
@@ -69,7 +70,7 @@ class ClassicalController:
         above = (position[0], position[1], self.script.transfer_height_m)
         return arm.solve(above, top_down_quat(yaw)).joints_rad[6]
 
-    def place_brick(self, brick: int, target: Pose) -> Iterator[str]:
+    def place_brick(self, brick: int, target: Pose) -> Iterator[Stage]:
         """Pick brick ``brick`` and put it on ``target``; yields each finished stage's name."""
         s, run = self.script, self.controller.execute
         position, quat = self.sensor.brick_pose(brick)
@@ -84,7 +85,7 @@ class ClassicalController:
 
         steps = [
             (
-                "pre_grasp",
+                Stage.PRE_GRASP,
                 Waypoint(
                     pose=at(px, py, pz + s.approach_height_m, pick_yaw),
                     gripper=GripperCommand.OPEN,
@@ -92,15 +93,15 @@ class ClassicalController:
                 ),
             ),
             (
-                "descent",
+                Stage.DESCENT,
                 Waypoint(pose=at(px, py, pz, pick_yaw), path="linear", ticks=vertical),
             ),
             (
-                "grasp",
+                Stage.GRASP,
                 Waypoint(pose=at(px, py, pz, pick_yaw), gripper=GripperCommand.CLOSE, ticks=1),
             ),
             (
-                "lift",
+                Stage.LIFT,
                 Waypoint(
                     pose=at(px, py, s.transfer_height_m, pick_yaw),
                     path="linear",
@@ -108,11 +109,11 @@ class ClassicalController:
                 ),
             ),
             (
-                "transfer",
+                Stage.TRANSFER,
                 Waypoint(pose=at(tx, ty, s.transfer_height_m, place_yaw), ticks=transfer),
             ),
             (
-                "placement",
+                Stage.PLACEMENT,
                 Waypoint(
                     pose=at(tx, ty, tz + s.release_height_m, place_yaw),
                     path="linear",
@@ -120,7 +121,7 @@ class ClassicalController:
                 ),
             ),
             (
-                "release",
+                Stage.RELEASE,
                 Waypoint(
                     pose=at(tx, ty, tz + s.release_height_m, place_yaw),
                     gripper=GripperCommand.OPEN,
@@ -128,7 +129,7 @@ class ClassicalController:
                 ),
             ),
             (
-                "retreat",
+                Stage.RETREAT,
                 Waypoint(
                     pose=at(tx, ty, s.transfer_height_m, place_yaw),
                     path="linear",

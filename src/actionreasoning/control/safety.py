@@ -18,15 +18,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from actionreasoning.errors import TrialAborted
+from actionreasoning.records import FailureCode
 from actionreasoning.world.geometry import Vec3
-from actionreasoning.world.scene_spec import WorkspaceBox
+from actionreasoning.world.scene_spec import WORKSPACE, WorkspaceBox
 
 
 @dataclass(frozen=True)
 class SafetyLimits:
     """The envelope every commanded motion must stay in."""
 
-    workspace: WorkspaceBox = WorkspaceBox()
+    workspace: WorkspaceBox = WORKSPACE
     min_height_m: float = 0.02
     #: Tool centre point above a crossed brick's top. A held brick hangs 3 cm below it, so its
     #: bottom clears the brick by 1 cm; the built-in policies pass with 4.7 cm or more.
@@ -102,4 +103,4 @@ def _fmt(point: np.ndarray) -> str:
 
 
 def _refuse(detail: str) -> None:
-    raise TrialAborted("safety_limit", detail)
+    raise TrialAborted(FailureCode.SAFETY_LIMIT, detail)

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.agents.single_agent import SingleAgent
+from actionreasoning.agents.spec import SINGLE_AGENT, AgentKey
 from actionreasoning.errors import ActionReasoningError
 from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.eval.trial import TrialSpec, trial_world
@@ -26,7 +27,7 @@ class _Caught(Exception):
 class _Catcher:
     """The built-in reasoner, stopping the build at the first request of ``agent``."""
 
-    agent: str
+    agent: AgentKey
     name: str = "builtin"
 
     def decide(self, request: AgentRequest) -> AgentReply:
@@ -35,14 +36,14 @@ class _Catcher:
         return BuiltinReasoner().decide(request)
 
 
-def first_prompt(spec: TrialSpec, agent: str) -> str:
-    """The prompt ``agent`` (a key, or ``single_agent``) gets first in ``spec``'s trial."""
+def first_prompt(spec: TrialSpec, agent: AgentKey) -> str:
+    """The prompt ``agent`` gets first in ``spec``'s trial."""
     with trial_world(spec) as world:
         sim = SimWorld(world.controller, spec.goal, world.sensor)
         catcher, config = _Catcher(agent), spec.config
         runner = (
             SingleAgent(sim, catcher, config.tolerances)
-            if agent == "single_agent"
+            if agent == SINGLE_AGENT
             else Orchestrator(sim, catcher, config.tolerances, config.retries)
         )
         try:

@@ -30,6 +30,7 @@ from actionreasoning.eval.jobs import (
 from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.provenance import current_provenance, stamp
 from actionreasoning.eval.results import TrialResult
+from actionreasoning.eval.rules import Method
 from actionreasoning.eval.run_dir import (
     RunManifest,
     append_result,
@@ -40,7 +41,7 @@ from actionreasoning.eval.run_dir import (
 )
 from actionreasoning.eval.run_lock import run_lock
 from actionreasoning.eval.summary import RunSummary, summarize, summary_markdown
-from actionreasoning.eval.trial import Method, TrialSpec
+from actionreasoning.eval.trial import TrialSpec
 from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.factory import prepare
 from actionreasoning.world.models import GoalPattern

@@ -24,7 +24,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
 from actionreasoning.errors import ConfigError, StorageError
 from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.trial import trial_seed
+from actionreasoning.eval.rules import trial_seed
 from actionreasoning.world.config_files import read_user_file
 
 

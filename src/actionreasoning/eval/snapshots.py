@@ -9,26 +9,18 @@ simulator, so a trial with snapshots gives the same results as one without.
 
 from __future__ import annotations
 
-from io import BytesIO
-
-import imageio.v3 as iio
 import numpy as np
-from matplotlib.figure import Figure
 
 from actionreasoning.control.classical import StageEvent
+from actionreasoning.eval.images import FRAMES_DIR, image_grid, png
 from actionreasoning.eval.layout import RunDir
 from actionreasoning.sim.camera import build_closeup, closeup, overview, render
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.geometry import Vec3
+from actionreasoning.world.stages import Stage
 
 WIDTH, HEIGHT = 320, 240
-PICK_STAGES = frozenset({"pre_grasp", "descent", "grasp", "lift"})
-FRAMES_DIR = "frames"
-
-
-def png(image: np.ndarray) -> bytes:
-    """An RGB image encoded as PNG."""
-    return iio.imwrite("<bytes>", image, extension=".png")
+PICK_STAGES = frozenset({Stage.PRE_GRASP, Stage.DESCENT, Stage.GRASP, Stage.LIFT})
 
 
 class SnapshotRecorder:
@@ -79,36 +71,3 @@ def sheet_png(rows: dict[int, list[tuple[str, np.ndarray]]]) -> bytes:
     return image_grid(
         [(f"brick {brick}", row) for brick, row in sorted(rows.items())], titles_on_first_row=True
     )
-
-
-def image_grid(
-    rows: list[tuple[str, list[tuple[str, np.ndarray | None]]]], titles_on_first_row: bool
-) -> bytes:
-    """Labelled rows of titled pictures as one PNG; a ``None`` picture leaves its cell blank.
-
-    With ``titles_on_first_row`` a column's title is printed once, and again only where a
-    row's stage differs from the first row's; otherwise every cell has its title.
-    """
-    n_rows, n_cols = len(rows), max(len(cells) for _, cells in rows)
-    figure = Figure(figsize=(1.9 * n_cols, 1.5 * n_rows), dpi=100)
-    axes = figure.subplots(n_rows, n_cols, squeeze=False)
-    first = rows[0][1]
-    for r, (label, cells) in enumerate(rows):
-        for c, axis in enumerate(axes[r]):
-            axis.set_xticks([])
-            axis.set_yticks([])
-            if c >= len(cells) or cells[c][1] is None:
-                axis.set_axis_off()
-                continue
-            stage, image = cells[c]
-            axis.imshow(image)
-            shown_above = c < len(first) and first[c][1] is not None and first[c][0] == stage
-            repeated = r > 0 and shown_above
-            if not (titles_on_first_row and repeated):
-                axis.set_title(stage.replace("_", " "), fontsize=9)
-        axes[r][0].set_axis_on()
-        axes[r][0].set_ylabel(label, fontsize=9)
-    figure.tight_layout(pad=0.3)
-    buffer = BytesIO()
-    figure.savefig(buffer, format="png")
-    return buffer.getvalue()

@@ -10,8 +10,8 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.eval.provenance import Provenance
 from actionreasoning.eval.results import LLMUsage, TrialResult
-from actionreasoning.eval.trial import SuccessRule
-from actionreasoning.records import FAILURE_CODES
+from actionreasoning.eval.rules import SuccessRule
+from actionreasoning.records import FailureCode
 from actionreasoning.world.noise import NoiseLevel
 from actionreasoning.world.physics import PhysicsProfile
 
@@ -46,8 +46,8 @@ class RunSummary(Provenance):
     success_rule: str
     successful: dict[str, MetricStats]
     all_trials: dict[str, MetricStats]
-    failures: dict[str, int]
-    failure_examples: dict[str, int]
+    failures: dict[FailureCode, int]
+    failure_examples: dict[FailureCode, int]
     llm_usage: LLMUsage
     llm_usage_by_agent: dict[str, LLMUsage] = Field(default_factory=dict)
     llm_mode: str | None = None
@@ -89,7 +89,7 @@ def summarize(
     first = results[0]
     ok = [r for r in results if r.success]
     failures = Counter(r.failure.reason for r in results if r.failure is not None)
-    examples: dict[str, int] = {}
+    examples: dict[FailureCode, int] = {}
     for r in results:
         if r.failure is not None:
             examples.setdefault(r.failure.reason, r.trial)
@@ -162,8 +162,7 @@ def summary_markdown(summary: RunSummary) -> str:
     if summary.failures:
         lines += ["| Failure reason | Meaning | Trials | Example trial |", "|---|---|---|---|"]
         lines += [
-            f"| `{reason}` | {FAILURE_CODES.get(reason, '')} | {count} | "
-            f"{summary.failure_examples[reason]} |"
+            f"| `{reason}` | {reason.meaning} | {count} | {summary.failure_examples[reason]} |"
             for reason, count in summary.failures.items()
         ]
     else:

@@ -5,8 +5,6 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
-from enum import StrEnum
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,54 +17,20 @@ from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointC
 from actionreasoning.errors import ConfigError, TrialAborted, UnreachableError
 from actionreasoning.eval.metrics import brick_metrics
 from actionreasoning.eval.results import BrickResult, Failure, LLMUsage, TrialMetrics, TrialResult
+from actionreasoning.eval.rules import Method, trial_seed
 from actionreasoning.eval.sim_world import SimWorld
+from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.factory import make_reasoner
+from actionreasoning.records import FailureCode
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.perceive import Sensor
 from actionreasoning.sim.scene import Scene
-from actionreasoning.world.geometry import Vec3
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import READY_POSE, GoalPattern
 from actionreasoning.world.noise import vary_bricks
 
-if TYPE_CHECKING:  # trial_config.py takes SuccessRule from here
-    from actionreasoning.eval.trial_config import TrialConfig
-
-#: Where the arm waits between bricks and at the end: above the middle of the workspace.
 SPAWN_SETTLE_S = 0.25
 FINAL_SETTLE_S = 1.0
-
-
-class Method(StrEnum):
-    """The reasoning methods a trial can run."""
-
-    AGENTS = "agents"
-    SINGLE_AGENT = "single-agent"
-    CLASSICAL = "classical"
-
-
-@dataclass(frozen=True)
-class SuccessRule:
-    """A trial succeeds when every brick is within these limits of its target and at rest."""
-
-    max_center_offset_cm: float = 2.0
-    max_rotation_error_deg: float = 5.0
-    max_speed_mps: float = 0.01
-    max_angular_speed_radps: float = 0.05
-
-    def is_placed(self, brick: BrickResult) -> bool:
-        """Whether a brick ended within the offset and rotation limits of its target."""
-        return (
-            brick.center_offset_cm <= self.max_center_offset_cm
-            and brick.rotation_error_deg <= self.max_rotation_error_deg
-        )
-
-    def is_at_rest(self, linear_mps: Vec3, angular_radps: Vec3) -> bool:
-        """Whether a brick moving with these velocities counts as at rest."""
-        return (
-            float(np.linalg.norm(linear_mps)) <= self.max_speed_mps
-            and float(np.linalg.norm(angular_radps)) <= self.max_angular_speed_radps
-        )
 
 
 @dataclass(frozen=True)
@@ -79,16 +43,11 @@ class TrialSpec:
     goal: GoalPattern
     run_seed: int
     trial: int
-    config: TrialConfig
+    config: TrialConfig = TrialConfig()
 
     def __post_init__(self) -> None:
         if self.method is not Method.CLASSICAL and self.config.llm is None:
             raise ConfigError(f"--method {self.method} needs a reasoning backend (config.llm)")
-
-
-def trial_seed(run_seed: int, trial: int) -> int:
-    """The seed of trial ``trial``: derived from the run seed and the index only."""
-    return int(np.random.SeedSequence([run_seed, trial]).generate_state(1)[0])
 
 
 StageHook = Callable[[Scene, StageEvent], None]
@@ -235,13 +194,13 @@ def _measure(spec: TrialSpec, seed: int, scene: Scene, outcome: BuildResult) -> 
     if failure is None and not all(within):
         worst = max(bricks, key=lambda b: b.center_offset_cm)
         failure = Failure(
-            reason="misplaced",
+            reason=FailureCode.MISPLACED,
             detail=f"{within.count(False)} of {len(bricks)} bricks outside "
             f"{rule.max_center_offset_cm} cm / {rule.max_rotation_error_deg} deg; worst brick "
             f"{worst.id}: {worst.center_offset_cm:.2f} cm, {worst.rotation_error_deg:.2f} deg",
         )
     if failure is None and moving:
-        failure = Failure(reason="not_at_rest", detail=f"bricks still moving: {moving}")
+        failure = Failure(reason=FailureCode.NOT_AT_REST, detail=f"bricks still moving: {moving}")
     return TrialResult(
         method=str(spec.method),
         pattern=spec.pattern_name,

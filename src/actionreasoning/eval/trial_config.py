@@ -13,10 +13,10 @@ from pydantic import BaseModel, ConfigDict, field_serializer
 from actionreasoning.agents.orchestrator import Budgets
 from actionreasoning.control.safety import SafetyLimits
 from actionreasoning.control.waypoint import ControllerLimits
-from actionreasoning.eval.trial import SuccessRule
+from actionreasoning.eval.rules import SuccessRule
 from actionreasoning.reasoners.factory import LLMConfig
 from actionreasoning.reasoners.llm import LLMLimits
-from actionreasoning.sim.scene import TrialBudget
+from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.noise import LEVELS, NoiseLevel
 from actionreasoning.world.physics import PAPER, PhysicsProfile
 from actionreasoning.world.scene_spec import SceneSpec

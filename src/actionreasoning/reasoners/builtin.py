@@ -10,8 +10,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from itertools import pairwise
+from typing import Literal
 
-from actionreasoning.agents.memory import TaskMemory
+from actionreasoning.agents.memory import PlacementPhase, TaskMemory
 from actionreasoning.agents.outputs import (
     MAX_MOVE_S,
     AgentAnswer,
@@ -25,12 +27,13 @@ from actionreasoning.agents.outputs import (
     WaypointProposal,
 )
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest, Briefing
-from actionreasoning.agents.spec import SINGLE_AGENT_START
+from actionreasoning.agents.spec import SINGLE_AGENT, SINGLE_AGENT_START, AgentKey
 from actionreasoning.agents.view import BrickView
-from actionreasoning.tools.grasp_plan import GraspOption
-from actionreasoning.tools.placement import PlacementPose
+from actionreasoning.tools.grasp_plan import GRASP_OPTIONS, GraspOption, GraspOptionsQuery
+from actionreasoning.tools.placement import PLACEMENT_POSE, PlacementPose, PlacementQuery
 from actionreasoning.world.models import Pose
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M, RETREAT_M
+from actionreasoning.world.stages import Stage
 from actionreasoning.world.tolerances import Tolerances
 
 LIFT_CLEARANCE_M = 0.12
@@ -46,16 +49,9 @@ LIFT_SPEEDS_MPS = (0.02, 0.01, 0.03, 0.015, 0.025)
 CARRY_SPEED_MPS = 0.10
 
 #: The single agent's cycle: the step that follows the one executed last.
-NEXT_STEP = {
-    SINGLE_AGENT_START: "pre_grasp",
-    "pre_grasp": "descent",
-    "descent": "grasp",
-    "grasp": "lift",
-    "lift": "transfer",
-    "transfer": "placement",
-    "placement": "release",
-    "release": "retreat",
-    "retreat": "pre_grasp",
+NEXT_STEP: dict[str, Stage] = {
+    SINGLE_AGENT_START: Stage.PRE_GRASP,
+    **dict(pairwise((*Stage, Stage.PRE_GRASP))),
 }
 
 
@@ -92,14 +88,12 @@ def _pre_grasp(briefing: Briefing) -> AgentAnswer:
     tol = briefing.tolerances
 
     def best_grasp(brick: BrickView) -> GraspOption:
-        options = briefing.call_tool(
-            "grasp_options",
-            {
-                "brick_id": brick.id,
-                "target_index": target.index,
-                "descent_opening_m": _descent_opening(brick, tol),
-            },
-        ).options
+        query = GraspOptionsQuery(
+            brick_id=brick.id,
+            target_index=target.index,
+            descent_opening_m=_descent_opening(brick, tol),
+        )
+        options = briefing.use(GRASP_OPTIONS, query).options
         return min(options, key=lambda o: o.wrist_deg if o.reachable else math.inf)
 
     def usable(option: GraspOption) -> bool:
@@ -157,8 +151,10 @@ def _lift(briefing: Briefing) -> AgentAnswer:
 
 
 def _placement(briefing: Briefing) -> AgentAnswer:
-    setting_down = any(earlier.agent == "placement" for earlier in briefing.memory.this_brick)
-    placement = _placement_pose(briefing, "linear" if setting_down else "joint")
+    phase = briefing.memory.phase
+    if phase is None:
+        raise ValueError("memory shows no placement phase")
+    placement = _placement_pose(briefing, "linear" if phase == PlacementPhase.SET_DOWN else "joint")
     tilt, limit = placement.tilt_in_hand_deg, briefing.tolerances.eps_tilt_deg
     if tilt > limit:
         return PlacementAnswer(
@@ -178,17 +174,13 @@ def _placement(briefing: Briefing) -> AgentAnswer:
     )
 
 
-def _placement_pose(briefing: Briefing, approach: str) -> PlacementPose:
+def _placement_pose(briefing: Briefing, approach: Literal["joint", "linear"]) -> PlacementPose:
     """The placement_pose tool's report for the held brick and its target."""
     memory = briefing.memory
-    return briefing.call_tool(
-        "placement_pose",
-        {
-            "brick_id": _current(memory),
-            "target_index": memory.current_target or 0,
-            "approach": approach,
-        },
+    query = PlacementQuery(
+        brick_id=_current(memory), target_index=memory.current_target or 0, approach=approach
     )
+    return briefing.use(PLACEMENT_POSE, query)
 
 
 def _slot(briefing: Briefing, slot: Pose) -> WaypointProposal:
@@ -214,12 +206,12 @@ def _single_agent(briefing: Briefing) -> AgentAnswer:
     used = {p.brick_id for p in memory.placed}
     left = [b for b in view.bricks if b.id not in used and b.pickable]
     ready = _ready(briefing)
-    if step == "pre_grasp" and (not view.targets or not left):
+    if step == Stage.PRE_GRASP and (not view.targets or not left):
         return SingleAgentAnswer(
             step="done", waypoint=_proposal(ready), rationale="nothing left to build"
         )
     here = view.robot.tool_pose
-    if step == "pre_grasp":
+    if step == Stage.PRE_GRASP:
         pick = _pre_grasp(briefing)
         assert isinstance(pick, PreGraspAnswer) and pick.brick_id is not None
         opening = _descent_opening(view.brick(pick.brick_id), briefing.tolerances)
@@ -232,16 +224,16 @@ def _single_agent(briefing: Briefing) -> AgentAnswer:
             gripper_opening_m=opening,
             rationale=pick.rationale,
         )
-    if step in ("descent", "lift"):
-        moved = _descent(briefing) if step == "descent" else _lift(briefing)
+    if step in (Stage.DESCENT, Stage.LIFT):
+        moved = _descent(briefing) if step == Stage.DESCENT else _lift(briefing)
         assert isinstance(moved, DescentAnswer | LiftAnswer)
         return SingleAgentAnswer(step=step, waypoint=moved.waypoint, rationale=moved.rationale)
-    if step == "grasp":
+    if step == Stage.GRASP:
         return SingleAgentAnswer(step=step, gripper="close", rationale="close on the brick")
-    if step in ("transfer", "placement"):
+    if step in (Stage.TRANSFER, Stage.PLACEMENT):
         slot = _slot(briefing, _placement_pose(briefing, "joint").slot_pose)
         x, y, z = slot.position_m
-        if step == "transfer":
+        if step == Stage.TRANSFER:
             above = (x, y, max(z, here.position_m[2]))
             return SingleAgentAnswer(
                 step=step,
@@ -255,7 +247,7 @@ def _single_agent(briefing: Briefing) -> AgentAnswer:
             ),
             rationale="straight down onto the slot",
         )
-    if step == "release":
+    if step == Stage.RELEASE:
         release = _release(briefing)
         assert isinstance(release, ReleaseAnswer)
         return SingleAgentAnswer(
@@ -273,14 +265,14 @@ def _single_agent(briefing: Briefing) -> AgentAnswer:
     )
 
 
-POLICIES: dict[str, Callable[[Briefing], AgentAnswer]] = {
-    "pre_grasp": _pre_grasp,
-    "descent": _descent,
-    "grasp": _grasp,
-    "lift": _lift,
-    "placement": _placement,
-    "release": _release,
-    "single_agent": _single_agent,
+POLICIES: dict[AgentKey, Callable[[Briefing], AgentAnswer]] = {
+    Stage.PRE_GRASP: _pre_grasp,
+    Stage.DESCENT: _descent,
+    Stage.GRASP: _grasp,
+    Stage.LIFT: _lift,
+    Stage.PLACEMENT: _placement,
+    Stage.RELEASE: _release,
+    SINGLE_AGENT: _single_agent,
 }
 
 

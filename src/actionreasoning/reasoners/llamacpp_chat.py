@@ -14,7 +14,7 @@ from typing import Any
 
 from actionreasoning.errors import ConfigError, LLMError
 from actionreasoning.reasoners.chat import ChatReply, ChatRequest
-from actionreasoning.records import LLMUsage
+from actionreasoning.records import FailureCode, LLMUsage
 
 CONTEXT_TOKENS = 8192
 MAX_COMPLETION_TOKENS = 300
@@ -65,7 +65,9 @@ class LlamaCppChat:
                 max_tokens=MAX_COMPLETION_TOKENS,
             )
         except ValueError as error:  # e.g. a prompt longer than the context
-            raise LLMError("llm_bad_request", f"llama.cpp refused the request: {error}") from None
+            raise LLMError(
+                FailureCode.LLM_BAD_REQUEST, f"llama.cpp refused the request: {error}"
+            ) from None
         usage = result.get("usage") or {}
         return ChatReply(
             model=str(result.get("model", self.label)),

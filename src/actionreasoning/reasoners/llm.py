@@ -19,7 +19,7 @@ from actionreasoning.agents.reasoner import AgentReply, AgentRequest, Reasoner
 from actionreasoning.agents.validation import OutputError, parse_answer
 from actionreasoning.errors import LLMError, ToolError
 from actionreasoning.reasoners.chat import ChatBackend, ChatRequest, Message
-from actionreasoning.records import LLMUsage
+from actionreasoning.records import FailureCode, LLMUsage
 
 #: How a tool turn's results and its last turn are announced to the model.
 TOOL_RESULTS = "Tool results: "
@@ -93,7 +93,7 @@ class LLMReasoner:
     ) -> AgentReply:
         if self.fallback is None:
             raise LLMError(
-                "invalid_output",
+                FailureCode.INVALID_OUTPUT,
                 f"{len(repairs)} answers refused; last: {repairs[-1]}",
                 repairs=repairs,
                 usage=usage,

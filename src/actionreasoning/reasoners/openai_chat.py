@@ -41,7 +41,7 @@ from actionreasoning.reasoners.chat import (
 )
 from actionreasoning.reasoners.credentials import Redactor, check_base_url, shown_url
 from actionreasoning.reasoners.deadline import Watchdog
-from actionreasoning.records import LLMUsage
+from actionreasoning.records import FailureCode, LLMUsage
 
 #: Answers are a waypoint and a sentence or two; a runaway generation is cut here.
 MAX_COMPLETION_TOKENS = 300
@@ -129,11 +129,11 @@ class OpenAIChat:
             )
         except _FormatRefused as refused:
             raise LLMError(
-                "llm_bad_request", f"{self.where} refused the request: {refused}"
+                FailureCode.LLM_BAD_REQUEST, f"{self.where} refused the request: {refused}"
             ) from None
         latency = time.perf_counter() - started
         if not completion.choices:
-            raise LLMError("llm_bad_response", f"{self.where} answered with no choices")
+            raise LLMError(FailureCode.LLM_BAD_RESPONSE, f"{self.where} answered with no choices")
         content = self.redact(completion.choices[0].message.content or "")
         usage = completion.usage
         return ChatReply(
@@ -177,11 +177,13 @@ class OpenAIChat:
                 continue
             except (openai.APIError, ValueError) as error:  # a body that is not JSON, ...
                 raise LLMError(
-                    "llm_bad_response",
+                    FailureCode.LLM_BAD_RESPONSE,
                     self.redact(f"{self.where} sent an unreadable answer ({error})")[:300],
                 ) from None
             if not isinstance(completion, ChatCompletion):
-                raise LLMError("llm_bad_response", f"{self.where} did not send a chat completion")
+                raise LLMError(
+                    FailureCode.LLM_BAD_RESPONSE, f"{self.where} did not send a chat completion"
+                )
             return completion
 
     def _failure(
@@ -192,23 +194,23 @@ class OpenAIChat:
             return self._out_of_time()
         if isinstance(error, openai.APITimeoutError) or self._watchdog.expired:
             return LLMError(
-                "llm_timeout",
+                FailureCode.LLM_TIMEOUT,
                 f"{self.where} did not answer within {self.options.timeout_s:g} s "
                 f"({retries} retries)",
             )
         if isinstance(error, openai.APIConnectionError):
             return LLMError(
-                "llm_unreachable", f"cannot connect to {self.where} ({retries} retries)"
+                FailureCode.LLM_UNREACHABLE, f"cannot connect to {self.where} ({retries} retries)"
             )
         status = error.status_code
         if status in (400, 422) or "response_format" in str(error.message):
             return _FormatRefused(f"HTTP {status} {self.redact(str(error.message))[:200]}")
         if status == 429:
             return LLMError(
-                "llm_rate_limited", f"{self.where} kept answering 429 ({retries} retries)"
+                FailureCode.LLM_RATE_LIMITED, f"{self.where} kept answering 429 ({retries} retries)"
             )
         return LLMError(
-            "llm_server_error", f"{self.where} answered HTTP {status} ({retries} retries)"
+            FailureCode.LLM_SERVER_ERROR, f"{self.where} answered HTTP {status} ({retries} retries)"
         )
 
     def _retry_wait(
@@ -227,7 +229,7 @@ class OpenAIChat:
 
     def _out_of_time(self) -> LLMError:
         return LLMError(
-            "time_budget", f"the trial's wall time ran out while waiting for {self.where}"
+            FailureCode.TIME_BUDGET, f"the trial's wall time ran out while waiting for {self.where}"
         )
 
     def negotiate(self) -> StructuredMode:
@@ -242,7 +244,9 @@ class OpenAIChat:
                 continue
             self.mode = mode
             return mode
-        raise LLMError("llm_bad_request", f"{self.where} refused every request: {refusals}")
+        raise LLMError(
+            FailureCode.LLM_BAD_REQUEST, f"{self.where} refused every request: {refusals}"
+        )
 
 
 def _retry_after(header: str, default: float) -> float:

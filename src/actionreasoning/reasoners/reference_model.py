@@ -32,6 +32,7 @@ from actionreasoning.agents.spec import AgentSpec, agent_specs, single_agent_spe
 from actionreasoning.agents.view import StateView
 from actionreasoning.reasoners import builtin
 from actionreasoning.reasoners.llm import NO_MORE_TOOLS, TOOL_RESULTS
+from actionreasoning.tools.base import ToolModel
 from actionreasoning.tools.registry import TOOLS
 from actionreasoning.world.tolerances import Tolerances
 
@@ -63,7 +64,7 @@ def reply(messages: Sequence[Message]) -> str:
     results = _tool_results(messages)
     exhausted = NO_MORE_TOOLS in _text(messages[-1])
 
-    def call_tool(name: str, arguments: Mapping[str, Any]) -> BaseModel:
+    def call_tool(name: str, arguments: Mapping[str, Any]) -> ToolModel:
         key = _key(name, arguments)
         if key not in results:
             if exhausted:

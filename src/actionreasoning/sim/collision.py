@@ -8,36 +8,18 @@ points: negative means penetration.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import pybullet as p
 
 from actionreasoning.sim.kinematics import KinematicArm
-from actionreasoning.world.geometry import QuatXYZW, Vec3
+from actionreasoning.world.clearance import Box, Clearance
+from actionreasoning.world.geometry import Vec3
 
 #: Distances beyond this are not resolved: a clearance of this value means "at least".
 SEARCH_DISTANCE_M = 0.25
 #: Arm links that can come near the ground (the elbow and everything after it).
 FIRST_GROUND_LINK = 3
 PARKED = (0.0, 0.0, -100.0)
-
-
-@dataclass(frozen=True)
-class Box:
-    """A named box in the world frame."""
-
-    name: str
-    position_m: Vec3
-    quat_xyzw: QuatXYZW
-    size_m: Vec3
-
-
-@dataclass(frozen=True)
-class Clearance:
-    """The smallest distance found and between what."""
-
-    distance_m: float
-    between: str
 
 
 class CollisionChecker:

@@ -20,6 +20,7 @@ import pybullet as p
 import pybullet_data
 
 from actionreasoning.errors import TrialAborted
+from actionreasoning.records import FailureCode
 from actionreasoning.sim.robot_model import (
     ARM_JOINTS,
     FINGER_LEFT,
@@ -29,6 +30,7 @@ from actionreasoning.sim.robot_model import (
     TCP_LINK,
     load_robot,
 )
+from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.geometry import QuatXYZW, Vec3
 from actionreasoning.world.models import Pose
 from actionreasoning.world.physics import PAPER, PhysicsProfile
@@ -45,15 +47,6 @@ BRICK_COLORS = (
     (0.75, 0.35, 0.30, 1.0),
     (0.65, 0.30, 0.15, 1.0),
 )
-
-
-@dataclass(frozen=True)
-class TrialBudget:
-    """What a trial may spend: simulation steps and wall-clock seconds."""
-
-    max_steps: int = 400_000
-    max_wall_s: float = 3600.0
-
 
 #: Wall time is looked at every this many steps (and before every agent call).
 WALL_CHECK_TICKS = 240
@@ -235,7 +228,9 @@ class Scene:
             p.stepSimulation(physicsClientId=self.client)
             self.ticks += 1
             if self.ticks > self.budget.max_steps:
-                raise TrialAborted("step_budget", f"{self.budget.max_steps} simulation steps spent")
+                raise TrialAborted(
+                    FailureCode.STEP_BUDGET, f"{self.budget.max_steps} simulation steps spent"
+                )
             if self.ticks % WALL_CHECK_TICKS == 0:
                 self.check_wall_time()
 
@@ -247,20 +242,24 @@ class Scene:
     def check_wall_time(self) -> None:
         """Raise ``TrialAborted("time_budget", ...)`` once the trial's wall time is spent."""
         if time.monotonic() > self._deadline:
-            raise TrialAborted("time_budget", f"{self.budget.max_wall_s:g} s of wall time spent")
+            raise TrialAborted(
+                FailureCode.TIME_BUDGET, f"{self.budget.max_wall_s:g} s of wall time spent"
+            )
 
     def check_physics(self) -> None:
         """Raise ``TrialAborted("physics_blowup", ...)`` if the state is not finite or a
         brick was flung out of the world."""
         joints, speeds = self.arm_joints()
         if not (np.all(np.isfinite(joints)) and np.all(np.isfinite(speeds))):
-            raise TrialAborted("physics_blowup", "the arm's joint state is not finite")
+            raise TrialAborted(FailureCode.PHYSICS_BLOWUP, "the arm's joint state is not finite")
         for brick in range(len(self.bricks)):
             position, quat = self.brick_pose(brick)
             inside = all(abs(v) <= WORLD_HALF_SIZE_M for v in position) and position[2] > -0.5
             if not (np.all(np.isfinite([*position, *quat])) and inside):
                 where = ", ".join(f"{v:.3f}" for v in position)
-                raise TrialAborted("physics_blowup", f"brick {brick} was flung to ({where}) m")
+                raise TrialAborted(
+                    FailureCode.PHYSICS_BLOWUP, f"brick {brick} was flung to ({where}) m"
+                )
 
     # --- measurement ------------------------------------------------------------------
     @property

@@ -1,8 +1,8 @@
 """What a tool is: a name, a description, typed input and output models, and a function.
 
 Tools read the world only through a :class:`ToolContext` (the measured WorldState plus the
-arm's kinematic model and collision checker), so a tool call by an LLM and one by Python
-code see the same thing.
+arm's kinematic model and collision checker, as the protocols of ``ports.py``), so a tool
+call by an LLM and one by Python code see the same thing.
 Every tool has a JSON schema for its arguments, given to LLMs as a function definition.
 """
 
@@ -14,8 +14,7 @@ from typing import Any, Generic, TypeVar, get_type_hints
 
 from pydantic import BaseModel, ConfigDict
 
-from actionreasoning.sim.collision import CollisionChecker
-from actionreasoning.sim.kinematics import KinematicArm
+from actionreasoning.tools.ports import ArmModel, ClearanceChecker
 from actionreasoning.world.models import WorldState
 
 In = TypeVar("In", bound=BaseModel)
@@ -34,8 +33,8 @@ class ToolContext:
     collision checker (both on the kinematic copy, never on the simulation)."""
 
     state: WorldState
-    arm: KinematicArm
-    collisions: CollisionChecker
+    arm: ArmModel
+    collisions: ClearanceChecker
 
 
 @dataclass(frozen=True)
@@ -64,7 +63,7 @@ class Tool(Generic[In, Out]):
         }
 
 
-def tool(name: str, function: Callable[[ToolContext, Any], Any]) -> Tool:
+def tool(name: str, function: Callable[[ToolContext, In], Out]) -> Tool[In, Out]:
     """A tool from a typed function ``(context, arguments) -> output``: its input and output
     models come from the type hints, its description from the docstring."""
     hints = get_type_hints(function)

@@ -14,8 +14,8 @@ from pydantic import Field
 from scipy.spatial.transform import Rotation, Slerp
 
 from actionreasoning.errors import UnreachableError
-from actionreasoning.sim.collision import Box, Clearance
 from actionreasoning.tools.base import ToolContext, ToolModel, tool
+from actionreasoning.world.clearance import Box, Clearance
 from actionreasoning.world.models import BrickState, Pose, WorldState
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M
 

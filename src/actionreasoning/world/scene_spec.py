@@ -52,6 +52,11 @@ class WorkspaceBox(BaseModel):
         )
 
 
+#: The workspace box: the agents' answers are checked against it (``agents/validation.py``)
+#: and so is every planned tool path (``control/safety.py``).
+WORKSPACE = WorkspaceBox()
+
+
 class BrickBody(BaseModel):
     """The physical properties of one spawned brick."""
 
@@ -79,7 +84,7 @@ class SceneSpec(BaseModel):
         0.24, description="Minimum centre distance of spawned catalogue bricks."
     )
     reach: ReachBand = ReachBand()
-    workspace: WorkspaceBox = WorkspaceBox()
+    workspace: WorkspaceBox = WORKSPACE
 
     def brick_body(self, lateral_friction: float, size_m: Vec3 | None = None) -> BrickBody:
         """A catalogue brick of ``size_m`` (default: this spec's size) with the given

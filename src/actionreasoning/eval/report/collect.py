@@ -12,9 +12,8 @@ import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path, PurePath
-from typing import Any, get_args
+from typing import Any
 
-from actionreasoning.agents.outputs import SingleAgentStep
 from actionreasoning.errors import ConfigError
 from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.provenance import Provenance
@@ -23,9 +22,6 @@ from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.run_dir import RunManifest
 from actionreasoning.eval.summary import RunSummary, summarize
 
-#: Stages in the order a brick goes through them: the single agent's cycle, whose names
-#: the six agents and the classical script share.
-STAGE_ORDER = tuple(step for step in get_args(SingleAgentStep) if step != "done")
 PATTERN_HASH = "pattern_sha256"
 
 

@@ -11,9 +11,10 @@ from pathlib import Path
 import imageio.v3 as iio
 import numpy as np
 
-from actionreasoning.eval.report.collect import STAGE_ORDER, Group
+from actionreasoning.eval.images import FRAMES_DIR, image_grid
+from actionreasoning.eval.report.collect import Group
 from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.snapshots import FRAMES_DIR, image_grid
+from actionreasoning.world.stages import Stage
 
 CLOSEUP = re.compile(r"b(?P<brick>\d+)_(?P<n>\d+)_(?P<stage>\w+)\.png")
 FRAME_S = 0.35
@@ -51,9 +52,8 @@ def stage_grid(groups: Sequence[Group], path: Path) -> Path | None:
         pictures = stage_pictures(directory, result.bricks[-1].id)
         if not pictures:
             continue
-        cells = [
-            (stage, iio.imread(pictures[stage]) if stage in pictures else None)
-            for stage in STAGE_ORDER
+        cells: list[tuple[str, np.ndarray | None]] = [
+            (stage, iio.imread(pictures[stage]) if stage in pictures else None) for stage in Stage
         ]
         while cells and cells[-1][1] is None:
             cells.pop()

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from actionreasoning.eval.report.collect import Group, condition_notes, labels, patterns
+from actionreasoning.records import FailureCode
 
 #: (summary metric, column title, scale, digits, lower is better)
 COLUMNS = (
@@ -29,7 +30,7 @@ class FailureRow:
 
     label: str
     pattern: str
-    reason: str
+    reason: FailureCode
     count: int
     trial: int
     detail: str
@@ -150,10 +151,10 @@ def to_markdown(table: Table) -> str:
     lines.append("")
     if table.failures:
         lines += [
-            "| Method | Pattern | Failure reason | Trials | Example |",
-            "|---|---|---|---|---|",
+            "| Method | Pattern | Failure reason | Meaning | Trials | Example |",
+            "|---|---|---|---|---|---|",
             *(
-                f"| {f.label} | {f.pattern} | `{f.reason}` | {f.count} | "
+                f"| {f.label} | {f.pattern} | `{f.reason}` | {f.reason.meaning} | {f.count} | "
                 f"trial {f.trial}: {f.detail.replace('|', '/')} |"
                 for f in table.failures
             ),
