@@ -134,7 +134,7 @@ def test_llm_cost_and_the_failure_taxonomy_are_reported(tmp_path: Path) -> None:
     failures are counted by reason with its meaning and an example trial."""
     from test_run_dir import manifest, result
 
-    from actionreasoning.reasoners.factory import LLMConfig
+    from actionreasoning.reasoners.backend import LLMConfig
     from actionreasoning.records import FailureCode, LLMUsage
     from actionreasoning.world.physics import PRECISE
 

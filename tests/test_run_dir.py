@@ -10,7 +10,7 @@ from typing import Any
 import pytest
 from rich.console import Console
 
-from actionreasoning.control.waypoint import ControllerLimits
+from actionreasoning.control.limits import ControllerLimits
 from actionreasoning.errors import ConfigError
 from actionreasoning.eval.progress import ConsoleProgress
 from actionreasoning.eval.provenance import Provenance
@@ -19,7 +19,7 @@ from actionreasoning.eval.results import TrialMetrics, TrialResult
 from actionreasoning.eval.rules import trial_seed
 from actionreasoning.eval.run_dir import RunManifest, append_result, open_run, read_results
 from actionreasoning.eval.trial_config import TrialConfig
-from actionreasoning.reasoners.factory import LLMConfig
+from actionreasoning.reasoners.backend import LLMConfig
 from actionreasoning.records import Failure
 from actionreasoning.world.noise import LEVELS
 from actionreasoning.world.physics import PRECISE
@@ -28,8 +28,7 @@ from actionreasoning.world.tolerances import Tolerances
 
 def manifest(seed: int = 0, **config: Any) -> RunManifest:
     """run.json of an agents run on the pyramid under ``config`` (else the defaults)."""
-    recorded = TrialConfig(**config).model_dump(mode="json")
-    return RunManifest.sealed("agents", "pyramid", "0" * 64, seed, recorded)
+    return RunManifest.sealed("agents", "pyramid", "0" * 64, seed, TrialConfig(**config))
 
 
 MANIFEST = manifest()

@@ -75,11 +75,11 @@ def test_run_json_records_every_value_of_the_config_and_its_hash(finished: Path)
     assert list(stored) == [
         "method", "pattern", "pattern_sha256", "seed", "config", "config_sha256",
     ]  # fmt: skip
-    expected = CONFIG.model_copy(update={"llm": None}).model_dump(mode="json")
-    assert stored["config"] == expected
+    classical = CONFIG.model_copy(update={"llm": None})
+    assert stored["config"] == classical.model_dump(mode="json")
     assert stored["config"]["tolerances"]["c_min_m"] == Tolerances().c_min_m
     assert stored["config"]["llm"] is None  # the classical script asks no reasoner
-    assert stored["config_sha256"] == config_digest(expected)
+    assert stored["config_sha256"] == config_digest(classical)
 
 
 def test_a_changed_default_is_refused_and_the_same_defaults_resume(

@@ -30,7 +30,7 @@ from actionreasoning.world.scene_spec import SceneSpec
 if TYPE_CHECKING:
     from actionreasoning.eval.report.tables import Table as ComparisonTable
     from actionreasoning.eval.summary import RunSummary
-    from actionreasoning.reasoners.factory import LLMConfig
+    from actionreasoning.reasoners.backend import LLMConfig
 
 app = typer.Typer(
     help="LLM action reasoning for robot brick stacking: simulate, evaluate, report.",
@@ -209,9 +209,8 @@ def eval_command(
     --workers or on Ray. Run the same command again to resume a killed run. The API key of
     an OpenAI-compatible server comes from OPENAI_API_KEY only.
     """
-    from actionreasoning.reasoners.factory import LLMConfig
+    from actionreasoning.reasoners.backend import LLMConfig, ServerOptions
     from actionreasoning.reasoners.llm import LLMLimits
-    from actionreasoning.reasoners.openai_chat import ServerOptions
 
     try:
         config = LLMConfig(
@@ -260,7 +259,7 @@ def demo(
     from actionreasoning.eval.demo_dir import demo_directory
     from actionreasoning.eval.layout import RunDir
     from actionreasoning.eval.report.demo import write_demo_pages
-    from actionreasoning.reasoners.factory import LLMConfig
+    from actionreasoning.reasoners.backend import LLMConfig
 
     try:
         with demo_directory(out):
@@ -533,8 +532,8 @@ def llm_check(
     llm_timeout: TimeoutOption = 60.0,
 ) -> None:
     """Connect to a backend, send one schema-constrained request, and report what came back."""
-    from actionreasoning.reasoners.factory import LLMConfig, check_backend
-    from actionreasoning.reasoners.openai_chat import ServerOptions
+    from actionreasoning.reasoners.backend import LLMConfig, ServerOptions
+    from actionreasoning.reasoners.factory import check_backend
 
     try:
         server = ServerOptions(base_url=base_url, timeout_s=llm_timeout)

@@ -76,7 +76,7 @@ class RunConfig:
             pattern=self.pattern_name,
             pattern_sha256=digest(self.goal.model_dump_json()),
             seed=self.seed,
-            config=self.trial_config().model_dump(mode="json"),
+            config=self.trial_config(),
         )
 
 

@@ -25,13 +25,15 @@ from actionreasoning.errors import ConfigError, StorageError
 from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.rules import trial_seed
+from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.world.config_files import read_user_file
 
 
 class RunManifest(BaseModel):
     """What every trial of a run shares: run.json. Trial count, workers and outputs may
-    differ. ``config`` is the trial configuration as JSON (``TrialConfig``, all values),
-    ``config_sha256`` its hash (:func:`config_digest`)."""
+    differ. ``config`` is the trial configuration, ``config_sha256`` the hash of all its
+    recorded values (:func:`config_digest`); read back, its backend holds only what is
+    recorded of one (``trial_config.Backend``), the rest at its defaults."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
@@ -39,12 +41,12 @@ class RunManifest(BaseModel):
     pattern: str
     pattern_sha256: str
     seed: int
-    config: dict[str, Any]
+    config: TrialConfig
     config_sha256: str
 
     @classmethod
     def sealed(
-        cls, method: str, pattern: str, pattern_sha256: str, seed: int, config: dict[str, Any]
+        cls, method: str, pattern: str, pattern_sha256: str, seed: int, config: TrialConfig
     ) -> RunManifest:
         """A manifest with ``config``'s hash."""
         return cls(
@@ -65,27 +67,27 @@ class RunManifest(BaseModel):
     @property
     def llm(self) -> str:
         """The reasoning backend as given (``openai:MODEL``), or ``none`` (classical)."""
-        backend = self.config.get("llm")
-        return "none" if backend is None else str(backend["spec"])
+        return "none" if self.config.llm is None else self.config.llm.spec
 
     @property
     def physics_name(self) -> str:
-        return str(self.config["physics"]["name"])
+        return self.config.physics.name
 
     @property
     def noise_name(self) -> str:
-        return str(self.config["noise"]["name"])
+        return self.config.noise.name
 
     def fields(self) -> dict[str, Any]:
-        """Every value, nested ones dotted and those of the config by their path in it
-        (``tolerances.c_min_m``); the hash, which only sums them up, left out."""
-        plain = self.model_dump(exclude={"config", "config_sha256"})
-        return _flatten({**plain, **self.config})
+        """Every recorded value, nested ones dotted and those of the config by their path
+        in it (``tolerances.c_min_m``); the hash, which only sums them up, left out."""
+        plain = self.model_dump(mode="json", exclude={"config", "config_sha256"})
+        return _flatten({**plain, **self.config.model_dump(mode="json")})
 
 
-class _EarlierManifest(BaseModel):
+class EarlierManifest(BaseModel):
     """run.json as written before the trial configuration was recorded (results lines of
-    schema version 1): read by `report`, never resumed."""
+    schema version 1): read by `report`, never resumed. Its :meth:`fields` are named as
+    today's are."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
@@ -100,10 +102,19 @@ class _EarlierManifest(BaseModel):
     physics: dict[str, Any]
     noise: dict[str, Any]
 
-    def upgraded(self) -> RunManifest:
-        """The same facts in today's form: its config holds what it recorded, no more."""
+    @property
+    def physics_name(self) -> str:
+        return str(self.physics["name"])
+
+    @property
+    def noise_name(self) -> str:
+        return str(self.noise["name"])
+
+    def fields(self) -> dict[str, Any]:
+        """What it recorded, by the names a :class:`RunManifest` gives the same values."""
         limits = {k: v for k, v in self.llm_limits.items() if k != "fallback"}
         backend = {"spec": self.llm, "limits": limits, "fallback": self.llm_limits.get("fallback")}
+        plain = self.model_dump(include={"method", "pattern", "pattern_sha256", "seed"})
         config = {
             "physics": self.physics,
             "noise": self.noise,
@@ -111,12 +122,17 @@ class _EarlierManifest(BaseModel):
             "success_rule": self.success_rule,
             "llm": None if self.llm == "none" else backend,
         }
-        return RunManifest.sealed(self.method, self.pattern, self.pattern_sha256, self.seed, config)
+        return _flatten({**plain, **config})
 
 
-def config_digest(config: dict[str, Any]) -> str:
-    """SHA-256 of a configuration as compact JSON with sorted keys."""
-    return digest(json.dumps(config, sort_keys=True, separators=(",", ":")))
+#: run.json of this version, or of one before the trial configuration was recorded.
+AnyManifest = RunManifest | EarlierManifest
+
+
+def config_digest(config: TrialConfig) -> str:
+    """SHA-256 of a configuration's recorded values as compact JSON with sorted keys."""
+    recorded = config.model_dump(mode="json")
+    return digest(json.dumps(recorded, sort_keys=True, separators=(",", ":")))
 
 
 def _flatten(data: dict[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -166,11 +182,11 @@ def open_run(out: Path, manifest: RunManifest) -> list[TrialResult]:
         previous = read_manifest(stored)
     except ConfigError as error:
         raise ConfigError(f"{error}: choose another --out") from error
-    if previous != manifest:
-        differences = ", ".join(_differences(previous.fields(), manifest.fields()))
+    differences = _differences(previous.fields(), manifest.fields())
+    if differences:
         raise ConfigError(
-            f"--out {out} holds a different run ({differences}): choose another --out, "
-            "or repeat that run's options, under the settings it ran with, to resume it"
+            f"--out {out} holds a different run ({', '.join(differences)}): choose another "
+            "--out, or repeat that run's options, under the settings it ran with, to resume it"
         )
     finished = read_results(results, repair=True)
     expected = (manifest.method, manifest.pattern, manifest.seed)
@@ -184,34 +200,32 @@ def open_run(out: Path, manifest: RunManifest) -> list[TrialResult]:
     return finished
 
 
-def read_manifest(path: Path, earlier: bool = False) -> RunManifest:
-    """The run.json at ``path``; a damaged one, or one of another version, is an error.
-    With ``earlier``, one written before the trial configuration was recorded is read too
-    (for a report; such a run cannot be resumed)."""
+def read_manifest(path: Path) -> RunManifest:
+    """The run.json at ``path`` to resume; a damaged one, or one of another version, is an
+    error."""
+    manifest = read_any_manifest(path)
+    if isinstance(manifest, EarlierManifest):
+        raise ConfigError(
+            f"{path} was written by an earlier version of actionreasoning, which did not "
+            "record the trial configuration, so a resume cannot be checked against it"
+        )
+    return manifest
+
+
+def read_any_manifest(path: Path) -> AnyManifest:
+    """The run.json at ``path``, also one written before the trial configuration was
+    recorded (for a report: such a run cannot be resumed); a damaged one is an error."""
     data = read_user_file(path, "run file")
     try:
         return RunManifest.model_validate_json(data)
     except ValidationError as error:
-        if _of_earlier_version(data):
-            if earlier:
-                return _EarlierManifest.model_validate_json(data).upgraded()
-            raise ConfigError(
-                f"{path} was written by an earlier version of actionreasoning, which did not "
-                "record the trial configuration, so a resume cannot be checked against it"
-            ) from error
+        with contextlib.suppress(ValidationError):
+            return EarlierManifest.model_validate_json(data)
         first = error.errors()[0]
         where = ".".join(str(part) for part in first["loc"])
         raise ConfigError(
             f"{path} is damaged or from an earlier version ({where}: {first['msg']})"
         ) from error
-
-
-def _of_earlier_version(data: bytes) -> bool:
-    try:
-        _EarlierManifest.model_validate_json(data)
-    except ValidationError:
-        return False
-    return True
 
 
 def _differences(there: dict[str, Any], now: dict[str, Any]) -> list[str]:

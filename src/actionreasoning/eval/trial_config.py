@@ -11,10 +11,10 @@ from __future__ import annotations
 from pydantic import BaseModel, ConfigDict, field_serializer
 
 from actionreasoning.agents.orchestrator import Budgets
+from actionreasoning.control.limits import ControllerLimits
 from actionreasoning.control.safety import SafetyLimits
-from actionreasoning.control.waypoint import ControllerLimits
 from actionreasoning.eval.rules import SuccessRule
-from actionreasoning.reasoners.factory import LLMConfig
+from actionreasoning.reasoners.backend import LLMConfig
 from actionreasoning.reasoners.llm import LLMLimits
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.noise import LEVELS, NoiseLevel

@@ -19,7 +19,7 @@ from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.provenance import Provenance
 from actionreasoning.eval.report.runs import Run, read_runs
 from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.run_dir import RunManifest
+from actionreasoning.eval.run_dir import AnyManifest
 from actionreasoning.eval.summary import RunSummary, summarize
 
 PATTERN_HASH = "pattern_sha256"
@@ -51,7 +51,7 @@ def pattern_title(pattern: str) -> str:
     return PurePath(pattern).stem if pattern.endswith((".json", ".yaml", ".yml")) else pattern
 
 
-def method_label(manifest: RunManifest) -> str:
+def method_label(manifest: AnyManifest) -> str:
     """How a row names a method: with its reasoning backend where it has one, its physics
     profile and, where there is any, its noise level."""
     name = manifest.method if manifest.llm == "none" else f"{manifest.method} ({manifest.llm})"

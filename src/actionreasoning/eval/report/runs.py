@@ -14,7 +14,7 @@ from typing import Any
 from actionreasoning.errors import ConfigError
 from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.run_dir import RunManifest, read_manifest, read_results
+from actionreasoning.eval.run_dir import AnyManifest, read_any_manifest, read_results
 
 #: run.json fields that do not make trials incomparable: the seed (runs of other seeds are
 #: pooled) and the pattern as it was given (its content is compared, by pattern_sha256).
@@ -26,7 +26,7 @@ class Run:
     """One eval directory: the run it holds and its finished trials."""
 
     directory: Path
-    manifest: RunManifest
+    manifest: AnyManifest
     results: tuple[TrialResult, ...]
 
     def conditions(self) -> dict[str, Any]:
@@ -58,7 +58,7 @@ def read_run(directory: Path) -> Run:
             f"{directory} holds {run.RESULTS} but no {run.MANIFEST}: the conditions of its "
             "trials are unknown, so they cannot be compared"
         )
-    manifest = read_manifest(stored, earlier=True)
+    manifest = read_any_manifest(stored)
     results = read_results(path)
     if not results:
         raise ConfigError(f"{path} is empty: no trial has finished there yet")
