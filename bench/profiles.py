@@ -28,9 +28,10 @@ from rich.console import Console
 from rich.table import Table
 from scipy.spatial.transform import Rotation
 
-from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
+from actionreasoning.control.waypoint import GripperCommand, Waypoint
 from actionreasoning.eval.rules import Method
 from actionreasoning.eval.trial import TrialSpec, run_trial, trial_world
+from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.builtin import CARRY_SPEED_MPS, LIFT_SPEEDS_MPS
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.geometry import quat_yaw, top_down_quat
@@ -78,9 +79,9 @@ def change(
 def hold_and_carry(physics: PhysicsProfile, trial: int, speeds: Speeds) -> tuple[float, ...]:
     """Roll after lift, roll and slide after carry, slide and roll during the rest."""
     goal = load_pattern("pyramid", SceneSpec())
-    spec = TrialSpec(Method.AGENTS, "pyramid", goal, RUN_SEED, trial, physics=physics)
+    spec = TrialSpec(Method.AGENTS, "pyramid", goal, RUN_SEED, trial, TrialConfig(physics=physics))
     with trial_world(spec) as world:
-        scene, controller = world.scene, WaypointController(world.scene, world.arm)
+        scene, controller = world.scene, world.controller
         position, quat = scene.brick_pose(0)
         tool = top_down_quat(quat_yaw(quat))
 
@@ -113,7 +114,7 @@ def wall_time(physics: PhysicsProfile, method: Method, trials: int) -> float:
     goal = load_pattern("pyramid", SceneSpec())
     start = time.perf_counter()
     for trial in range(trials):
-        run_trial(TrialSpec(method, "pyramid", goal, RUN_SEED, trial, physics=physics))
+        run_trial(TrialSpec(method, "pyramid", goal, RUN_SEED, trial, TrialConfig(physics=physics)))
     return (time.perf_counter() - start) / trials
 
 

@@ -92,12 +92,16 @@ def arm() -> Iterator[KinematicArm]:
 
 @pytest.fixture
 def scene(arm: KinematicArm) -> Iterator[Scene]:
-    spec = SceneSpec()
-    ready = arm.solve(READY_POSE.position_m, READY_POSE.quat_xyzw).joints_rad
-    # Precise physics: the tools are tested where the pads deliver the commanded force.
-    scene = Scene(spec, sample_pick_poses(np.random.default_rng(7), 6, spec), ready, PRECISE)
+    scene = layout_scene(arm)
     yield scene
     scene.close()
+
+
+def layout_scene(arm: KinematicArm, spec: SceneSpec = SceneSpec()) -> Scene:
+    """Six bricks laid out from seed 7, the arm at its ready pose."""
+    ready = arm.solve(READY_POSE.position_m, READY_POSE.quat_xyzw).joints_rad
+    # Precise physics: the tools are tested where the pads deliver the commanded force.
+    return Scene(spec, sample_pick_poses(np.random.default_rng(7), 6, spec), ready, PRECISE)
 
 
 def built_state(pattern: str) -> WorldState:

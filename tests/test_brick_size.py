@@ -14,6 +14,7 @@ from conftest import assert_clean_error, cli
 from actionreasoning.errors import PatternError
 from actionreasoning.eval.rules import Method
 from actionreasoning.eval.trial import TrialSpec, run_trial, trial_world
+from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PRECISE
@@ -53,7 +54,7 @@ def test_the_classical_script_builds_a_pattern_of_other_bricks_with_those_bricks
     goal = load_pattern(write_pattern(tmp_path / "big.json", SIZE), SPEC)
     spec = TrialSpec(
         method=Method.CLASSICAL, pattern_name="big", goal=goal, run_seed=0, trial=0,
-        physics=PRECISE,
+        config=TrialConfig(physics=PRECISE),
     )  # fmt: skip
     seen: dict[int, tuple[tuple[float, ...], float]] = {}
 

@@ -13,6 +13,7 @@ from conftest import assert_clean_error, cli
 
 from actionreasoning.eval.rules import Method
 from actionreasoning.eval.trial import TrialSpec, run_trial, trial_world
+from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.sim.robot_model import FINGER_LEFT, FINGER_RIGHT
 from actionreasoning.world.noise import LEVELS, NoiseLevel, vary_bricks
 from actionreasoning.world.patterns import load_pattern
@@ -26,7 +27,7 @@ def spec_of(physics: PhysicsProfile, noise: NoiseLevel, seed: int = 3) -> TrialS
     goal = load_pattern("pyramid", SceneSpec())
     return TrialSpec(
         method=Method.AGENTS, pattern_name="pyramid", goal=goal, run_seed=seed, trial=0,
-        physics=physics, noise=noise,
+        config=TrialConfig(physics=physics, noise=noise),
     )  # fmt: skip
 
 
@@ -127,7 +128,7 @@ def test_the_same_seed_gives_the_same_line_under_noise_and_metrics_use_true_pose
 
     spec = TrialSpec(
         method=Method.CLASSICAL, pattern_name="small", goal=goal, run_seed=1, trial=0,
-        noise=LEVELS["high"],
+        config=TrialConfig(noise=LEVELS["high"]),
     )  # fmt: skip
     first = run_trial(spec, on_stage=at_the_end).result
     again = run_trial(spec).result

@@ -11,6 +11,7 @@ import pytest
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.eval.rules import Method, trial_seed
 from actionreasoning.eval.run import RunConfig, run_eval
+from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PRECISE
 from actionreasoning.world.scene_spec import SceneSpec
@@ -30,7 +31,7 @@ def run(
         snapshots=snapshots,
         transcripts=transcripts,
         # Where nothing slips every method succeeds without a retry, as the checks expect.
-        physics=PRECISE,
+        config=TrialConfig(physics=PRECISE),
     )
     run_eval(config)
     return (out / "results.jsonl").read_text()

@@ -12,7 +12,7 @@ from dataclasses import fields
 from pathlib import Path
 
 import pytest
-from test_run_dir import MANIFEST, result
+from test_run_dir import manifest, result
 
 from actionreasoning.sim.collision import CollisionChecker
 from actionreasoning.sim.kinematics import IKSolution, KinematicArm
@@ -45,8 +45,7 @@ def python(*args: str) -> subprocess.CompletedProcess[str]:
 def write_run(out: Path) -> None:
     """A finished run of three trials, written by hand (no simulation)."""
     out.mkdir()
-    manifest = MANIFEST.model_copy(update={"physics": PRECISE})
-    (out / "run.json").write_text(manifest.model_dump_json())
+    (out / "run.json").write_text(manifest(physics=PRECISE).model_dump_json())
     lines = [result(trial, success=trial != 1).model_dump_json() + "\n" for trial in range(3)]
     (out / "results.jsonl").write_text("".join(lines))
 

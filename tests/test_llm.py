@@ -21,9 +21,10 @@ from actionreasoning.errors import LLMError
 from actionreasoning.eval.rules import Method
 from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.eval.trial import TrialSpec, trial_world
+from actionreasoning.reasoners.backend import ServerOptions
 from actionreasoning.reasoners.chat import StructuredMode
 from actionreasoning.reasoners.llm import LLMLimits, LLMReasoner
-from actionreasoning.reasoners.openai_chat import OpenAIChat, ServerOptions
+from actionreasoning.reasoners.openai_chat import OpenAIChat
 from actionreasoning.reasoners.recording import RecordingChat
 from actionreasoning.tools.registry import call_tool
 from actionreasoning.world.models import Progress

@@ -22,8 +22,9 @@ import pytest
 from conftest import assert_clean_error, cli, free_port
 
 from actionreasoning.errors import LLMError
+from actionreasoning.reasoners.backend import ServerOptions
 from actionreasoning.reasoners.chat import ChatRequest
-from actionreasoning.reasoners.openai_chat import OpenAIChat, ServerOptions
+from actionreasoning.reasoners.openai_chat import OpenAIChat
 
 ONE_BRICK = {
     "name": "one",

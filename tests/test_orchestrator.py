@@ -22,6 +22,7 @@ from actionreasoning.eval.metrics import center_offset_cm
 from actionreasoning.eval.rules import Method
 from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.eval.trial import TrialSpec, trial_world
+from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import top_down_quat
@@ -61,7 +62,7 @@ def build(goal, reasoner, world=SimWorld, before=None):
         goal=goal,
         run_seed=4,
         trial=0,
-        physics=PRECISE,
+        config=TrialConfig(physics=PRECISE),
     )
     with trial_world(spec) as made:
         scene = made.scene

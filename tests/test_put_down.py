@@ -17,6 +17,7 @@ from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.eval.rules import Method
 from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.eval.trial import TrialSpec, trial_world
+from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.world.geometry import quat_yaw, tilt_deg, top_down_quat
 from actionreasoning.world.models import Pose, Progress
@@ -32,8 +33,9 @@ def test_a_brick_rolled_in_the_hand_is_pressed_flat_onto_its_spot(small_pattern,
     small = load_pattern(small_pattern, SceneSpec())
     goal = small.model_copy(update={"targets": small.targets[:1]})
     spec = TrialSpec(
-        method=Method.AGENTS, pattern_name="one", goal=goal, run_seed=2, trial=0, physics=PRECISE
-    )
+        method=Method.AGENTS, pattern_name="one", goal=goal, run_seed=2, trial=0,
+        config=TrialConfig(physics=PRECISE),
+    )  # fmt: skip
     with trial_world(spec) as made:
         scene = made.scene
         world = SimWorld(WaypointController(scene, made.arm), goal, made.sensor)

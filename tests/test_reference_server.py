@@ -16,8 +16,9 @@ import pytest
 from conftest import assert_clean_error, cli
 
 from actionreasoning.errors import ConfigError, LLMError
+from actionreasoning.reasoners.backend import ServerOptions
 from actionreasoning.reasoners.chat import ChatRequest, StructuredMode
-from actionreasoning.reasoners.openai_chat import OpenAIChat, ServerOptions
+from actionreasoning.reasoners.openai_chat import OpenAIChat
 from actionreasoning.reasoners.reference_model import UnreadableConversation, reply
 from actionreasoning.reasoners.reference_server import (
     MAX_BODY_BYTES,

@@ -132,15 +132,16 @@ def test_a_directory_without_results_is_refused(tmp_path: Path) -> None:
 def test_llm_cost_and_the_failure_taxonomy_are_reported(tmp_path: Path) -> None:
     """A run whose results carry usage per agent (as an LLM run writes them) gets the plot;
     failures are counted by reason with its meaning and an example trial."""
-    from test_run_dir import MANIFEST, result
+    from test_run_dir import manifest, result
 
+    from actionreasoning.reasoners.backend import LLMConfig
     from actionreasoning.records import FailureCode, LLMUsage
     from actionreasoning.world.physics import PRECISE
 
     run = tmp_path / "run"
     run.mkdir()
-    manifest = MANIFEST.model_copy(update={"llm": "openai:gemma", "physics": PRECISE})
-    (run / "run.json").write_text(manifest.model_dump_json())
+    gemma = manifest(llm=LLMConfig(spec="openai:gemma"), physics=PRECISE)
+    (run / "run.json").write_text(gemma.model_dump_json())
     usage = {
         "pre_grasp": LLMUsage(calls=2, prompt_tokens=9000, completion_tokens=300, latency_s=40.0),
         "placement": LLMUsage(calls=4, prompt_tokens=20000, completion_tokens=900, latency_s=90.0),

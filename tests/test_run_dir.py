@@ -2,33 +2,36 @@
 
 from __future__ import annotations
 
+import json
 from io import StringIO
 from pathlib import Path
+from typing import Any
 
 import pytest
 from rich.console import Console
 
+from actionreasoning.control.limits import ControllerLimits
 from actionreasoning.errors import ConfigError
 from actionreasoning.eval.progress import ConsoleProgress
+from actionreasoning.eval.provenance import Provenance
+from actionreasoning.eval.report.runs import read_run
 from actionreasoning.eval.results import PlacementMetrics, TrialResult
 from actionreasoning.eval.rules import trial_seed
 from actionreasoning.eval.run_dir import RunManifest, append_result, open_run, read_results
+from actionreasoning.eval.trial_config import TrialConfig
+from actionreasoning.reasoners.backend import LLMConfig
 from actionreasoning.records import Failure
 from actionreasoning.world.noise import LEVELS
-from actionreasoning.world.physics import PAPER, PRECISE
+from actionreasoning.world.physics import PRECISE
+from actionreasoning.world.tolerances import Tolerances
 
-MANIFEST = RunManifest(
-    method="agents",
-    pattern="pyramid",
-    pattern_sha256="0" * 64,
-    seed=0,
-    llm="builtin",
-    llm_limits={"tool_turns": 2, "repairs": 2, "fallback": False},
-    success_rule="rule",
-    budget={"max_steps": 400000, "max_wall_s": 3600.0},
-    physics=PAPER,
-    noise=LEVELS["none"],
-)
+
+def manifest(seed: int = 0, **config: Any) -> RunManifest:
+    """run.json of an agents run on the pyramid under ``config`` (else the defaults)."""
+    return RunManifest.sealed("agents", "pyramid", "0" * 64, seed, TrialConfig(**config))
+
+
+MANIFEST = manifest()
 
 
 def result(trial: int, success: bool = True) -> TrialResult:
@@ -77,8 +80,8 @@ def test_a_whole_last_line_without_its_newline_is_kept_and_the_newline_added(
 
 def test_a_different_run_is_refused_naming_what_differs(tmp_path: Path) -> None:
     write_run(tmp_path, 1)
-    other = MANIFEST.model_copy(update={"seed": 4, "llm": "openai:m"})
-    with pytest.raises(ConfigError, match=r"seed 0 there, 4 now, llm 'builtin' there"):
+    other = manifest(seed=4, llm=LLMConfig(spec="openai:m"))
+    with pytest.raises(ConfigError, match=r"seed 0 there, 4 now, llm\.spec 'builtin' there"):
         open_run(tmp_path, other)
 
 
@@ -138,9 +141,9 @@ def test_a_resume_under_other_conditions_is_refused_naming_the_field(tmp_path: P
     open_run(tmp_path, MANIFEST)
     (tmp_path / "results.jsonl").write_text(result(0).model_dump_json() + "\n")
     with pytest.raises(ConfigError, match=r"physics\.name 'paper' there, 'precise' now"):
-        open_run(tmp_path, MANIFEST.model_copy(update={"physics": PRECISE}))
+        open_run(tmp_path, manifest(physics=PRECISE))
     with pytest.raises(ConfigError, match=r"noise\.perception\.position_std_m 0\.0 there"):
-        open_run(tmp_path, MANIFEST.model_copy(update={"noise": LEVELS["medium"]}))
+        open_run(tmp_path, manifest(noise=LEVELS["medium"]))
     assert open_run(tmp_path, MANIFEST) == [result(0)]
 
 
@@ -162,3 +165,66 @@ def test_an_interrupt_while_a_whole_line_is_synced_keeps_the_line(
             append_result(sink, result(1))
     monkeypatch.undo()
     assert [r.trial for r in read_results(path)] == [0, 1]
+
+
+def test_a_changed_setting_is_refused_naming_each_field_with_both_values(tmp_path: Path) -> None:
+    write_run(tmp_path, 1)
+    changed = manifest(
+        tolerances=Tolerances(c_min_m=0.025), controller=ControllerLimits(max_joint_speed_radps=2.0)
+    )
+    with pytest.raises(ConfigError) as refused:
+        open_run(tmp_path, changed)
+    message = str(refused.value)
+    assert "tolerances.c_min_m 0.02 there, 0.025 now" in message
+    assert "controller.max_joint_speed_radps 2.5 there, 2.0 now" in message
+    assert "choose another --out" in message
+    assert message.count(" there, ") == 2  # nothing else is named
+    assert [r.trial for r in open_run(tmp_path, manifest())] == [0]
+
+
+def test_a_hand_edited_config_is_refused(tmp_path: Path) -> None:
+    write_run(tmp_path, 1)
+    stored = json.loads((tmp_path / "run.json").read_text())
+    stored["config"]["tolerances"]["c_min_m"] = 0.025
+    (tmp_path / "run.json").write_text(json.dumps(stored))
+    with pytest.raises(ConfigError, match=r"config_sha256 is not the hash of config"):
+        open_run(tmp_path, MANIFEST)
+
+
+#: run.json as versions before the trial configuration was recorded wrote it.
+EARLIER_MANIFEST = {
+    "method": "agents",
+    "pattern": "pyramid",
+    "pattern_sha256": "0" * 64,
+    "seed": 0,
+    "llm": "builtin",
+    "llm_limits": {"tool_turns": 2, "repairs": 2, "fallback": False},
+    "success_rule": "every brick within 2 cm and 5 deg",
+    "budget": {"max_steps": 400000, "max_wall_s": 3600.0},
+    "physics": PRECISE.model_dump(mode="json"),
+    "noise": LEVELS["none"].model_dump(mode="json"),
+}
+
+
+def test_a_run_of_an_earlier_version_is_reported_but_not_resumed(tmp_path: Path) -> None:
+    """Its lines lack the provenance fields and its run.json the trial configuration: a
+    report reads both, a resume is refused, and nothing is changed."""
+    (tmp_path / "run.json").write_text(json.dumps(EARLIER_MANIFEST))
+    provenance = set(Provenance.model_fields)
+    lines = [
+        json.dumps(result(trial).model_dump(mode="json", exclude=provenance)) + "\n"
+        for trial in range(2)
+    ]
+    assert all('"schema_version"' not in line for line in lines)
+    (tmp_path / "results.jsonl").write_text("".join(lines))
+    with pytest.raises(ConfigError, match=r"run\.json was written by an earlier version.*--out"):
+        open_run(tmp_path, MANIFEST)
+    assert (tmp_path / "results.jsonl").read_text() == "".join(lines)
+    run = read_run(tmp_path)
+    assert [(r.trial, r.schema_version, r.git_revision) for r in run.results] == [
+        (0, None, None),
+        (1, None, None),
+    ]
+    conditions = run.conditions()
+    assert conditions["budget.max_steps"] == 400000 and conditions["llm.spec"] == "builtin"
+    assert conditions["physics.name"] == "precise" and "tolerances.c_min_m" not in conditions

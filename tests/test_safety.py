@@ -11,20 +11,20 @@ from pathlib import Path
 import numpy as np
 import pybullet as p
 import pytest
-from conftest import SMALL_PATTERN
+from conftest import SMALL_PATTERN, layout_scene
 
-from actionreasoning.control.safety import SafetyLimits
 from actionreasoning.control.waypoint import Waypoint, WaypointController
 from actionreasoning.errors import TrialAborted
 from actionreasoning.eval.rules import Method
 from actionreasoning.eval.trial import TrialSpec, run_trial
+from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.geometry import top_down_quat
 from actionreasoning.world.models import READY_POSE, Pose
 from actionreasoning.world.patterns import load_pattern
-from actionreasoning.world.scene_spec import SceneSpec, WorkspaceBox
+from actionreasoning.world.scene_spec import WORKSPACE, SceneSpec, WorkspaceBox
 
 
 def refused(controller: WaypointController, waypoint: Waypoint, needle: str) -> None:
@@ -40,24 +40,29 @@ def at(x: float, y: float, z: float) -> Pose:
     return Pose(position_m=(x, y, z), quat_xyzw=top_down_quat(math.atan2(y, x)))
 
 
-LOW_BOX = SafetyLimits(workspace=WorkspaceBox(high_m=(0.9, 0.9, 0.35)))
+LOW_BOX = WorkspaceBox(high_m=(0.9, 0.9, 0.35))
 
 
 @pytest.mark.parametrize(
-    ("limits", "pose", "needle"),
+    ("workspace", "pose", "needle"),
     [
         (LOW_BOX, READY_POSE, "would leave the workspace box at (0.450, -0.250, 0.400) m"),
         (
-            SafetyLimits(),
+            WORKSPACE,
             at(0.5, 0.2, 0.005),
             "down to 0.005 m at (0.500, 0.200, 0.005) m, below the 0.02 m minimum height",
         ),
     ],
 )
 def test_a_waypoint_outside_the_envelope_is_refused(
-    scene: Scene, arm: KinematicArm, limits: SafetyLimits, pose: Pose, needle: str
+    arm: KinematicArm, workspace: WorkspaceBox, pose: Pose, needle: str
 ) -> None:
-    refused(WaypointController(scene, arm, safety=limits), Waypoint(pose=pose), needle)
+    """The workspace box is the scene's."""
+    scene = layout_scene(arm, SceneSpec(workspace=workspace))
+    try:
+        refused(WaypointController(scene, arm), Waypoint(pose=pose), needle)
+    finally:
+        scene.close()
 
 
 def test_a_move_faster_than_the_tool_speed_limit_is_refused(
@@ -103,8 +108,9 @@ def test_a_trial_out_of_budget_ends_with_its_reason_and_bricks_on_the_table(
     goal = load_pattern(str(path), SceneSpec())
     for method in Method:
         spec = TrialSpec(
-            method=method, pattern_name="small", goal=goal, run_seed=0, trial=0, budget=budget
-        )
+            method=method, pattern_name="small", goal=goal, run_seed=0, trial=0,
+            config=TrialConfig(budget=budget),
+        )  # fmt: skip
         result = run_trial(spec).result
         assert not result.success and result.failure is not None
         assert result.failure.reason == reason, result.failure

@@ -20,6 +20,7 @@ from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.eval.rules import Method
 from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.eval.trial import TrialSpec, trial_world
+from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.sim.scene import GRASP_CONTACT_N
 from actionreasoning.tools.contact import ContactForces
@@ -53,7 +54,7 @@ def _trial(noise: str = "none", goal: GoalPattern = PYRAMID) -> Iterator[SimWorl
         goal=goal,
         run_seed=0,
         trial=0,
-        noise=LEVELS[noise],
+        config=TrialConfig(noise=LEVELS[noise]),
     )
     with trial_world(spec) as made:
         yield SimWorld(WaypointController(made.scene, made.arm), goal, made.sensor)

@@ -11,7 +11,8 @@ import pytest
 from conftest import SMALL_PATTERN, assert_clean_error, cli
 
 from actionreasoning.errors import ConfigError
-from actionreasoning.eval.run_dir import MANIFEST_FILE, RESULTS_FILE, read_results
+from actionreasoning.eval.layout import RunDir
+from actionreasoning.eval.run_dir import read_results
 from actionreasoning.world.config_files import MAX_FILE_BYTES, read_user_file
 from actionreasoning.world.noise import load_noise
 from actionreasoning.world.physics import load_physics
@@ -109,15 +110,15 @@ def test_a_run_file_that_is_a_fifo_is_refused_on_resume(
     out = tmp_path / "out"
     args = ["eval", "--method", "classical", "--pattern", str(small_pattern), "--out", str(out)]
     out.mkdir()
-    (out / RESULTS_FILE).write_text("{}\n")
-    os.mkfifo(out / MANIFEST_FILE)
+    (out / RunDir.RESULTS).write_text("{}\n")
+    os.mkfifo(out / RunDir.MANIFEST)
     result = cli(*args, "--trials", "1", timeout=120)
-    assert_clean_error(result, f"{out / MANIFEST_FILE}: cannot read run file (a FIFO")
-    assert (out / RESULTS_FILE).read_text() == "{}\n"
+    assert_clean_error(result, f"{out / RunDir.MANIFEST}: cannot read run file (a FIFO")
+    assert (out / RunDir.RESULTS).read_text() == "{}\n"
 
 
 def test_a_results_file_that_is_a_fifo_is_refused(tmp_path: Path) -> None:
-    fifo = tmp_path / RESULTS_FILE
+    fifo = tmp_path / RunDir.RESULTS
     os.mkfifo(fifo)
     with pytest.raises(ConfigError, match="cannot read results file \\(a FIFO"):
         read_results(fifo)
@@ -137,8 +138,8 @@ def test_a_results_file_that_is_a_fifo_is_refused_before_a_run_starts(
 ) -> None:
     out = tmp_path / "out"
     out.mkdir()
-    os.mkfifo(out / RESULTS_FILE)  # size 0: it used to pass for a new run, then block
+    os.mkfifo(out / RunDir.RESULTS)  # size 0: it used to pass for a new run, then block
     args = ["eval", "--method", "classical", "--pattern", str(small_pattern), "--out", str(out)]
     result = cli(*args, "--trials", "1", timeout=120)
-    assert_clean_error(result, f"{out / RESULTS_FILE}: cannot read results file (a FIFO")
-    assert not (out / MANIFEST_FILE).exists()
+    assert_clean_error(result, f"{out / RunDir.RESULTS}: cannot read results file (a FIFO")
+    assert not (out / RunDir.MANIFEST).exists()

@@ -30,7 +30,7 @@ from actionreasoning.world.scene_spec import SceneSpec
 if TYPE_CHECKING:
     from actionreasoning.eval.report.tables import Table as ComparisonTable
     from actionreasoning.eval.summary import RunSummary
-    from actionreasoning.reasoners.factory import LLMConfig
+    from actionreasoning.reasoners.backend import LLMConfig
 
 app = typer.Typer(
     help="LLM action reasoning for robot brick stacking: simulate, evaluate, report.",
@@ -209,9 +209,8 @@ def eval_command(
     --workers or on Ray. Run the same command again to resume a killed run. The API key of
     an OpenAI-compatible server comes from OPENAI_API_KEY only.
     """
-    from actionreasoning.reasoners.factory import LLMConfig
+    from actionreasoning.reasoners.backend import LLMConfig, ServerOptions
     from actionreasoning.reasoners.llm import LLMLimits
-    from actionreasoning.reasoners.openai_chat import ServerOptions
 
     try:
         config = LLMConfig(
@@ -258,8 +257,9 @@ def demo(
     its own (.actionreasoning-demo), or into an earlier demo's, whose files it replaces.
     """
     from actionreasoning.eval.demo_dir import demo_directory
-    from actionreasoning.eval.report.build import build_report
-    from actionreasoning.reasoners.factory import LLMConfig
+    from actionreasoning.eval.layout import RunDir
+    from actionreasoning.eval.report.demo import write_demo_pages
+    from actionreasoning.reasoners.backend import LLMConfig
 
     try:
         with demo_directory(out):
@@ -274,17 +274,10 @@ def demo(
                 physics=physics,
                 noise=noise,
             )
-            html = build_report([out], out / "report", gifs=True)
-            animation = html.gifs[0][0].relative_to(out)
-            report = out / "report.md"
-            report.write_text(
-                (out / "summary.md").read_text()
-                + "\n## Stages\n\nStages left to right, bricks top to bottom.\n\n"
-                + "![stages](snapshots/trial_000/stages.png)\n\n## Result\n\n"
-                + "![build](snapshots/trial_000/final_build.png)\n"
-                + f"![the build, stage by stage]({animation})\n"
+            pages = write_demo_pages(RunDir(out))
+            console.print(
+                f"report: {pages.markdown} and {pages.html}", highlight=False, markup=False
             )
-            console.print(f"report: {report} and {html.html}", highlight=False, markup=False)
     except ActionReasoningError as error:
         _fail(error)
 
@@ -310,27 +303,29 @@ def _evaluate(
     from actionreasoning.eval.jobs import RESUME_HINT
     from actionreasoning.eval.progress import ConsoleProgress
     from actionreasoning.eval.run import RunConfig, run_eval
+    from actionreasoning.eval.trial_config import TrialConfig
 
     if Path(pattern).is_file():  # one file, however it is spelled: ./x.json is x.json
         pattern = os.path.normpath(pattern)
     try:
+        trials_under = TrialConfig(
+            llm=llm, budget=budget, physics=load_physics(physics), noise=load_noise(noise)
+        )
         config = RunConfig(
             method=method,
             pattern_name=pattern,
-            goal=load_pattern(pattern, SceneSpec()),
+            goal=load_pattern(pattern, trials_under.scene),
             trials=trials,
             seed=seed,
             out=out,
-            llm=llm,
+            config=trials_under,
             snapshots=snapshots,
             transcripts=transcripts,
             workers=workers,
             ray=ray,
-            budget=budget,
-            physics=load_physics(physics),
-            noise=load_noise(noise),
         )
-        title = f"{method} / {pattern} / {config.physics.name} / noise {config.noise.name}"
+        physics_name, noise_name = trials_under.physics.name, trials_under.noise.name
+        title = f"{method} / {pattern} / {physics_name} / noise {noise_name}"
         with ConsoleProgress(console, title) as progress:
             summary = run_eval(config, progress)
     except (ActionReasoningError, OSError) as error:
@@ -419,26 +414,50 @@ def prompt_command(
     from actionreasoning.agents.spec import agent_specs, single_agent_spec
     from actionreasoning.eval.first_prompt import first_prompt
     from actionreasoning.eval.trial import TrialSpec
+    from actionreasoning.eval.trial_config import TrialConfig
 
     try:
-        goal = load_pattern(pattern, SceneSpec())
-        profile, level = load_physics(physics), load_noise(noise)
+        config = TrialConfig(physics=load_physics(physics), noise=load_noise(noise))
+        goal = load_pattern(pattern, config.scene)
     except ActionReasoningError as error:
         _fail(error)
     spec = agent_specs()[agent - 1] if agent else single_agent_spec()
     trial = TrialSpec(
-        method=Method.AGENTS,
-        pattern_name=pattern,
-        goal=goal,
-        run_seed=seed,
-        trial=0,
-        physics=profile,
-        noise=level,
+        method=Method.AGENTS, pattern_name=pattern, goal=goal, run_seed=seed, trial=0, config=config
     )
     try:
         print(first_prompt(trial, spec.key), end="")
     except ActionReasoningError as error:
         _fail(error)
+
+
+class Schema(StrEnum):
+    """The records whose JSON Schema `schema` prints."""
+
+    RESULTS = "results"
+    SUMMARY = "summary"
+    CONFIG = "config"
+
+
+@app.command("schema")
+def schema_command(
+    records: Annotated[
+        Schema,
+        typer.Argument(
+            help="results: a line of results.jsonl; summary: summary.json; config: the trial "
+            "configuration, run.json's 'config'."
+        ),
+    ],
+) -> None:
+    """Print the JSON Schema of an eval directory's records, to check or load them elsewhere."""
+    import json
+
+    from actionreasoning.eval.results import TrialResult
+    from actionreasoning.eval.summary import RunSummary
+    from actionreasoning.eval.trial_config import TrialConfig
+
+    models = {Schema.RESULTS: TrialResult, Schema.SUMMARY: RunSummary, Schema.CONFIG: TrialConfig}
+    print(json.dumps(models[records].model_json_schema(mode="serialization"), indent=2))
 
 
 @app.command("pattern")
@@ -513,8 +532,8 @@ def llm_check(
     llm_timeout: TimeoutOption = 60.0,
 ) -> None:
     """Connect to a backend, send one schema-constrained request, and report what came back."""
-    from actionreasoning.reasoners.factory import LLMConfig, check_backend
-    from actionreasoning.reasoners.openai_chat import ServerOptions
+    from actionreasoning.reasoners.backend import LLMConfig, ServerOptions
+    from actionreasoning.reasoners.factory import check_backend
 
     try:
         server = ServerOptions(base_url=base_url, timeout_s=llm_timeout)

@@ -1,7 +1,7 @@
 """Safety limits of the controller, whoever commands it: checked on the planned tool path
 before the arm moves, so a violating waypoint is refused, never half executed.
 
-* the tool centre point stays inside the workspace box and above a minimum height;
+* the tool centre point stays inside the scene's workspace box and above a minimum height;
 * in transit (a free move, away from where it starts and ends) it passes above every
   brick it crosses, except the one in the hand, with a clearance;
 * its peak speed stays below a maximum;
@@ -21,7 +21,7 @@ from actionreasoning.errors import TrialAborted
 from actionreasoning.records import FailureCode
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import Vec3
-from actionreasoning.world.scene_spec import WORKSPACE, WorkspaceBox
+from actionreasoning.world.scene_spec import WorkspaceBox
 
 #: How far the hand reaches sideways past a brick it passes over.
 HAND_RADIUS_M = 0.05
@@ -29,9 +29,8 @@ HAND_RADIUS_M = 0.05
 
 @dataclass(frozen=True)
 class SafetyLimits:
-    """The envelope every commanded motion must stay in."""
+    """The envelope every commanded motion must stay in, inside the scene's workspace box."""
 
-    workspace: WorkspaceBox = WORKSPACE
     min_height_m: float = 0.02
     #: Tool centre point above a crossed brick's top. A held brick hangs 3 cm below it, so its
     #: bottom clears the brick by 1 cm; the built-in policies pass with 4.7 cm or more.
@@ -48,18 +47,19 @@ def check_motion(
     duration_s: float,
     peak_factor: float,
     obstacles: Sequence[Box],
+    workspace: WorkspaceBox,
     limits: SafetyLimits,
 ) -> None:
     """Raise ``TrialAborted("safety_limit", ...)`` if the tool path breaks a limit.
 
     ``obstacles`` are the bricks to clear in transit: those of a free move, none for a
     straight (linear) one. The tool is over a brick within its half diagonal plus
-    ``HAND_RADIUS_M`` of its centre."""
+    ``HAND_RADIUS_M`` of its centre. ``workspace`` is the scene's box."""
     points = np.asarray(path, dtype=float)
     if not np.all(np.isfinite(points)):
         _refuse("the planned tool path is not finite")
     for point in points:
-        if not limits.workspace.contains(tuple(point)):
+        if not workspace.contains(tuple(point)):
             _refuse(f"the tool would leave the workspace box at {_fmt(point)}")
         if point[2] < limits.min_height_m:
             _refuse(

@@ -18,6 +18,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy.spatial.transform import Rotation, Slerp
 
+from actionreasoning.control.limits import ControllerLimits
 from actionreasoning.control.safety import SafetyLimits, check_motion
 from actionreasoning.errors import UnreachableError
 from actionreasoning.sim.kinematics import KinematicArm
@@ -76,21 +77,6 @@ class Waypoint(BaseModel):
 
 
 @dataclass(frozen=True)
-class ControllerLimits:
-    """Peak speeds, durations and tolerances of the waypoint controller."""
-
-    max_joint_speed_radps: float = 2.5
-    max_linear_speed_mps: float = 0.15
-    min_duration_s: float = 0.2
-    settle_max_s: float = 2.0
-    joint_tolerance_rad: float = 2e-3
-    joint_speed_tolerance_radps: float = 0.02
-    #: A guarded move stops when its brick's support carries this much: about twice a
-    #: brick's weight, so a brick is pressed flat before the guard trips.
-    contact_force_n: float = 30.0
-    gripper_s: float = 0.625
-
-
 class WaypointController:
     """Drives the scene's arm through waypoints."""
 
@@ -187,9 +173,9 @@ class WaypointController:
             samples = knots
         path = [self.arm.forward(q)[0] for q in samples]
         obstacles = self._obstacles(path[0]) if waypoint.path == "joint" else []
-        check_motion(
-            path, ticks * self.scene.physics.time_step_s, MIN_JERK_PEAK, obstacles, self.safety
-        )
+        duration_s = ticks * self.scene.physics.time_step_s
+        workspace = self.scene.spec.workspace
+        check_motion(path, duration_s, MIN_JERK_PEAK, obstacles, workspace, self.safety)
 
     def _obstacles(self, start: Vec3) -> list[Box]:
         """Every brick a free move must pass above in transit: all but the one in the hand

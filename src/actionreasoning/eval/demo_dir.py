@@ -1,7 +1,8 @@
 """The directory `demo` writes: a new or empty one, or one an earlier demo made.
 
-A demo replaces its own files on every run, so it marks its directory with :data:`MARKER`
-and writes nowhere else: a directory with anything else in it is refused, untouched.
+A demo replaces its own files on every run, so it marks its directory
+(``RunDir.DEMO_MARKER``) and writes nowhere else: a directory with anything else in it is
+refused, untouched.
 """
 
 from __future__ import annotations
@@ -12,15 +13,12 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from actionreasoning.errors import ConfigError
+from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.run_lock import run_lock
 
-MARKER = ".actionreasoning-demo"
-#: What a demo writes, removed before the next demo into its directory.
-DEMO_FILES = ("results.jsonl", "run.json", "summary.json", "summary.md", "report.md")
-DEMO_FOLDERS = ("snapshots", "report")
 NOTE = (
     "Written by `actionreasoning demo`: a demo into this directory again replaces "
-    f"{', '.join(DEMO_FILES)} and the folders {' and '.join(DEMO_FOLDERS)}.\n"
+    f"{', '.join(RunDir.DEMO_FILES)} and the folders {' and '.join(RunDir.DEMO_FOLDERS)}.\n"
 )
 
 
@@ -31,11 +29,11 @@ def demo_directory(out: Path) -> Iterator[None]:
     _check(out)
     with run_lock(out):
         try:
-            for name in DEMO_FILES:
+            for name in RunDir.DEMO_FILES:
                 (out / name).unlink(missing_ok=True)
-            for folder in DEMO_FOLDERS:
+            for folder in RunDir.DEMO_FOLDERS:
                 shutil.rmtree(out / folder, ignore_errors=True)
-            (out / MARKER).write_text(NOTE)
+            RunDir(out).demo_marker.write_text(NOTE)
         except OSError as error:
             raise ConfigError(
                 f"--out {out}: cannot replace the earlier demo there ({error.strerror})"
@@ -53,8 +51,9 @@ def _check(out: Path) -> None:
         names = {path.name for path in out.iterdir()}
     except OSError as error:
         raise ConfigError(f"--out {out}: cannot read it ({error.strerror})") from error
-    if names and MARKER not in names:
+    if names and RunDir.DEMO_MARKER not in names:
         raise ConfigError(
-            f"--out {out} is not empty and not an earlier demo's directory (no {MARKER}): "
+            f"--out {out} is not empty and not an earlier demo's directory "
+            f"(no {RunDir.DEMO_MARKER}): "
             "demo writes only into a new or empty directory, or its own; choose another --out"
         )

@@ -9,7 +9,6 @@ from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.agents.single_agent import SingleAgent
 from actionreasoning.agents.spec import SINGLE_AGENT, AgentKey
-from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.errors import ActionReasoningError
 from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.eval.trial import TrialSpec, trial_world
@@ -40,9 +39,13 @@ class _Catcher:
 def first_prompt(spec: TrialSpec, agent: AgentKey) -> str:
     """The prompt ``agent`` gets first in ``spec``'s trial."""
     with trial_world(spec) as world:
-        sim = SimWorld(WaypointController(world.scene, world.arm), spec.goal, world.sensor)
-        catcher = _Catcher(agent)
-        runner = SingleAgent(sim, catcher) if agent == SINGLE_AGENT else Orchestrator(sim, catcher)
+        sim = SimWorld(world.controller, spec.goal, world.sensor)
+        catcher, config = _Catcher(agent), spec.config
+        runner = (
+            SingleAgent(sim, catcher, config.tolerances)
+            if agent == SINGLE_AGENT
+            else Orchestrator(sim, catcher, config.tolerances, config.retries)
+        )
         try:
             result = runner.build(spec.goal)
         except _Caught as caught:

@@ -21,7 +21,6 @@ from itertools import islice
 
 from actionreasoning.errors import ConfigError, EngineError
 from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.rules import SuccessRule
 from actionreasoning.eval.snapshots import SnapshotRecorder
 from actionreasoning.eval.trial import TrialSpec, run_trial
 
@@ -36,7 +35,6 @@ class TrialJob:
     """One trial to run and what to keep of it."""
 
     spec: TrialSpec
-    rule: SuccessRule = SuccessRule()
     snapshots: bool = False
     transcripts: bool = False
 
@@ -53,7 +51,7 @@ class TrialOutput:
 def execute(job: TrialJob) -> TrialOutput:
     """Run one trial (in whatever process this is) and collect its outputs."""
     recorder = SnapshotRecorder() if job.snapshots else None
-    run = run_trial(job.spec, job.rule, recorder)
+    run = run_trial(job.spec, recorder)
     transcript = (
         "".join(call.model_dump_json() + "\n" for call in run.transcript) if job.transcripts else ""
     )

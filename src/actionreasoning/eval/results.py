@@ -1,13 +1,16 @@
 """The records of an evaluation run: one :class:`TrialResult` per line of results.jsonl.
 
-The field names are a public interface (DESIGN section 7). Nothing here depends on wall
-time, so the same seed gives a byte-identical results.jsonl line.
+The field names are a public interface (DESIGN section 7); ``actionreasoning schema
+results`` prints the JSON Schema of a line. Nothing here depends on wall time, so the same
+seed gives a byte-identical results.jsonl line, but for the fields of :class:`Provenance`,
+which name the code that wrote it.
 """
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, Field
 
+from actionreasoning.eval.provenance import Provenance
 from actionreasoning.records import Failure, LLMUsage
 from actionreasoning.world.geometry import QuatXYZW, Vec3
 
@@ -44,8 +47,9 @@ class PlacementMetrics(_Record):
     iou: float
 
 
-class TrialResult(_Record):
-    """One finished trial, as one line of results.jsonl."""
+class TrialResult(Provenance):
+    """One finished trial, as one line of results.jsonl: which code wrote it (empty in
+    lines written before that was recorded), then the trial."""
 
     method: str
     pattern: str
@@ -63,7 +67,7 @@ class TrialResult(_Record):
     metrics: PlacementMetrics
     failure: Failure | None
     llm_usage: LLMUsage = LLMUsage()
-    llm_usage_by_agent: dict[str, LLMUsage] = {}
+    llm_usage_by_agent: dict[str, LLMUsage] = Field(default_factory=dict)
     decisions: int = 0
     fallback_decisions: int = 0
     sim_steps: int

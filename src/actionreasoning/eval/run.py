@@ -1,20 +1,21 @@
-"""An evaluation run: trials of one method on one pattern, written to an output directory.
+"""An evaluation run: trials of one method on one pattern, written to an output directory
+(laid out as layout.py says).
 
 results.jsonl gets one line per finished trial, as it finishes; running the same command
 again skips the trials already there (run_dir.py). Trials run one after another, in worker
 processes or on a Ray cluster (jobs.py); only this process writes files, and only while it
-holds the directory's lock (run_lock.py). With transcripts, transcripts/trial_NNN.jsonl
-holds every agent call of trial NNN; with snapshots, snapshots/trial_NNN/ its pictures,
-written after its result line, so a disk that fills up costs pictures, never a result.
-summary.json and summary.md are written at the end. A write that fails ends the run with
-a :class:`StorageError` saying what is kept.
+holds the directory's lock (run_lock.py). It stamps every line with the code that wrote it
+(provenance.py). With transcripts, every agent call of a trial is kept; with snapshots, its
+pictures, written after its result line, so a disk that fills up costs pictures, never a
+result. summary.json and summary.md are written at the end. A write that fails ends the run
+with a :class:`StorageError` saying what is kept.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Iterator
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
 
@@ -26,10 +27,11 @@ from actionreasoning.eval.jobs import (
     run_on_ray,
     run_serial,
 )
+from actionreasoning.eval.layout import RunDir
+from actionreasoning.eval.provenance import current_provenance, stamp
 from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.rules import Method, SuccessRule
+from actionreasoning.eval.rules import Method
 from actionreasoning.eval.run_dir import (
-    RESULTS_FILE,
     RunManifest,
     append_result,
     digest,
@@ -38,18 +40,16 @@ from actionreasoning.eval.run_dir import (
     write_file,
 )
 from actionreasoning.eval.run_lock import run_lock
-from actionreasoning.eval.summary import RunSummary, describe_rule, summarize, summary_markdown
+from actionreasoning.eval.summary import RunSummary, summarize, summary_markdown
 from actionreasoning.eval.trial import TrialSpec
-from actionreasoning.reasoners.factory import LLMConfig, prepare
-from actionreasoning.world.budget import TrialBudget
+from actionreasoning.eval.trial_config import TrialConfig
+from actionreasoning.reasoners.factory import prepare
 from actionreasoning.world.models import GoalPattern
-from actionreasoning.world.noise import LEVELS, NoiseLevel
-from actionreasoning.world.physics import PAPER, PhysicsProfile
 
 
 @dataclass(frozen=True)
 class RunConfig:
-    """The options of one eval run."""
+    """The options of one eval run: its trials' configuration and how to run them."""
 
     method: Method
     pattern_name: str
@@ -57,32 +57,26 @@ class RunConfig:
     trials: int
     seed: int
     out: Path
-    llm: LLMConfig = LLMConfig()
+    config: TrialConfig = TrialConfig()
     snapshots: bool = False
     transcripts: bool = False
     workers: int = 1
     ray: str | None = None
-    rule: SuccessRule = SuccessRule()
-    budget: TrialBudget = TrialBudget()
-    physics: PhysicsProfile = PAPER
-    noise: NoiseLevel = LEVELS["none"]
+
+    def trial_config(self) -> TrialConfig:
+        """The configuration every trial runs under: the classical script has no backend."""
+        if self.method is Method.CLASSICAL:
+            return self.config.model_copy(update={"llm": None})
+        return self.config
 
     def manifest(self) -> RunManifest:
         """What a resumed run must share with this one."""
-        reasoned = self.method is not Method.CLASSICAL
-        return RunManifest(
+        return RunManifest.sealed(
             method=str(self.method),
             pattern=self.pattern_name,
             pattern_sha256=digest(self.goal.model_dump_json()),
             seed=self.seed,
-            llm=self.llm.spec if reasoned else "none",
-            llm_limits={**asdict(self.llm.limits), "fallback": self.llm.fallback}
-            if reasoned
-            else {},
-            success_rule=describe_rule(self.rule),
-            budget=asdict(self.budget),
-            physics=self.physics,
-            noise=self.noise,
+            config=self.trial_config(),
         )
 
 
@@ -98,7 +92,8 @@ def check_engine(config: RunConfig) -> None:
     """Refuse engine options that cannot work together."""
     if config.workers > 1 and config.ray:
         raise ConfigError("--workers and --ray exclude each other: Ray places the trials itself")
-    if config.llm.record and (config.workers > 1 or config.ray):
+    llm = config.config.llm
+    if llm is not None and llm.record and (config.workers > 1 or config.ray):
         raise ConfigError(
             "--record writes one file from one process: use it without --workers/--ray"
         )
@@ -113,70 +108,68 @@ def run_eval(config: RunConfig, observer: RunObserver | None = None) -> RunSumma
 
 
 def _run_locked(config: RunConfig, observer: RunObserver | None) -> RunSummary:
-    llm = prepare(config.llm) if config.method is not Method.CLASSICAL else config.llm
+    trials, run = _prepared(config.trial_config()), RunDir(config.out)
     finished = open_run(config.out, config.manifest())
     results = [r for r in finished if r.trial < config.trials]
     resumed = len(results)
     if observer is not None:
         observer.started(config.trials, list(results))
-    jobs = _jobs(config, llm, {r.trial for r in results})
+    jobs = _jobs(config, trials, {r.trial for r in results})
+    provenance = current_provenance()
     started = time.perf_counter()
-    path = config.out / RESULTS_FILE
-    with path.open("ab", buffering=0) as sink:
+    with run.results.open("ab", buffering=0) as sink:
         for output in _engine(config, jobs, config.trials - resumed):
+            result = stamp(output.result, provenance)
             try:
-                append_result(sink, output.result)
+                append_result(sink, result)
             except OSError as error:
-                raise write_error(path, error, _kept(len(results))) from error
-            results.append(output.result)
-            _write_outputs(config, output, _kept(len(results)))
+                raise write_error(run.results, error, _kept(len(results))) from error
+            results.append(result)
+            _write_outputs(run, config, output, _kept(len(results)))
             if observer is not None:
-                observer.finished(output.result)
-    mode = None if llm.mode is None else str(llm.mode)
+                observer.finished(result)
+    mode = None if trials.llm is None or trials.llm.mode is None else str(trials.llm.mode)
     summary = summarize(
         sorted(results, key=lambda r: r.trial),
         time.perf_counter() - started,
-        config.rule,
+        trials.success_rule,
         llm_mode=mode,
         resumed_trials=resumed,
-        physics=config.physics,
-        noise=config.noise,
+        physics=trials.physics,
+        noise=trials.noise,
     )
-    kept = _kept(len(results))
-    write_file(
-        config.out / "summary.json", (summary.model_dump_json(indent=2) + "\n").encode(), kept
-    )
-    write_file(config.out / "summary.md", summary_markdown(summary).encode(), kept)
+    summary, kept = stamp(summary, provenance), _kept(len(results))
+    write_file(run.summary, (summary.model_dump_json(indent=2) + "\n").encode(), kept)
+    write_file(run.summary_md, summary_markdown(summary).encode(), kept)
     return summary
 
 
+def _prepared(config: TrialConfig) -> TrialConfig:
+    """``config`` with its backend checked and settled for the run (factory.prepare)."""
+    if config.llm is None:
+        return config
+    return config.model_copy(update={"llm": prepare(config.llm)})
+
+
 def _kept(finished: int) -> str:
-    return f"{finished} finished trial{'s' if finished != 1 else ''} kept in {RESULTS_FILE}"
+    return f"{finished} finished trial{'s' if finished != 1 else ''} kept in {RunDir.RESULTS}"
 
 
-def _jobs(config: RunConfig, llm: LLMConfig, done: set[int]) -> Iterator[TrialJob]:
+def _jobs(run: RunConfig, config: TrialConfig, done: set[int]) -> Iterator[TrialJob]:
     """The trials not in ``done``, in order, each made when an engine asks for it: a run of
     any length starts at once and holds only the jobs in flight."""
-    for trial in range(config.trials):
+    for trial in range(run.trials):
         if trial in done:
             continue
         spec = TrialSpec(
-            method=config.method,
-            pattern_name=config.pattern_name,
-            goal=config.goal,
-            run_seed=config.seed,
+            method=run.method,
+            pattern_name=run.pattern_name,
+            goal=run.goal,
+            run_seed=run.seed,
             trial=trial,
-            llm=llm,
-            budget=config.budget,
-            physics=config.physics,
-            noise=config.noise,
+            config=config,
         )
-        yield TrialJob(
-            spec=spec,
-            rule=config.rule,
-            snapshots=config.snapshots,
-            transcripts=config.transcripts,
-        )
+        yield TrialJob(spec=spec, snapshots=run.snapshots, transcripts=run.transcripts)
 
 
 def _engine(config: RunConfig, jobs: Iterator[TrialJob], count: int) -> Iterator[TrialOutput]:
@@ -188,14 +181,15 @@ def _engine(config: RunConfig, jobs: Iterator[TrialJob], count: int) -> Iterator
     return run_serial(jobs)
 
 
-def _write_outputs(config: RunConfig, output: TrialOutput, kept: str) -> None:
+def _write_outputs(run: RunDir, config: RunConfig, output: TrialOutput, kept: str) -> None:
     """A trial's transcript and pictures, written after its result line."""
-    name = f"trial_{output.result.trial:03d}"
+    trial = output.result.trial
     files: dict[Path, bytes] = {}
     if config.transcripts:
-        files[Path("transcripts") / f"{name}.jsonl"] = output.transcript.encode()
+        files[run.transcript(trial)] = output.transcript.encode()
     if config.snapshots:
-        files |= {Path("snapshots") / name / path: data for path, data in output.pictures.items()}
-    incomplete = f"not all of trial {output.result.trial}'s pictures and transcript are written"
+        folder = run.snapshots(trial)
+        files |= {folder / path: data for path, data in output.pictures.items()}
+    incomplete = f"not all of trial {trial}'s pictures and transcript are written"
     for path, data in files.items():
-        write_file(config.out / path, data, f"{incomplete}; {kept}")
+        write_file(path, data, f"{incomplete}; {kept}")

@@ -4,8 +4,9 @@ results.jsonl only ever grows by whole lines, each checked to be written whole a
 as its trial finishes; a write that fails (a full disk) is cut back. A run killed at any
 moment leaves at most a partial last line, which resuming cuts off (a whole line that only
 lacks its newline is kept); a trial is never written twice, and a line whose trial index
-does not fit its seed is refused. run.json records what makes trials comparable, so a
-different configuration cannot be mixed into the same directory.
+does not fit its seed is refused. run.json records what makes trials comparable (the
+method, the pattern and its hash, the seed, and every value of the trial configuration
+with its hash), so a different configuration cannot be mixed into the same directory.
 """
 
 from __future__ import annotations
@@ -13,25 +14,80 @@ from __future__ import annotations
 import contextlib
 import errno
 import hashlib
+import json
 import os
 from pathlib import Path
 from typing import IO, Any
 
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
 
 from actionreasoning.errors import ConfigError, StorageError
+from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.rules import trial_seed
+from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.world.config_files import read_user_file
-from actionreasoning.world.noise import NoiseLevel
-from actionreasoning.world.physics import PhysicsProfile
-
-RESULTS_FILE = "results.jsonl"
-MANIFEST_FILE = "run.json"
 
 
 class RunManifest(BaseModel):
-    """What every trial of a run shares. Trial count, workers and outputs may differ."""
+    """What every trial of a run shares: run.json. Trial count, workers and outputs may
+    differ. ``config`` is the trial configuration, ``config_sha256`` the hash of all its
+    recorded values (:func:`config_digest`); read back, its backend holds only what is
+    recorded of one (``trial_config.Backend``), the rest at its defaults."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    method: str
+    pattern: str
+    pattern_sha256: str
+    seed: int
+    config: TrialConfig
+    config_sha256: str
+
+    @classmethod
+    def sealed(
+        cls, method: str, pattern: str, pattern_sha256: str, seed: int, config: TrialConfig
+    ) -> RunManifest:
+        """A manifest with ``config``'s hash."""
+        return cls(
+            method=method,
+            pattern=pattern,
+            pattern_sha256=pattern_sha256,
+            seed=seed,
+            config=config,
+            config_sha256=config_digest(config),
+        )
+
+    @model_validator(mode="after")
+    def _hash_matches(self) -> RunManifest:
+        if config_digest(self.config) != self.config_sha256:
+            raise ValueError("config_sha256 is not the hash of config: the file was edited")
+        return self
+
+    @property
+    def llm(self) -> str:
+        """The reasoning backend as given (``openai:MODEL``), or ``none`` (classical)."""
+        return "none" if self.config.llm is None else self.config.llm.spec
+
+    @property
+    def physics_name(self) -> str:
+        return self.config.physics.name
+
+    @property
+    def noise_name(self) -> str:
+        return self.config.noise.name
+
+    def fields(self) -> dict[str, Any]:
+        """Every recorded value, nested ones dotted and those of the config by their path
+        in it (``tolerances.c_min_m``); the hash, which only sums them up, left out."""
+        plain = self.model_dump(mode="json", exclude={"config", "config_sha256"})
+        return _flatten({**plain, **self.config.model_dump(mode="json")})
+
+
+class EarlierManifest(BaseModel):
+    """run.json as written before the trial configuration was recorded (results lines of
+    schema version 1): read by `report`, never resumed. Its :meth:`fields` are named as
+    today's are."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
@@ -43,8 +99,50 @@ class RunManifest(BaseModel):
     llm_limits: dict[str, int | bool]
     success_rule: str
     budget: dict[str, float]
-    physics: PhysicsProfile
-    noise: NoiseLevel
+    physics: dict[str, Any]
+    noise: dict[str, Any]
+
+    @property
+    def physics_name(self) -> str:
+        return str(self.physics["name"])
+
+    @property
+    def noise_name(self) -> str:
+        return str(self.noise["name"])
+
+    def fields(self) -> dict[str, Any]:
+        """What it recorded, by the names a :class:`RunManifest` gives the same values."""
+        limits = {k: v for k, v in self.llm_limits.items() if k != "fallback"}
+        backend = {"spec": self.llm, "limits": limits, "fallback": self.llm_limits.get("fallback")}
+        plain = self.model_dump(include={"method", "pattern", "pattern_sha256", "seed"})
+        config = {
+            "physics": self.physics,
+            "noise": self.noise,
+            "budget": self.budget,
+            "success_rule": self.success_rule,
+            "llm": None if self.llm == "none" else backend,
+        }
+        return _flatten({**plain, **config})
+
+
+#: run.json of this version, or of one before the trial configuration was recorded.
+AnyManifest = RunManifest | EarlierManifest
+
+
+def config_digest(config: TrialConfig) -> str:
+    """SHA-256 of a configuration's recorded values as compact JSON with sorted keys."""
+    recorded = config.model_dump(mode="json")
+    return digest(json.dumps(recorded, sort_keys=True, separators=(",", ":")))
+
+
+def _flatten(data: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    flat: dict[str, Any] = {}
+    for name, value in data.items():
+        if isinstance(value, dict):
+            flat.update(_flatten(value, f"{prefix}{name}."))
+        else:
+            flat[f"{prefix}{name}"] = value
+    return flat
 
 
 def digest(text: str) -> str:
@@ -67,7 +165,7 @@ def output_directory(out: Path) -> None:
 def open_run(out: Path, manifest: RunManifest) -> list[TrialResult]:
     """Create ``out`` for this run, or check it holds the same run; its finished trials."""
     output_directory(out)
-    results, stored = out / RESULTS_FILE, out / MANIFEST_FILE
+    results, stored = RunDir(out).results, RunDir(out).manifest
     if results.exists() and not results.is_file():  # e.g. a FIFO: appending would block
         read_user_file(results, "results file", limit=None)
     if not results.exists() or results.stat().st_size == 0:
@@ -84,11 +182,11 @@ def open_run(out: Path, manifest: RunManifest) -> list[TrialResult]:
         previous = read_manifest(stored)
     except ConfigError as error:
         raise ConfigError(f"{error}: choose another --out") from error
-    if previous != manifest:
-        differences = ", ".join(_differences(previous.model_dump(), manifest.model_dump()))
+    differences = _differences(previous.fields(), manifest.fields())
+    if differences:
         raise ConfigError(
-            f"--out {out} holds a different run ({differences}): choose another --out, "
-            "or repeat that run's options to resume it"
+            f"--out {out} holds a different run ({', '.join(differences)}): choose another "
+            "--out, or repeat that run's options, under the settings it ran with, to resume it"
         )
     finished = read_results(results, repair=True)
     expected = (manifest.method, manifest.pattern, manifest.seed)
@@ -103,10 +201,26 @@ def open_run(out: Path, manifest: RunManifest) -> list[TrialResult]:
 
 
 def read_manifest(path: Path) -> RunManifest:
-    """The run.json at ``path``; a damaged one, or one of another version, is an error."""
+    """The run.json at ``path`` to resume; a damaged one, or one of another version, is an
+    error."""
+    manifest = read_any_manifest(path)
+    if isinstance(manifest, EarlierManifest):
+        raise ConfigError(
+            f"{path} was written by an earlier version of actionreasoning, which did not "
+            "record the trial configuration, so a resume cannot be checked against it"
+        )
+    return manifest
+
+
+def read_any_manifest(path: Path) -> AnyManifest:
+    """The run.json at ``path``, also one written before the trial configuration was
+    recorded (for a report: such a run cannot be resumed); a damaged one is an error."""
+    data = read_user_file(path, "run file")
     try:
-        return RunManifest.model_validate_json(read_user_file(path, "run file"))
+        return RunManifest.model_validate_json(data)
     except ValidationError as error:
+        with contextlib.suppress(ValidationError):
+            return EarlierManifest.model_validate_json(data)
         first = error.errors()[0]
         where = ".".join(str(part) for part in first["loc"])
         raise ConfigError(
@@ -114,15 +228,13 @@ def read_manifest(path: Path) -> RunManifest:
         ) from error
 
 
-def _differences(there: dict[str, Any], now: dict[str, Any], prefix: str = "") -> list[str]:
-    """Every field (nested ones dotted: ``physics.time_step_s``) that differs, with both values."""
+def _differences(there: dict[str, Any], now: dict[str, Any]) -> list[str]:
+    """Every field (flattened: ``physics.time_step_s``) that differs, with both values."""
     found = []
     for name in dict.fromkeys([*there, *now]):
         old, new = there.get(name), now.get(name)
-        if isinstance(old, dict) and isinstance(new, dict):
-            found += _differences(old, new, f"{prefix}{name}.")
-        elif old != new:
-            found.append(f"{prefix}{name} {old!r} there, {new!r} now")
+        if old != new:
+            found.append(f"{name} {old!r} there, {new!r} now")
     return found
 
 

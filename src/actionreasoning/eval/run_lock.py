@@ -1,4 +1,4 @@
-"""One writer per eval directory: an OS lock on ``run.lock`` while a run writes there.
+"""One writer per eval directory: an OS lock on its ``run.lock`` while a run writes there.
 
 The lock is ``flock`` on the file, so the kernel drops it when its process ends, however it
 ends: a killed run leaves nothing stale. Only the process that runs the trials holds it:
@@ -18,9 +18,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from actionreasoning.errors import ConfigError
+from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.run_dir import output_directory, write_error
-
-LOCK_FILE = "run.lock"
 
 #: The directories (device, inode) this process holds.
 _held: set[tuple[int, int]] = set()
@@ -53,8 +52,9 @@ def _directory(out: Path) -> tuple[int, int]:
 
 def _acquire(out: Path) -> int:
     """The open lock file of ``out``, locked by this process and naming it."""
+    path = RunDir(out).lock
     try:
-        handle = os.open(out / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o644)
+        handle = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
     except OSError as error:
         raise ConfigError(f"--out {out}: cannot write there ({error.strerror})") from error
     try:
@@ -77,5 +77,5 @@ def _acquire(out: Path) -> int:
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
     except OSError as error:
         os.close(handle)
-        raise write_error(out / LOCK_FILE, error, "no trial has run yet") from error
+        raise write_error(path, error, "no trial has run yet") from error
     return handle

@@ -13,6 +13,7 @@ import numpy as np
 
 from actionreasoning.control.classical import StageEvent
 from actionreasoning.eval.images import FRAMES_DIR, image_grid, png
+from actionreasoning.eval.layout import RunDir
 from actionreasoning.sim.camera import build_closeup, closeup, overview, render
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.geometry import Vec3
@@ -20,7 +21,6 @@ from actionreasoning.world.stages import Stage
 
 WIDTH, HEIGHT = 320, 240
 PICK_STAGES = frozenset({Stage.PRE_GRASP, Stage.DESCENT, Stage.GRASP, Stage.LIFT})
-SHEET = "stages.png"
 
 
 class SnapshotRecorder:
@@ -57,9 +57,9 @@ class SnapshotRecorder:
 
     def _finish(self, scene: Scene) -> None:
         self.files["final_overview.png"] = png(render(scene, overview(scene)))
-        self.files["final_build.png"] = png(render(scene, build_closeup(scene)))
+        self.files[RunDir.FINAL_BUILD] = png(render(scene, build_closeup(scene)))
         if self._rows:
-            self.files[SHEET] = sheet_png(self._rows)
+            self.files[RunDir.STAGE_SHEET] = sheet_png(self._rows)
 
 
 def sheet_png(rows: dict[int, list[tuple[str, np.ndarray]]]) -> bytes:

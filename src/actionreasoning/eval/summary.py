@@ -6,8 +6,9 @@ from collections import Counter
 from collections.abc import Sequence
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, Field
 
+from actionreasoning.eval.provenance import Provenance
 from actionreasoning.eval.results import LLMUsage, TrialResult
 from actionreasoning.eval.rules import SuccessRule
 from actionreasoning.records import FailureCode
@@ -26,10 +27,10 @@ class MetricStats(BaseModel):
     std: float | None
 
 
-class RunSummary(BaseModel):
-    """The figures of one eval run (one method, one pattern)."""
+class RunSummary(Provenance):
+    """The figures of one eval run (one method, one pattern), and which code made them."""
 
-    model_config = ConfigDict(frozen=True)
+    model_config = ConfigDict(frozen=True, extra="ignore")
 
     method: str
     pattern: str
@@ -48,7 +49,7 @@ class RunSummary(BaseModel):
     failures: dict[FailureCode, int]
     failure_examples: dict[FailureCode, int]
     llm_usage: LLMUsage
-    llm_usage_by_agent: dict[str, LLMUsage] = {}
+    llm_usage_by_agent: dict[str, LLMUsage] = Field(default_factory=dict)
     llm_mode: str | None = None
     decisions: int = 0
     fallback_decisions: int = 0

@@ -14,7 +14,7 @@ from actionreasoning.agents.single_agent import SingleAgent
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.control.classical import StageEvent, run_classical
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
-from actionreasoning.errors import TrialAborted, UnreachableError
+from actionreasoning.errors import ConfigError, TrialAborted, UnreachableError
 from actionreasoning.eval.metrics import brick_metrics
 from actionreasoning.eval.results import (
     BrickResult,
@@ -23,20 +23,18 @@ from actionreasoning.eval.results import (
     PlacementMetrics,
     TrialResult,
 )
-from actionreasoning.eval.rules import Method, SuccessRule, trial_seed
+from actionreasoning.eval.rules import Method, trial_seed
 from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.reasoners.factory import LLMConfig, make_reasoner
+from actionreasoning.eval.trial_config import TrialConfig
+from actionreasoning.reasoners.factory import make_reasoner
 from actionreasoning.records import FailureCode
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.perceive import Sensor
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.boxes import Box
-from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import READY_POSE, GoalPattern
-from actionreasoning.world.noise import LEVELS, NoiseLevel, vary_bricks
-from actionreasoning.world.physics import PAPER, PhysicsProfile
-from actionreasoning.world.scene_spec import SceneSpec
+from actionreasoning.world.noise import vary_bricks
 
 SPAWN_SETTLE_S = 0.25
 FINAL_SETTLE_S = 1.0
@@ -44,18 +42,19 @@ FINAL_SETTLE_S = 1.0
 
 @dataclass(frozen=True)
 class TrialSpec:
-    """Everything that defines one trial."""
+    """Everything that defines one trial: the run's configuration, the method, the goal,
+    the run seed and the trial's index."""
 
     method: Method
     pattern_name: str
     goal: GoalPattern
     run_seed: int
     trial: int
-    llm: LLMConfig = LLMConfig()
-    scene: SceneSpec = SceneSpec()
-    budget: TrialBudget = TrialBudget()
-    physics: PhysicsProfile = PAPER
-    noise: NoiseLevel = LEVELS["none"]
+    config: TrialConfig = TrialConfig()
+
+    def __post_init__(self) -> None:
+        if self.method is not Method.CLASSICAL and self.config.llm is None:
+            raise ConfigError(f"--method {self.method} needs a reasoning backend (config.llm)")
 
 
 StageHook = Callable[[Scene, StageEvent], None]
@@ -63,10 +62,12 @@ StageHook = Callable[[Scene, StageEvent], None]
 
 @dataclass(frozen=True)
 class TrialWorld:
-    """A trial's scene (after the spawn settle), the arm model, the seed and the sensor."""
+    """A trial's scene (after the spawn settle), the arm model, the controller driving it,
+    the seed and the sensor."""
 
     scene: Scene
     arm: KinematicArm
+    controller: WaypointController
     seed: int
     sensor: Sensor
 
@@ -75,11 +76,11 @@ class TrialWorld:
 def trial_world(spec: TrialSpec) -> Iterator[TrialWorld]:
     """The trial's world under its physics profile and perturbations, closed on exit: one
     brick of the goal's size per target, its mass scaled from the catalogue brick's."""
-    seed = trial_seed(spec.run_seed, spec.trial)
+    config, seed = spec.config, trial_seed(spec.run_seed, spec.trial)
     count, size = len(spec.goal.targets), spec.goal.brick_size_m
-    nominal = spec.scene.brick_body(spec.physics.brick_lateral_friction, size)
-    bodies = vary_bricks(spec.noise.variation, nominal, count, seed)
-    laid_out = sample_pick_poses(np.random.default_rng(seed), count, spec.scene, size)
+    nominal = config.scene.brick_body(config.physics.brick_lateral_friction, size)
+    bodies = vary_bricks(config.noise.variation, nominal, count, seed)
+    laid_out = sample_pick_poses(np.random.default_rng(seed), count, config.scene, size)
     poses = [
         pose.model_copy(update={"position_m": (*pose.position_m[:2], body.size_m[2] / 2.0)})
         for pose, body in zip(laid_out, bodies, strict=True)
@@ -88,10 +89,16 @@ def trial_world(spec: TrialSpec) -> Iterator[TrialWorld]:
         arm = KinematicArm()
         cleanup.callback(arm.close)
         ready = arm.solve(READY_POSE.position_m, READY_POSE.quat_xyzw).joints_rad
-        scene = Scene(spec.scene, poses, ready, spec.physics, spec.budget, bodies, nominal)
+        scene = Scene(config.scene, poses, ready, config.physics, config.budget, bodies, nominal)
         cleanup.callback(scene.close)
         scene.step(scene.ticks_for(SPAWN_SETTLE_S))
-        yield TrialWorld(scene=scene, arm=arm, seed=seed, sensor=Sensor(scene, spec.noise, seed))
+        yield TrialWorld(
+            scene=scene,
+            arm=arm,
+            controller=WaypointController(scene, arm, config.controller, config.safety),
+            seed=seed,
+            sensor=Sensor(scene, config.noise, seed),
+        )
 
 
 @dataclass(frozen=True)
@@ -102,13 +109,10 @@ class TrialRun:
     transcript: tuple[AgentCall, ...]
 
 
-def run_trial(
-    spec: TrialSpec, rule: SuccessRule = SuccessRule(), on_stage: StageHook | None = None
-) -> TrialRun:
+def run_trial(spec: TrialSpec, on_stage: StageHook | None = None) -> TrialRun:
     """Run one trial start to finish; failures become a ``failure`` record, never a crash."""
     with trial_world(spec) as world:
-        scene, seed = world.scene, world.seed
-        controller = WaypointController(scene, world.arm)
+        scene, seed, controller = world.scene, world.seed, world.controller
 
         def stage(brick: int, name: str) -> None:
             if on_stage is not None:
@@ -124,7 +128,7 @@ def run_trial(
         except TrialAborted as error:
             outcome.failure = outcome.failure or failure_of(error, None)
         stage(-1, "final")
-        return TrialRun(_measure(spec, seed, scene, rule, outcome), tuple(outcome.transcript))
+        return TrialRun(_measure(spec, seed, scene, outcome), tuple(outcome.transcript))
 
 
 def _run_classical(
@@ -149,20 +153,19 @@ def _run_agents(
     stage: Callable[[int, str], None],
 ) -> BuildResult:
     """The six gated agents, or the merged single agent, with the spec's reasoner."""
-    world = SimWorld(controller, spec.goal, sensor)
-    reasoner = make_reasoner(spec.llm, controller.scene.deadline)
+    config, world = spec.config, SimWorld(controller, spec.goal, sensor)
+    assert config.llm is not None  # TrialSpec checks it
+    reasoner = make_reasoner(config.llm, controller.scene.deadline)
     runner = (
-        SingleAgent(world, reasoner, on_stage=stage)
+        SingleAgent(world, reasoner, config.tolerances, on_stage=stage)
         if spec.method is Method.SINGLE_AGENT
-        else Orchestrator(world, reasoner, on_stage=stage)
+        else Orchestrator(world, reasoner, config.tolerances, config.retries, on_stage=stage)
     )
     return runner.build(spec.goal)
 
 
-def _measure(
-    spec: TrialSpec, seed: int, scene: Scene, rule: SuccessRule, outcome: BuildResult
-) -> TrialResult:
-    failure = outcome.failure
+def _measure(spec: TrialSpec, seed: int, scene: Scene, outcome: BuildResult) -> TrialResult:
+    config, rule, failure = spec.config, spec.config.success_rule, outcome.failure
     unplaced = iter(sorted(set(range(len(scene.bricks))) - set(outcome.placements.values())))
     bricks = []
     for target in spec.goal.targets:
@@ -204,13 +207,13 @@ def _measure(
     return TrialResult(
         method=str(spec.method),
         pattern=spec.pattern_name,
-        physics=spec.physics.name,
-        noise=spec.noise.name,
+        physics=config.physics.name,
+        noise=config.noise.name,
         seed=spec.run_seed,
         trial=spec.trial,
         trial_seed=seed,
         success=failure is None,
-        llm=spec.llm.label if spec.method is not Method.CLASSICAL else "none",
+        llm="none" if config.llm is None or spec.method is Method.CLASSICAL else config.llm.label,
         bricks=tuple(bricks),
         bricks_placed=sum(within),
         metrics=PlacementMetrics(

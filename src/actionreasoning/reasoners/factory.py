@@ -15,11 +15,12 @@ from pydantic import ValidationError
 from actionreasoning.agents.outputs import GraspAnswer
 from actionreasoning.agents.reasoner import Reasoner
 from actionreasoning.errors import ConfigError
+from actionreasoning.reasoners.backend import LLMConfig
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.reasoners.chat import ChatBackend, ChatRequest, StructuredMode
 from actionreasoning.reasoners.llamacpp_chat import LlamaCppChat
-from actionreasoning.reasoners.llm import LLMLimits, LLMReasoner
-from actionreasoning.reasoners.openai_chat import OpenAIChat, ServerOptions
+from actionreasoning.reasoners.llm import LLMReasoner
+from actionreasoning.reasoners.openai_chat import OpenAIChat
 from actionreasoning.reasoners.recording import RecordingChat, ReplayChat
 
 KINDS = ("builtin", "openai", "llamacpp", "replay")
@@ -27,29 +28,6 @@ CHECK_PROMPT = (
     "You control a robot gripper that is at its grasp pose around a brick. Answer with a JSON "
     'object: {"close": true, "rationale": "<one short sentence>"}.'
 )
-
-
-@dataclass(frozen=True)
-class LLMConfig:
-    """The reasoning backend of a run and its options."""
-
-    spec: str = "builtin"
-    server: ServerOptions = ServerOptions()
-    limits: LLMLimits = LLMLimits()
-    fallback: bool = False
-    record: Path | None = None
-    mode: StructuredMode | None = None  # set by prepare() for servers
-    label: str = "builtin"  # what results.jsonl calls the backend (a replay: the recorded one)
-
-    @property
-    def kind(self) -> str:
-        """builtin, openai, llamacpp or replay."""
-        return self.spec.split(":", 1)[0]
-
-    @property
-    def argument(self) -> str:
-        """What follows the kind: a model name or a path."""
-        return self.spec.split(":", 1)[1] if ":" in self.spec else ""
 
 
 def prepare(config: LLMConfig) -> LLMConfig:

@@ -25,7 +25,6 @@ import os
 import random
 import time
 import weakref
-from dataclasses import dataclass
 from typing import Any
 from urllib.parse import parse_qsl, urlsplit
 
@@ -33,6 +32,7 @@ import openai
 from openai.types.chat import ChatCompletion
 
 from actionreasoning.errors import ConfigError, LLMError
+from actionreasoning.reasoners.backend import ServerOptions
 from actionreasoning.reasoners.chat import (
     ChatReply,
     ChatRequest,
@@ -62,20 +62,6 @@ MAX_RETRY_AFTER_S = 60.0
 
 class _FormatRefused(Exception):
     """The server refused the request itself (400, 422, or an error naming response_format)."""
-
-
-@dataclass(frozen=True)
-class ServerOptions:
-    """Where the server is and how patiently to ask it: ``timeout_s`` for each try, all of
-    it. An empty or malformed base URL is refused here."""
-
-    base_url: str | None = None
-    timeout_s: float = 60.0
-    max_retries: int = 2
-
-    def __post_init__(self) -> None:
-        if self.base_url is not None:
-            check_base_url(self.base_url, "--base-url")
 
 
 class OpenAIChat:

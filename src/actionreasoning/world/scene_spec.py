@@ -52,8 +52,9 @@ class WorkspaceBox(BaseModel):
         )
 
 
-#: The workspace box: the agents' answers are checked against it (``agents/validation.py``)
-#: and so is every planned tool path (``control/safety.py``).
+#: The workspace box: a scene's (``SceneSpec.workspace``), which every planned tool path must
+#: stay in (``control/safety.py``), and the one the agents' answers are checked against
+#: (``agents/validation.py``).
 WORKSPACE = WorkspaceBox()
 
 

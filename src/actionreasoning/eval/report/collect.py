@@ -15,9 +15,11 @@ from pathlib import Path, PurePath
 from typing import Any
 
 from actionreasoning.errors import ConfigError
+from actionreasoning.eval.layout import RunDir
+from actionreasoning.eval.provenance import Provenance
 from actionreasoning.eval.report.runs import Run, read_runs
 from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.run_dir import RESULTS_FILE, RunManifest
+from actionreasoning.eval.run_dir import AnyManifest
 from actionreasoning.eval.summary import RunSummary, summarize
 
 PATTERN_HASH = "pattern_sha256"
@@ -38,7 +40,7 @@ class Group:
     def snapshot_dir(self, result: TrialResult) -> Path | None:
         """Where the pictures of ``result`` are, if its run kept them."""
         for directory in self.sources[(result.seed, result.trial)]:
-            path = directory / "snapshots" / f"trial_{result.trial:03d}"
+            path = RunDir(directory).snapshots(result.trial)
             if path.is_dir():
                 return path
         return None
@@ -49,12 +51,12 @@ def pattern_title(pattern: str) -> str:
     return PurePath(pattern).stem if pattern.endswith((".json", ".yaml", ".yml")) else pattern
 
 
-def method_label(manifest: RunManifest) -> str:
+def method_label(manifest: AnyManifest) -> str:
     """How a row names a method: with its reasoning backend where it has one, its physics
     profile and, where there is any, its noise level."""
     name = manifest.method if manifest.llm == "none" else f"{manifest.method} ({manifest.llm})"
-    noise = "" if manifest.noise.name == "none" else f", noise {manifest.noise.name}"
-    return f"{name}, {manifest.physics.name}{noise}"
+    noise = "" if manifest.noise_name == "none" else f", noise {manifest.noise_name}"
+    return f"{name}, {manifest.physics_name}{noise}"
 
 
 def show(value: Any) -> str:
@@ -126,7 +128,7 @@ def _pool(label: str, pattern: str, runs: Sequence[Run]) -> Group:
                     continue
                 raise ConfigError(
                     f"trial {result.trial} of seed {result.seed} is in "
-                    f"{sources[key][0] / RESULTS_FILE} and {run.directory / RESULTS_FILE} under "
+                    f"{RunDir(sources[key][0]).results} and {RunDir(run.directory).results} under "
                     "the same run.json conditions, with different results: report one of them"
                 )
             kept[key], sources[key] = result, (run.directory,)
@@ -144,8 +146,9 @@ def _pool(label: str, pattern: str, runs: Sequence[Run]) -> Group:
 
 def _same(first: TrialResult, second: TrialResult) -> bool:
     """Whether two lines record the same outcome (the pattern as given aside: runs.py has
-    checked that both patterns have the same content)."""
-    return first.model_dump(exclude={"pattern"}) == second.model_dump(exclude={"pattern"})
+    checked that both patterns have the same content; and which code wrote them)."""
+    aside = {"pattern", *Provenance.model_fields}
+    return first.model_dump(exclude=aside) == second.model_dump(exclude=aside)
 
 
 def labels(groups: Sequence[Group]) -> list[str]:
@@ -191,17 +194,20 @@ def condition_notes(groups: Sequence[Group]) -> list[str]:
 
 
 def _compact(names: Sequence[str]) -> str:
-    """Dotted names, those under one field together: ``physics.{name, solver_iterations}``."""
+    """Dotted names, those under one field together: ``physics.{name, solver_iterations}``;
+    a field that is a value in one run and has fields in another is named both ways
+    (``llm, llm.{spec, fallback}``: none for the classical script, a backend for agents)."""
     by_top: dict[str, list[str]] = {}
     for name in names:
         top, _, rest = name.partition(".")
         by_top.setdefault(top, []).append(rest)
     parts = []
-    for top, rest in by_top.items():
-        if rest == [""]:
+    for top, rests in by_top.items():
+        if "" in rests:
             parts.append(top)
-        elif len(rest) == 1:
+        rest = [r for r in rests if r]
+        if len(rest) == 1:
             parts.append(f"{top}.{rest[0]}")
-        else:
+        elif rest:
             parts.append(f"{top}.{{{', '.join(rest)}}}")
     return ", ".join(parts)

@@ -12,14 +12,9 @@ from pathlib import Path
 from typing import Any
 
 from actionreasoning.errors import ConfigError
+from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.run_dir import (
-    MANIFEST_FILE,
-    RESULTS_FILE,
-    RunManifest,
-    read_manifest,
-    read_results,
-)
+from actionreasoning.eval.run_dir import AnyManifest, read_any_manifest, read_results
 
 #: run.json fields that do not make trials incomparable: the seed (runs of other seeds are
 #: pooled) and the pattern as it was given (its content is compared, by pattern_sha256).
@@ -31,24 +26,14 @@ class Run:
     """One eval directory: the run it holds and its finished trials."""
 
     directory: Path
-    manifest: RunManifest
+    manifest: AnyManifest
     results: tuple[TrialResult, ...]
 
     def conditions(self) -> dict[str, Any]:
-        """Every run.json field that trials must share to be pooled, nested ones dotted
-        (``budget.max_steps``)."""
-        data = self.manifest.model_dump(mode="json", exclude=set(NOT_CONDITIONS))
-        return _flatten(data)
-
-
-def _flatten(data: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    flat: dict[str, Any] = {}
-    for name, value in data.items():
-        if isinstance(value, dict):
-            flat.update(_flatten(value, f"{prefix}{name}."))
-        else:
-            flat[f"{prefix}{name}"] = value
-    return flat
+        """Every run.json value that trials must share to be pooled, nested ones dotted and
+        those of the trial configuration by their path in it (``budget.max_steps``)."""
+        fields = self.manifest.fields()
+        return {name: value for name, value in fields.items() if name not in NOT_CONDITIONS}
 
 
 def unique(directories: Sequence[Path]) -> list[Path]:
@@ -63,16 +48,17 @@ def read_runs(directories: Sequence[Path]) -> list[Run]:
 
 def read_run(directory: Path) -> Run:
     """A directory's run; one without results, without run.json, or whose lines belong to
-    another run is an error."""
-    path, stored = directory / RESULTS_FILE, directory / MANIFEST_FILE
+    another run is an error. A run of an earlier version is read as far as it recorded."""
+    run = RunDir(directory)
+    path, stored = run.results, run.manifest
     if not path.is_file():
-        raise ConfigError(f"{directory} holds no {RESULTS_FILE}: not an eval --out directory")
+        raise ConfigError(f"{directory} holds no {run.RESULTS}: not an eval --out directory")
     if not stored.is_file():
         raise ConfigError(
-            f"{directory} holds {RESULTS_FILE} but no {MANIFEST_FILE}: the conditions of its "
+            f"{directory} holds {run.RESULTS} but no {run.MANIFEST}: the conditions of its "
             "trials are unknown, so they cannot be compared"
         )
-    manifest = read_manifest(stored)
+    manifest = read_any_manifest(stored)
     results = read_results(path)
     if not results:
         raise ConfigError(f"{path} is empty: no trial has finished there yet")
@@ -81,8 +67,8 @@ def read_run(directory: Path) -> Run:
         "pattern": manifest.pattern,
         "seed": manifest.seed,
         "llm": manifest.llm,
-        "physics": manifest.physics.name,
-        "noise": manifest.noise.name,
+        "physics": manifest.physics_name,
+        "noise": manifest.noise_name,
     }
     for number, result in enumerate(results, start=1):
         for name, value in expected.items():

@@ -1,0 +1,88 @@
+"""The layout of an eval output directory, in one place: what `eval` writes there, what
+`report` reads back, and what `demo` adds and replaces.
+
+    results.jsonl                    one line per finished trial
+    run.json                         the run: method, pattern, seed, trial config and its hash
+    summary.json, summary.md         written at the end of a run
+    run.lock                         held while a run writes (run_lock.py)
+    transcripts/trial_NNN.jsonl      every agent call of trial NNN (--transcripts)
+    snapshots/trial_NNN/...          its pictures (--snapshots): stages.png, final_build.png,
+                                     frames/ and a close-up per stage
+    report.md, report/               the demo's pages (`demo` only)
+    .actionreasoning-demo            marks a directory `demo` may write into again
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import ClassVar
+
+
+@dataclass(frozen=True)
+class RunDir:
+    """An eval output directory, its files named by what they hold."""
+
+    root: Path
+
+    RESULTS: ClassVar[str] = "results.jsonl"
+    MANIFEST: ClassVar[str] = "run.json"
+    SUMMARY: ClassVar[str] = "summary.json"
+    SUMMARY_MD: ClassVar[str] = "summary.md"
+    LOCK: ClassVar[str] = "run.lock"
+    TRANSCRIPTS: ClassVar[str] = "transcripts"
+    SNAPSHOTS: ClassVar[str] = "snapshots"
+    #: In a trial's snapshot folder: the sheet of its stages and the close-up of the build.
+    STAGE_SHEET: ClassVar[str] = "stages.png"
+    FINAL_BUILD: ClassVar[str] = "final_build.png"
+    DEMO_PAGE: ClassVar[str] = "report.md"
+    DEMO_REPORT: ClassVar[str] = "report"
+    DEMO_MARKER: ClassVar[str] = ".actionreasoning-demo"
+    #: What a demo writes, all removed before the next demo into the same directory.
+    DEMO_FILES: ClassVar[tuple[str, ...]] = (RESULTS, MANIFEST, SUMMARY, SUMMARY_MD, DEMO_PAGE)
+    DEMO_FOLDERS: ClassVar[tuple[str, ...]] = (SNAPSHOTS, DEMO_REPORT)
+
+    @property
+    def results(self) -> Path:
+        return self.root / self.RESULTS
+
+    @property
+    def manifest(self) -> Path:
+        return self.root / self.MANIFEST
+
+    @property
+    def summary(self) -> Path:
+        return self.root / self.SUMMARY
+
+    @property
+    def summary_md(self) -> Path:
+        return self.root / self.SUMMARY_MD
+
+    @property
+    def lock(self) -> Path:
+        return self.root / self.LOCK
+
+    def transcript(self, trial: int) -> Path:
+        """Where trial ``trial``'s agent calls are."""
+        return self.root / self.TRANSCRIPTS / f"{trial_name(trial)}.jsonl"
+
+    def snapshots(self, trial: int) -> Path:
+        """The folder of trial ``trial``'s pictures."""
+        return self.root / self.SNAPSHOTS / trial_name(trial)
+
+    @property
+    def demo_page(self) -> Path:
+        return self.root / self.DEMO_PAGE
+
+    @property
+    def demo_report(self) -> Path:
+        return self.root / self.DEMO_REPORT
+
+    @property
+    def demo_marker(self) -> Path:
+        return self.root / self.DEMO_MARKER
+
+
+def trial_name(trial: int) -> str:
+    """How files and folders of trial ``trial`` are named: ``trial_007``."""
+    return f"trial_{trial:03d}"

@@ -1,0 +1,64 @@
+"""Everything a trial runs under, in one frozen record: what run.json holds and hashes.
+
+A :class:`TrialConfig` is made once per run and handed to every trial; each of its parts
+goes to the one place that uses it (the scene, the controller, the agents, the scoring),
+so the configuration recorded is the one run. A trial adds only its method, pattern, seed
+and index (:class:`~actionreasoning.eval.trial.TrialSpec`).
+"""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict, field_serializer
+
+from actionreasoning.agents.orchestrator import Budgets
+from actionreasoning.control.limits import ControllerLimits
+from actionreasoning.control.safety import SafetyLimits
+from actionreasoning.eval.rules import SuccessRule
+from actionreasoning.reasoners.backend import LLMConfig
+from actionreasoning.reasoners.llm import LLMLimits
+from actionreasoning.world.budget import TrialBudget
+from actionreasoning.world.noise import LEVELS, NoiseLevel
+from actionreasoning.world.physics import PAPER, PhysicsProfile
+from actionreasoning.world.scene_spec import SceneSpec
+from actionreasoning.world.tolerances import Tolerances
+
+
+class Backend(BaseModel):
+    """What run.json records of a reasoning backend: which one, its turn budgets, and
+    whether the built-in reasoner answers once they are spent."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    spec: str
+    limits: LLMLimits
+    fallback: bool
+
+
+class TrialConfig(BaseModel):
+    """The scene, physics, perturbations, gate tolerances, budgets, controller and safety
+    limits, success rule and reasoning backend of every trial of a run.
+
+    ``llm`` is None for the classical script, which asks no reasoner. Of a backend only
+    what defines it is recorded (:class:`Backend`): where its server is and how patiently
+    it is asked, a --record file, and what :func:`~actionreasoning.reasoners.factory.prepare`
+    negotiates are how a run reaches it, and may change on resume.
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    scene: SceneSpec = SceneSpec()
+    physics: PhysicsProfile = PAPER
+    noise: NoiseLevel = LEVELS["none"]
+    tolerances: Tolerances = Tolerances()
+    retries: Budgets = Budgets()
+    budget: TrialBudget = TrialBudget()
+    controller: ControllerLimits = ControllerLimits()
+    safety: SafetyLimits = SafetyLimits()
+    success_rule: SuccessRule = SuccessRule()
+    llm: LLMConfig | None = LLMConfig()
+
+    @field_serializer("llm")
+    def _backend(self, llm: LLMConfig | None) -> Backend | None:
+        if llm is None:
+            return None
+        return Backend(spec=llm.spec, limits=llm.limits, fallback=llm.fallback)
