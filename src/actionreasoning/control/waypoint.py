@@ -10,7 +10,6 @@ never silently approximated.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from enum import StrEnum
 from typing import Literal
 
@@ -76,7 +75,6 @@ class Waypoint(BaseModel):
         return self
 
 
-@dataclass(frozen=True)
 class WaypointController:
     """Drives the scene's arm through waypoints."""
 
