@@ -130,7 +130,7 @@ class FakeWorld:
     def observe(self, progress: Progress) -> WorldState:
         """The true state now; its step becomes the stage scripted deviations look for."""
         self.stage = progress.step
-        held_forces = self.pads.get(self.held, (0.0, 0.0)) if self.held is not None else (0.0, 0.0)
+        held_forces = self.pads[self.held] if self.held is not None else (0.0, 0.0)
         return WorldState(
             time_s=float(len(self.moves)),
             robot=RobotState(
@@ -168,11 +168,11 @@ class FakeWorld:
     def move(self, waypoint: WaypointProposal, stop_on_contact: int | None = None) -> Motion:
         deviation = self._scripted("move", waypoint, stop_on_contact)
         if deviation is None:
-            motion = self.ideal_move(waypoint, stop_on_contact)
+            done = self.ideal_move(waypoint, stop_on_contact)
         else:
-            motion = deviation.apply(self, waypoint, stop_on_contact)
-        self.moves.append(Move(self.stage, waypoint, stop_on_contact, motion))
-        return motion
+            done = deviation.apply(self, waypoint, stop_on_contact)
+        self.moves.append(Move(self.stage, waypoint, stop_on_contact, done))
+        return done
 
     def grip(self, opening_m: float | None) -> None:
         event: Event = "close" if opening_m is None else "open"
@@ -234,11 +234,12 @@ class FakeWorld:
 
     def ideal_grip(self, opening_m: float | None) -> None:
         """Close on the brick between the pads (centring it across them), or open to
-        ``opening_m`` and let go of a brick narrower than that."""
+        ``opening_m`` (no narrower than a brick held) and let go of it."""
         if opening_m is not None:
-            self.width = opening_m
-            self.pads = {}
-            if self.held is not None and opening_m > self.bricks[self.held].size_m[1]:
+            if self.held is not None and opening_m <= self.bricks[self.held].size_m[1]:
+                return  # the pads stay on the brick they hold
+            self.width, self.pads = opening_m, {}
+            if self.held is not None:
                 released, self.held = self.held, None
                 self._fall(released)
             return
