@@ -109,6 +109,7 @@ def test_a_missing_template_variable_fails_loudly() -> None:
         template.render(number=1, name="x")
 
 
+@pytest.mark.slow  # trial 0 runs in the simulator until agent 6 is asked
 def test_prompt_command_prints_what_an_agent_is_sent_in_trial_zero() -> None:
     result = cli("prompt", "--agent", "6", "--seed", "0")
     assert result.returncode == 0, result.stderr
