@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import socket
@@ -52,16 +53,29 @@ def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
         terminalreporter.write_line(f"hostile model outputs tried: {counts}")
 
 
-def cli(
-    *args: str, cwd: Path | None = None, timeout: float = 600
-) -> subprocess.CompletedProcess[str]:
-    """The `actionreasoning` command, run as a user runs it."""
+def cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    """The `actionreasoning` command, invoked in this process (typer's CliRunner): its exit
+    code, stdout and stderr, as a user sees them. An error that escapes the command (a crash,
+    where a user would see a traceback) is raised here."""
+    from typer.testing import CliRunner
+
+    from actionreasoning.cli import app
+
+    with contextlib.chdir(cwd) if cwd is not None else contextlib.nullcontext():
+        result = CliRunner().invoke(app, list(args), prog_name="actionreasoning")
+    if result.exception is not None and not isinstance(result.exception, SystemExit):
+        raise result.exception
+    return subprocess.CompletedProcess(args, result.exit_code, result.stdout, result.stderr)
+
+
+def cli_process(*args: str, timeout: float = 600) -> subprocess.CompletedProcess[str]:
+    """The `actionreasoning` command in a process of its own, for what only a process shows:
+    a hang cut by ``timeout``, memory it would exhaust, the real entry point."""
     return subprocess.run(
         [sys.executable, "-m", "actionreasoning", *args],
         capture_output=True,
         text=True,
         timeout=timeout,
-        cwd=cwd,
     )
 
 

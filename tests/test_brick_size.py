@@ -48,6 +48,7 @@ def spawned_mass(scene: Scene, brick: int) -> float:
     return p.getDynamicsInfo(scene.bricks[brick], -1, physicsClientId=scene.client)[0]
 
 
+@pytest.mark.slow
 def test_the_classical_script_builds_a_pattern_of_other_bricks_with_those_bricks(
     tmp_path: Path,
 ) -> None:

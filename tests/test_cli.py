@@ -1,4 +1,5 @@
-"""The command line as a user runs it: clear one-line errors, real eval runs."""
+"""The command line as a user runs it: clear one-line errors, real eval runs (in this
+process; one test through the real entry point)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from conftest import SMALL_PATTERN, assert_clean_error, cli
+from conftest import SMALL_PATTERN, assert_clean_error, cli, cli_process
 
 from actionreasoning.eval.rules import Method
 from actionreasoning.eval.run import RunConfig
@@ -85,7 +86,8 @@ def test_bad_pattern_files_are_refused_in_one_line(tmp_path: Path, name: str) ->
 
 def test_transcripts_of_the_classical_method_are_refused(tmp_path: Path) -> None:
     out = tmp_path / "o"
-    result = cli("eval", "--method", "classical", "--transcripts", "--out", str(out))
+    # Through the real entry point, `python -m actionreasoning`: its exit code and streams.
+    result = cli_process("eval", "--method", "classical", "--transcripts", "--out", str(out))
     assert_clean_error(result, "--transcripts", "classical")
     assert not out.exists()
 
@@ -255,6 +257,7 @@ def test_rich_markup_in_names_and_paths_is_printed_as_text(tmp_path: Path) -> No
     assert "x[bold]" in report.stdout  # the column, named after the file
 
 
+@pytest.mark.slow
 def test_a_run_resumes_with_its_pattern_file_spelled_another_way(
     tmp_path: Path, small_pattern: Path
 ) -> None:

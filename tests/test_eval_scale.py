@@ -14,7 +14,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from conftest import SMALL_PATTERN, assert_clean_error, cli, free_port
+from conftest import SMALL_PATTERN, assert_clean_error, cli, cli_process, free_port
 
 TRIALS = "3"
 
@@ -53,7 +53,7 @@ def serial(pattern: Path, tmp_path_factory: pytest.TempPathFactory) -> list[str]
 def test_two_workers_give_the_serial_results(
     pattern: Path, serial: list[str], tmp_path: Path
 ) -> None:
-    result = cli(*eval_args(pattern, tmp_path / "run", "--workers", "2"))
+    result = cli_process(*eval_args(pattern, tmp_path / "run", "--workers", "2"))
     assert result.returncode == 0, result.stderr
     assert sorted_lines(tmp_path / "run") == serial
     # Not a terminal: one plain line per finished trial, with the count and successes so far.
@@ -114,7 +114,7 @@ def ray_cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
 def test_trials_on_a_local_ray_cluster_give_the_serial_results(
     pattern: Path, serial: list[str], ray_cluster: str, tmp_path: Path
 ) -> None:
-    result = cli(*eval_args(pattern, tmp_path / "run", "--ray", ray_cluster))
+    result = cli_process(*eval_args(pattern, tmp_path / "run", "--ray", ray_cluster))
     assert result.returncode == 0, result.stderr
     assert sorted_lines(tmp_path / "run") == serial
 
@@ -123,7 +123,8 @@ def test_a_ray_address_where_nothing_listens_is_refused_at_once(
     pattern: Path, tmp_path: Path
 ) -> None:
     address = f"127.0.0.1:{free_port()}"
-    result = cli(*eval_args(pattern, tmp_path / "run", "--ray", address), timeout=60)
+    # In a process of its own: Ray keeps global state in the process that calls it.
+    result = cli_process(*eval_args(pattern, tmp_path / "run", "--ray", address), timeout=60)
     assert_clean_error(result, f"--ray {address}: no Ray cluster answers there")
 
 

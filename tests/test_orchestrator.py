@@ -94,6 +94,7 @@ def test_a_refused_target_gets_feedback_and_the_wall_is_built(small_goal) -> Non
         assert center_offset_cm(final[brick], small_goal.targets[target].pose.position_m) < 0.1
 
 
+@pytest.mark.slow
 def test_a_spent_budget_is_a_typed_failure(small_goal) -> None:
     unbuilt = PreGraspAnswer(brick_id=0, target_index=2, waypoint=READY_POSE.model_dump())
     reasoner = Scripted(pre_grasp=[unbuilt] * 3)
@@ -326,6 +327,7 @@ class Skewed:
         return AgentReply(answer=reply.answer.model_copy(update={"waypoint": skewed}))
 
 
+@pytest.mark.slow
 def test_a_sideways_lift_and_a_return_into_the_ground_are_refused_before_they_move(
     small_goal,
 ) -> None:

@@ -107,6 +107,7 @@ def test_demo_writes_a_new_or_empty_directory_and_replaces_its_own(
 # 2. two runs into one directory
 
 
+@pytest.mark.slow
 def test_a_second_run_into_a_directory_in_use_is_refused_naming_the_holder(
     one_brick: Path, tmp_path: Path
 ) -> None:
@@ -165,6 +166,7 @@ def run_limited(args: list[str], max_file_bytes: int) -> subprocess.CompletedPro
 OTHER_FILES_BYTES = 20 * 1024
 
 
+@pytest.mark.slow
 def test_a_short_write_of_a_result_ends_the_run_keeping_whole_lines(
     one_brick: Path, reference: Path, tmp_path: Path
 ) -> None:
@@ -182,6 +184,7 @@ def test_a_short_write_of_a_result_ends_the_run_keeping_whole_lines(
     assert lines_of(out) == lines[: kept + 1]
 
 
+@pytest.mark.slow
 def test_a_trial_whose_pictures_do_not_fit_keeps_its_result_line(
     one_brick: Path, reference: Path, tmp_path: Path
 ) -> None:
@@ -205,6 +208,7 @@ def unshare_mount_works() -> bool:
     return probe.returncode == 0
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not unshare_mount_works(), reason="no user namespaces to mount a tmpfs")
 def test_a_full_disk_ends_the_run_in_one_line_naming_it(
     one_brick: Path, reference: Path, tmp_path: Path
@@ -241,6 +245,7 @@ def test_a_full_disk_ends_the_run_in_one_line_naming_it(
 # 7. hand-edited result lines
 
 
+@pytest.mark.slow
 def test_a_whole_last_line_without_its_newline_is_kept_by_eval_and_report(
     one_brick: Path, reference: Path, tmp_path: Path
 ) -> None:
@@ -258,6 +263,7 @@ def test_a_whole_last_line_without_its_newline_is_kept_by_eval_and_report(
     assert (out / "results.jsonl").read_bytes() == whole
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("edited", [-1, 1, 5])
 def test_an_edited_trial_index_is_refused_naming_the_line(
     one_brick: Path, reference: Path, tmp_path: Path, edited: int

@@ -6,11 +6,9 @@ from __future__ import annotations
 
 import math
 import re
-import subprocess
-import sys
 
 import pytest
-from conftest import built_state
+from conftest import built_state, cli
 from jinja2 import UndefinedError
 from jsonschema import Draft202012Validator
 
@@ -111,13 +109,9 @@ def test_a_missing_template_variable_fails_loudly() -> None:
         template.render(number=1, name="x")
 
 
+@pytest.mark.slow  # trial 0 runs in the simulator until agent 6 is asked
 def test_prompt_command_prints_what_an_agent_is_sent_in_trial_zero() -> None:
-    result = subprocess.run(
-        [sys.executable, "-m", "actionreasoning", "prompt", "--agent", "6", "--seed", "0"],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    result = cli("prompt", "--agent", "6", "--seed", "0")
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("# Agent 6 of 6: Release and return")
     memory = re.findall(r"```json\n(.*?)\n```", result.stdout, flags=re.S)[1]

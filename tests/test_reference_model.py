@@ -98,6 +98,7 @@ def wall_run(tmp_path_factory: pytest.TempPathFactory) -> Both:
     return both
 
 
+@pytest.mark.slow
 def test_read_from_the_text_the_answers_are_the_built_in_reasoners(wall_run: Both) -> None:
     agents = [agent for agent, _, _ in wall_run.pairs]
     cycle = ["pre_grasp", "descent", "grasp", "lift", "placement", "placement", "release"]
@@ -107,6 +108,7 @@ def test_read_from_the_text_the_answers_are_the_built_in_reasoners(wall_run: Bot
         assert read == pytest.approx(builtin, abs=1e-3), agent
 
 
+@pytest.mark.slow
 def test_it_calls_tools_as_a_language_model_does(wall_run: Both) -> None:
     tool_turns = [c for c in wall_run.model.conversations if len(c) > 1]
     asked = [json.loads(c[1]["content"])["tool_calls"][0]["name"] for c in tool_turns]
@@ -122,6 +124,7 @@ def _conversation(run: Both, heading: str, turns: int) -> list[dict[str, str]]:
     )
 
 
+@pytest.mark.slow
 def test_without_the_ready_pose_in_the_state_it_cannot_answer(wall_run: Both) -> None:
     release = _conversation(wall_run, "# Agent 6 of 6", 1)
     assert json.loads(reply(release))["waypoint"]["position_m"] == [0.45, -0.25, 0.4]
@@ -132,6 +135,7 @@ def test_without_the_ready_pose_in_the_state_it_cannot_answer(wall_run: Both) ->
         reply([{"role": "user", "content": cut}])
 
 
+@pytest.mark.slow
 def test_without_the_slot_pose_in_the_tool_result_it_cannot_answer(wall_run: Both) -> None:
     placement = _conversation(wall_run, "# Agent 5 of 6", 3)
     answer = json.loads(reply(placement))
@@ -143,6 +147,7 @@ def test_without_the_slot_pose_in_the_tool_result_it_cannot_answer(wall_run: Bot
         reply([*placement[:2], {"role": "user", "content": cut}])
 
 
+@pytest.mark.slow
 def test_a_threshold_it_is_not_shown_is_never_guessed(wall_run: Both) -> None:
     pre_grasp = _conversation(wall_run, "# Agent 1 of 6", 3)
     assert json.loads(reply(pre_grasp))["brick_id"] == 0
@@ -166,6 +171,7 @@ def server() -> Iterator[str]:
     served.server_close()
 
 
+@pytest.mark.slow
 def test_over_http_it_builds_a_brick_with_tool_calls_and_usage(server: str, tmp_path: Path) -> None:
     pattern = tmp_path / "one.json"
     pattern.write_text(json.dumps(ONE_BRICK))

@@ -17,6 +17,9 @@ import pytest
 from conftest import SMALL_PATTERN, assert_clean_error, cli
 from test_llm_faults import ONE_BRICK, FaultServer
 
+#: Every test runs real trials (classical, or the agents asking a model server).
+pytestmark = pytest.mark.slow
+
 
 def classical(out: Path, *extra: str, pattern: str = "small.json", cwd: Path) -> Path:
     """One classical trial (or what ``extra`` asks for) of a pattern file, under precise
@@ -68,7 +71,7 @@ def test_runs_under_other_budgets_are_two_rows_in_either_order(work: Path) -> No
 def hostile_server() -> Iterator[FaultServer]:
     """A model server on loopback whose every answer is refused, so only the fallback builds."""
     server = FaultServer("hostile")
-    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread = threading.Thread(target=server.serve_forever, args=(0.05,), daemon=True)
     thread.start()
     try:
         yield server
@@ -91,7 +94,6 @@ def agents(out: Path, server: FaultServer, *extra: str) -> Path:
     return out
 
 
-@pytest.mark.slow
 def test_runs_with_and_without_the_fallback_are_two_rows_in_either_order(tmp_path: Path) -> None:
     with hostile_server() as server:
         no_fallback = agents(tmp_path / "r_nofb", server)

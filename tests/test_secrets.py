@@ -5,9 +5,6 @@ Nor do the credentials of a base URL: its user name, its password or its query v
 from __future__ import annotations
 
 import base64
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -45,7 +42,11 @@ def written(root: Path) -> str:
 @pytest.mark.parametrize("where", CREDENTIALS)
 @pytest.mark.parametrize("fault_server", ["echo", "echo_refuse"], indirect=True)
 def test_a_known_key_appears_in_no_file_and_no_output(
-    tmp_path: Path, fault_server: FaultServer, key: str, where: str
+    tmp_path: Path,
+    fault_server: FaultServer,
+    key: str,
+    where: str,
+    capfd: pytest.CaptureFixture[str],
 ) -> None:
     host, port = fault_server.server_address[:2]
     template, secret, basic = CREDENTIALS[where]
@@ -58,23 +59,16 @@ def test_a_known_key_appears_in_no_file_and_no_output(
     if fault_server.fault == "echo":
         assert run.returncode == 0, run.stderr
         assert "you sent " in record.read_text() and "[redacted]" in record.read_text()
-        report = subprocess.run(
-            [sys.executable, "-m", "actionreasoning", "report", str(tmp_path / "out"),
-             "--out", str(tmp_path / "report")],
-            capture_output=True, text=True, timeout=120,
-        )  # fmt: skip
+        report = cli("report", str(tmp_path / "out"), "--out", str(tmp_path / "report"))
         assert report.returncode == 0, report.stderr
         printed.append(report.stdout + report.stderr)
     else:
         assert run.returncode == 2 and "refused every request" in run.stderr
         assert "[redacted]" in run.stderr
-    check = subprocess.run(
-        [sys.executable, "-m", "actionreasoning", "llm", "check", "--llm", "openai:m",
-         "--base-url", url, "--llm-timeout", "2"],
-        capture_output=True, text=True, timeout=120, env=os.environ,
-    )  # fmt: skip
+    check = cli("llm", "check", "--llm", "openai:m", "--base-url", url, "--llm-timeout", "2")
     printed.append(check.stdout + check.stderr)
     assert "Traceback" not in printed[-1]
+    printed.append("".join(capfd.readouterr()))  # anything written past the commands' streams
     everything = written(tmp_path) + "\n".join(printed)
     assert fault_server.agent_requests or fault_server.fault == "echo_refuse"
     secrets = [KEY, KEY[-12:], secret, secret[-8:]]

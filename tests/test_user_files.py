@@ -19,6 +19,8 @@ from actionreasoning.world.physics import load_physics
 
 #: The loaders of physics and noise files, by how their errors name the file.
 LOADERS = {"physics file": load_physics, "noise file": load_noise}
+#: A read that blocks (a FIFO) fails the test after this long.
+HANG_S = 120
 #: Bad files: how to make one at a path, and what its error says.
 BAD_FILES = {
     "fifo": (os.mkfifo, "(a FIFO, not a regular file)"),
@@ -34,6 +36,7 @@ BAD_FILES = {
 }  # fmt: skip
 
 
+@pytest.mark.timeout(HANG_S)
 @pytest.mark.parametrize("case", sorted(BAD_FILES))
 def test_a_pattern_that_is_no_regular_file_or_too_large_is_refused_at_once(
     tmp_path: Path, case: str
@@ -43,7 +46,7 @@ def test_a_pattern_that_is_no_regular_file_or_too_large_is_refused_at_once(
     make(path)
     out = tmp_path / "out"
     # Before: a FIFO blocked for ever (the timeout fails the test), /dev/zero filled memory.
-    result = cli("eval", "--pattern", str(path), "--out", str(out), timeout=120)
+    result = cli("eval", "--pattern", str(path), "--out", str(out))
     assert_clean_error(result, f"{path}: cannot read pattern file {reason}")
     assert not out.exists()
 
@@ -90,10 +93,11 @@ def test_a_physics_or_noise_file_nested_100000_deep_is_refused(
     assert str(info.value) == f"{path}: not valid {kind} (nested too deeply)"
 
 
+@pytest.mark.timeout(HANG_S)
 def test_the_pattern_command_refuses_a_fifo_too(tmp_path: Path) -> None:
     fifo = tmp_path / "pattern.json"
     os.mkfifo(fifo)
-    result = cli("pattern", str(fifo), timeout=120)
+    result = cli("pattern", str(fifo))
     assert_clean_error(result, "pattern file (a FIFO, not a regular file)")
 
 
@@ -104,6 +108,7 @@ def test_a_file_of_exactly_the_limit_is_read(tmp_path: Path) -> None:
     assert read_user_file(path, "pattern file") == path.read_bytes()
 
 
+@pytest.mark.timeout(HANG_S)
 def test_a_run_file_that_is_a_fifo_is_refused_on_resume(
     tmp_path: Path, small_pattern: Path
 ) -> None:
@@ -112,7 +117,7 @@ def test_a_run_file_that_is_a_fifo_is_refused_on_resume(
     out.mkdir()
     (out / RunDir.RESULTS).write_text("{}\n")
     os.mkfifo(out / RunDir.MANIFEST)
-    result = cli(*args, "--trials", "1", timeout=120)
+    result = cli(*args, "--trials", "1")
     assert_clean_error(result, f"{out / RunDir.MANIFEST}: cannot read run file (a FIFO")
     assert (out / RunDir.RESULTS).read_text() == "{}\n"
 
@@ -124,15 +129,17 @@ def test_a_results_file_that_is_a_fifo_is_refused(tmp_path: Path) -> None:
         read_results(fifo)
 
 
+@pytest.mark.timeout(HANG_S)
 @pytest.mark.parametrize("case", ["fifo", "dev_zero", "directory"])
 def test_a_recording_that_is_no_regular_file_is_refused_at_once(tmp_path: Path, case: str) -> None:
     make, reason = BAD_FILES[case]
     path = tmp_path / "rec.jsonl"
     make(path)
-    result = cli("eval", "--llm", f"replay:{path}", "--out", str(tmp_path / "o"), timeout=120)
+    result = cli("eval", "--llm", f"replay:{path}", "--out", str(tmp_path / "o"))
     assert_clean_error(result, f"{path}: cannot read recording {reason}")
 
 
+@pytest.mark.timeout(HANG_S)
 def test_a_results_file_that_is_a_fifo_is_refused_before_a_run_starts(
     tmp_path: Path, small_pattern: Path
 ) -> None:
@@ -140,6 +147,6 @@ def test_a_results_file_that_is_a_fifo_is_refused_before_a_run_starts(
     out.mkdir()
     os.mkfifo(out / RunDir.RESULTS)  # size 0: it used to pass for a new run, then block
     args = ["eval", "--method", "classical", "--pattern", str(small_pattern), "--out", str(out)]
-    result = cli(*args, "--trials", "1", timeout=120)
+    result = cli(*args, "--trials", "1")
     assert_clean_error(result, f"{out / RunDir.RESULTS}: cannot read results file (a FIFO")
     assert not (out / RunDir.MANIFEST).exists()
