@@ -202,6 +202,14 @@ def eval_command(
             "verdicts with measured values, retries) to transcripts/trial_k.jsonl."
         ),
     ] = False,
+    rerun: Annotated[
+        bool,
+        typer.Option(
+            help="Write a Rerun recording of trial k (the scene in 3D, every agent call and "
+            "gate check, forces and slip, on the simulated timeline) to rerun/trial_k.rrd; "
+            "open it with `rerun FILE`. Needs the rerun extra."
+        ),
+    ] = False,
 ) -> None:
     """Run randomized trials of one method on one pattern and write results and summaries.
 
@@ -232,6 +240,7 @@ def eval_command(
         llm=config,
         snapshots=snapshots,
         transcripts=transcripts,
+        rerun=rerun,
         workers=workers,
         ray=ray,
         budget=TrialBudget(max_steps=max_steps, max_wall_s=max_trial_s),
@@ -292,6 +301,7 @@ def _evaluate(
     llm: LLMConfig,
     snapshots: bool,
     transcripts: bool = False,
+    rerun: bool = False,
     workers: int = 1,
     ray: str | None = None,
     budget: TrialBudget = TrialBudget(),
@@ -321,6 +331,7 @@ def _evaluate(
             config=trials_under,
             snapshots=snapshots,
             transcripts=transcripts,
+            rerun=rerun,
             workers=workers,
             ray=ray,
         )

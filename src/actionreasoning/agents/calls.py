@@ -37,6 +37,9 @@ A = TypeVar("A", bound=AgentAnswer)
 
 #: Called with (brick id, stage name) after each stage a build finished, for snapshots.
 StageHook = Callable[[int, str], None]
+#: Called with the call each time its record grows (answer, gate verdict, outcome): it must
+#: only read.
+CallHook = Callable[[AgentCall], None]
 
 
 class TrialStopped(ActionReasoningError):
@@ -79,12 +82,18 @@ class AgentCaller:
     """Puts an agent's request to the reasoner and writes the transcript."""
 
     def __init__(
-        self, world: World, reasoner: Reasoner, tolerances: Tolerances, result: BuildResult
+        self,
+        world: World,
+        reasoner: Reasoner,
+        tolerances: Tolerances,
+        result: BuildResult,
+        on_call: CallHook | None = None,
     ) -> None:
         self.world = world
         self.reasoner = reasoner
         self.tol = tolerances
         self.result = result
+        self.on_call = on_call
 
     def ask(
         self, spec: AgentSpec, memory: TaskMemory, attempt: int, expected: type[A]
@@ -135,6 +144,7 @@ class AgentCaller:
         call.usage, call.repairs = reply.usage, list(reply.repairs)
         call.tool_turns, call.fallback = reply.tool_turns, reply.fallback
         call.prompt_chars = reply.prompt_chars or call.prompt_chars
+        self._tell(call)
         if not isinstance(reply.answer, expected):
             raise TrialStopped(FailureCode.INVALID_OUTPUT, spec.key, "answer of the wrong schema")
         return reply.answer, state
@@ -143,11 +153,17 @@ class AgentCaller:
         """Note in the transcript what became of the last answer."""
         call = self.result.transcript[-1]
         call.outcome, call.feedback = outcome, feedback
+        self._tell(call)
 
     def judge(self, verdict: GateVerdict) -> GateVerdict:
         """Record a gate's verdict with the last answer; the caller acts on it."""
         self.result.transcript[-1].gates.append(GateRecord.of(verdict))
+        self._tell(self.result.transcript[-1])
         return verdict
+
+    def _tell(self, call: AgentCall) -> None:
+        if self.on_call is not None:
+            self.on_call(call)
 
     def measure(self, state: WorldState, tool: Tool[In, Out], arguments: In) -> Out:
         """A tool run for verification and gates (not an agent's tool call)."""

@@ -24,6 +24,7 @@ from actionreasoning.agents.calls import (
     A,
     AgentCaller,
     BuildResult,
+    CallHook,
     StageHook,
     TrialStopped,
     failure_of,
@@ -103,6 +104,7 @@ class Orchestrator:
         tolerances: Tolerances = Tolerances(),
         budgets: Budgets = Budgets(),
         on_stage: StageHook | None = None,
+        on_call: CallHook | None = None,
     ) -> None:
         self.world = world
         self.reasoner = reasoner
@@ -111,7 +113,7 @@ class Orchestrator:
         self.on_stage = on_stage
         self.specs = {spec.key: spec for spec in agent_specs()}
         self.result = BuildResult()
-        self.calls = AgentCaller(world, reasoner, self.tol, self.result)
+        self.calls = AgentCaller(world, reasoner, self.tol, self.result, on_call)
         self.put_down = PutDown(world, self.calls)
         self.memory = TaskMemory()
 

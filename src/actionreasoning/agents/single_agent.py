@@ -16,6 +16,7 @@ from actionreasoning.agents.calls import (
     BUILD_STOPPERS,
     AgentCaller,
     BuildResult,
+    CallHook,
     StageHook,
     TrialStopped,
     failure_of,
@@ -47,12 +48,15 @@ class SingleAgent:
         reasoner: Reasoner,
         tolerances: Tolerances = Tolerances(),
         on_stage: StageHook | None = None,
+        on_call: CallHook | None = None,
     ) -> None:
         self.world = world
         self.spec = single_agent_spec()
         self.on_stage = on_stage
         self.result = BuildResult()
-        self.calls = AgentCaller(world, reasoner, tolerances.under(world.sensing), self.result)
+        self.calls = AgentCaller(
+            world, reasoner, tolerances.under(world.sensing), self.result, on_call
+        )
         self.memory = TaskMemory(step=SINGLE_AGENT_START)
 
     def build(self, goal: GoalPattern) -> BuildResult:

@@ -2,7 +2,7 @@
 processes, or tasks on a Ray cluster.
 
 A job carries everything its trial needs and returns everything it produced (result,
-transcript, pictures), so only the process that owns the output directory writes files:
+transcript, pictures, recording), so only the process that owns the output directory writes files:
 the same code serves a worker on this machine and a Ray task on another.
 """
 
@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from itertools import islice
 
 from actionreasoning.errors import ConfigError, EngineError
+from actionreasoning.eval.rerun_log import RerunRecorder
 from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.snapshots import SnapshotRecorder
 from actionreasoning.eval.trial import TrialSpec, run_trial
@@ -37,21 +38,25 @@ class TrialJob:
     spec: TrialSpec
     snapshots: bool = False
     transcripts: bool = False
+    rerun: bool = False
 
 
 @dataclass(frozen=True)
 class TrialOutput:
-    """What a job produced: the result line, the transcript lines, the pictures."""
+    """What a job produced: the result line, the transcript lines, the pictures, the Rerun
+    recording."""
 
     result: TrialResult
     transcript: str = ""
     pictures: dict[str, bytes] = field(default_factory=dict)
+    recording: bytes = b""
 
 
 def execute(job: TrialJob) -> TrialOutput:
     """Run one trial (in whatever process this is) and collect its outputs."""
     recorder = SnapshotRecorder() if job.snapshots else None
-    run = run_trial(job.spec, recorder)
+    rerun = RerunRecorder(job.spec) if job.rerun else None
+    run = run_trial(job.spec, recorder, rerun)
     transcript = (
         "".join(call.model_dump_json() + "\n" for call in run.transcript) if job.transcripts else ""
     )
@@ -59,6 +64,7 @@ def execute(job: TrialJob) -> TrialOutput:
         result=run.result,
         transcript=transcript,
         pictures=recorder.files if recorder is not None else {},
+        recording=rerun.rrd() if rerun is not None else b"",
     )
 
 

@@ -6,9 +6,9 @@ again skips the trials already there (run_dir.py). Trials run one after another,
 processes or on a Ray cluster (jobs.py); only this process writes files, and only while it
 holds the directory's lock (run_lock.py). It stamps every line with the code that wrote it
 (provenance.py). With transcripts, every agent call of a trial is kept; with snapshots, its
-pictures, written after its result line, so a disk that fills up costs pictures, never a
-result. summary.json and summary.md are written at the end. A write that fails ends the run
-with a :class:`StorageError` saying what is kept.
+pictures; with rerun, its Rerun recording: all written after its result line, so a disk
+that fills up costs pictures, never a result. summary.json and summary.md are written at
+the end. A write that fails ends the run with a :class:`StorageError` saying what is kept.
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from actionreasoning.eval.jobs import (
 )
 from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.provenance import current_provenance, stamp
+from actionreasoning.eval.rerun_log import require_rerun
 from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.rules import Method
 from actionreasoning.eval.run_dir import (
@@ -60,6 +61,7 @@ class RunConfig:
     config: TrialConfig = TrialConfig()
     snapshots: bool = False
     transcripts: bool = False
+    rerun: bool = False
     workers: int = 1
     ray: str | None = None
 
@@ -89,7 +91,9 @@ class RunObserver(Protocol):
 
 
 def check_engine(config: RunConfig) -> None:
-    """Refuse engine options that cannot work together."""
+    """Refuse engine options that cannot work together, or that lack their package."""
+    if config.rerun:
+        require_rerun()
     if config.workers > 1 and config.ray:
         raise ConfigError("--workers and --ray exclude each other: Ray places the trials itself")
     llm = config.config.llm
@@ -169,7 +173,9 @@ def _jobs(run: RunConfig, config: TrialConfig, done: set[int]) -> Iterator[Trial
             trial=trial,
             config=config,
         )
-        yield TrialJob(spec=spec, snapshots=run.snapshots, transcripts=run.transcripts)
+        yield TrialJob(
+            spec=spec, snapshots=run.snapshots, transcripts=run.transcripts, rerun=run.rerun
+        )
 
 
 def _engine(config: RunConfig, jobs: Iterator[TrialJob], count: int) -> Iterator[TrialOutput]:
@@ -182,7 +188,7 @@ def _engine(config: RunConfig, jobs: Iterator[TrialJob], count: int) -> Iterator
 
 
 def _write_outputs(run: RunDir, config: RunConfig, output: TrialOutput, kept: str) -> None:
-    """A trial's transcript and pictures, written after its result line."""
+    """A trial's transcript, pictures and recording, written after its result line."""
     trial = output.result.trial
     files: dict[Path, bytes] = {}
     if config.transcripts:
@@ -190,6 +196,8 @@ def _write_outputs(run: RunDir, config: RunConfig, output: TrialOutput, kept: st
     if config.snapshots:
         folder = run.snapshots(trial)
         files |= {folder / path: data for path, data in output.pictures.items()}
-    incomplete = f"not all of trial {trial}'s pictures and transcript are written"
+    if config.rerun:
+        files[run.recording(trial)] = output.recording
+    incomplete = f"not all of trial {trial}'s pictures, transcript and recording are written"
     for path, data in files.items():
         write_file(path, data, f"{incomplete}; {kept}")

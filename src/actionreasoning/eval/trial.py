@@ -5,10 +5,12 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
+from functools import partial
+from typing import Protocol
 
 import numpy as np
 
-from actionreasoning.agents.calls import BuildResult, failure_of
+from actionreasoning.agents.calls import BuildResult, CallHook, failure_of
 from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.single_agent import SingleAgent
 from actionreasoning.agents.transcript import AgentCall
@@ -60,6 +62,20 @@ class TrialSpec:
 StageHook = Callable[[Scene, StageEvent], None]
 
 
+class TrialObserver(Protocol):
+    """Watches a trial as it runs, reading only: the scene every ``every_s`` of simulated
+    time (and once at the start), each finished stage, and each agent call as its record
+    grows (answer, gate verdicts, outcome)."""
+
+    every_s: float
+
+    def tick(self, scene: Scene) -> None: ...
+
+    def stage(self, scene: Scene, event: StageEvent) -> None: ...
+
+    def call(self, scene: Scene, call: AgentCall) -> None: ...
+
+
 @dataclass(frozen=True)
 class TrialWorld:
     """A trial's scene (after the spawn settle), the arm model, the controller driving it,
@@ -109,19 +125,29 @@ class TrialRun:
     transcript: tuple[AgentCall, ...]
 
 
-def run_trial(spec: TrialSpec, on_stage: StageHook | None = None) -> TrialRun:
+def run_trial(
+    spec: TrialSpec, on_stage: StageHook | None = None, observer: TrialObserver | None = None
+) -> TrialRun:
     """Run one trial start to finish; failures become a ``failure`` record, never a crash."""
     with trial_world(spec) as world:
         scene, seed, controller = world.scene, world.seed, world.controller
+        on_call = None
+        if observer is not None:
+            scene.watch(scene.ticks_for(observer.every_s), observer.tick)
+            observer.tick(scene)
+            on_call = partial(observer.call, scene)
 
         def stage(brick: int, name: str) -> None:
+            event = StageEvent(brick=brick, stage=name)
             if on_stage is not None:
-                on_stage(scene, StageEvent(brick=brick, stage=name))
+                on_stage(scene, event)
+            if observer is not None:
+                observer.stage(scene, event)
 
         if spec.method is Method.CLASSICAL:
             outcome = _run_classical(controller, world.sensor, spec.goal, stage)
         else:
-            outcome = _run_agents(controller, world.sensor, spec, stage)
+            outcome = _run_agents(controller, world.sensor, spec, stage, on_call)
         try:
             scene.step(scene.ticks_for(FINAL_SETTLE_S))
             scene.check_physics()
@@ -151,15 +177,18 @@ def _run_agents(
     sensor: Sensor,
     spec: TrialSpec,
     stage: Callable[[int, str], None],
+    on_call: CallHook | None = None,
 ) -> BuildResult:
     """The six gated agents, or the merged single agent, with the spec's reasoner."""
     config, world = spec.config, SimWorld(controller, spec.goal, sensor)
     assert config.llm is not None  # TrialSpec checks it
     reasoner = make_reasoner(config.llm, controller.scene.deadline)
     runner = (
-        SingleAgent(world, reasoner, config.tolerances, on_stage=stage)
+        SingleAgent(world, reasoner, config.tolerances, on_stage=stage, on_call=on_call)
         if spec.method is Method.SINGLE_AGENT
-        else Orchestrator(world, reasoner, config.tolerances, config.retries, on_stage=stage)
+        else Orchestrator(
+            world, reasoner, config.tolerances, config.retries, on_stage=stage, on_call=on_call
+        )
     )
     return runner.build(spec.goal)
 

@@ -12,7 +12,7 @@ under every profile: it makes a trial repeatable and changes no contact property
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -95,6 +95,7 @@ class Scene:
         self.arm_targets = np.array(ready_joints_rad, dtype=float)
         self.finger_target_m = FINGER_MAX_M
         self.ticks = 0
+        self._watchers: list[tuple[int, Callable[[Scene], None]]] = []
         self._apply_targets()
 
     # --- set-up -----------------------------------------------------------------------
@@ -218,6 +219,10 @@ class Scene:
                 physicsClientId=cid,
             )
 
+    def watch(self, every_ticks: int, observer: Callable[[Scene], None]) -> None:
+        """Call ``observer(self)`` after every ``every_ticks``-th time step; it must only read."""
+        self._watchers.append((max(1, every_ticks), observer))
+
     def ticks_for(self, seconds: float) -> int:
         """The number of time steps (at least one) that lasts ``seconds``."""
         return max(1, round(seconds / self.physics.time_step_s))
@@ -233,6 +238,9 @@ class Scene:
                 )
             if self.ticks % WALL_CHECK_TICKS == 0:
                 self.check_wall_time()
+            for every, observer in self._watchers:
+                if self.ticks % every == 0:
+                    observer(self)
 
     @property
     def deadline(self) -> float:
@@ -285,6 +293,13 @@ class Scene:
             self.robot, TCP_LINK, computeForwardKinematics=True, physicsClientId=self.client
         )
         return tuple(state[4]), tuple(state[5])  # type: ignore[return-value]
+
+    def link_positions(self) -> list[Vec3]:
+        """World positions of the arm's base and every link frame, from base to tool."""
+        cid, links = self.client, range(p.getNumJoints(self.robot, physicsClientId=self.client))
+        base = p.getBasePositionAndOrientation(self.robot, physicsClientId=cid)[0]
+        states = p.getLinkStates(self.robot, list(links), physicsClientId=cid)
+        return [tuple(base), *(tuple(state[4]) for state in states)]  # type: ignore[list-item]
 
     def tcp_velocity(self) -> tuple[Vec3, Vec3]:
         """Measured tool-centre-point linear (m/s) and angular (rad/s) velocity."""
