@@ -87,7 +87,8 @@ def test_recording_holds_the_bricks_pose_and_the_gate_verdicts(
     assert "relative_speed_mps" in lift and "<= 0.005 (pass)" in lift
     assert columns(rrd, "/world/waypoint", "Points3D:positions")
     assert columns(rrd, "/slip/held_brick_mps", "Scalars:scalars")
-    assert columns(rrd, "/forces/pad_left_n", "Scalars:scalars")
+    pads = columns(rrd, "/forces/pad_n", "Scalars:scalars")
+    assert len(pads) == len(centers) and max(left for _, (left, _) in pads) > 20  # N, held
     offsets = columns(rrd, "/offset_cm/brick_0", "Scalars:scalars")
     assert offsets[-1][1][0] == pytest.approx(result["bricks"][0]["center_offset_cm"], abs=1e-6)
 
