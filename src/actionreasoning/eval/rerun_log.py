@@ -121,9 +121,11 @@ class RerunRecorder:
         if call.brick_in_hand is not None and call.target is not None:
             self._assigned[call.brick_in_hand] = call.target
         head = f"#{call.call} {call.agent} brick {call.brick_in_hand} attempt {call.attempt}"
-        if call.answer and not logged.answer:
-            logged.answer = True
-            rec.log(f"agents/{call.agent}", rr.TextLog(f"{head} answer: {_json(call.answer)}"))
+        if (call.answer or call.outcome is not Outcome.PENDING) and not logged.answer:
+            logged.answer = True  # a call that failed has its tool calls but no answer
+            if call.answer:
+                answer = f"{head} answer: {_json(call.answer)}"
+                rec.log(f"agents/{call.agent}", rr.TextLog(answer))
             for tool in call.tool_calls:
                 result = tool.error or _json(tool.result)
                 text = f"{head} tool {tool.name}({_json(tool.arguments)}) -> {result}"
