@@ -202,6 +202,13 @@ def eval_command(
             "verdicts with measured values, retries) to transcripts/trial_k.jsonl."
         ),
     ] = False,
+    video: Annotated[
+        bool,
+        typer.Option(
+            help="Film every trial from above, 8 frames per simulated second, to "
+            "videos/trial_k_OUTCOME.mp4 (OUTCOME: ok or the failure code)."
+        ),
+    ] = False,
 ) -> None:
     """Run randomized trials of one method on one pattern and write results and summaries.
 
@@ -232,6 +239,7 @@ def eval_command(
         llm=config,
         snapshots=snapshots,
         transcripts=transcripts,
+        video=video,
         workers=workers,
         ray=ray,
         budget=TrialBudget(max_steps=max_steps, max_wall_s=max_trial_s),
@@ -271,6 +279,7 @@ def demo(
                 out,
                 llm=LLMConfig(),
                 snapshots=True,
+                video=True,
                 physics=physics,
                 noise=noise,
             )
@@ -292,6 +301,7 @@ def _evaluate(
     llm: LLMConfig,
     snapshots: bool,
     transcripts: bool = False,
+    video: bool = False,
     workers: int = 1,
     ray: str | None = None,
     budget: TrialBudget = TrialBudget(),
@@ -321,6 +331,7 @@ def _evaluate(
             config=trials_under,
             snapshots=snapshots,
             transcripts=transcripts,
+            video=video,
             workers=workers,
             ray=ray,
         )

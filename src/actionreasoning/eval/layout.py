@@ -8,6 +8,7 @@
     transcripts/trial_NNN.jsonl      every agent call of trial NNN (--transcripts)
     snapshots/trial_NNN/...          its pictures (--snapshots): stages.png, final_build.png,
                                      frames/ and a close-up per stage
+    videos/trial_NNN_OUTCOME.mp4     its video (--video); OUTCOME is ok or the failure code
     report.md, report/               the demo's pages (`demo` only)
     .actionreasoning-demo            marks a directory `demo` may write into again
 """
@@ -32,6 +33,7 @@ class RunDir:
     LOCK: ClassVar[str] = "run.lock"
     TRANSCRIPTS: ClassVar[str] = "transcripts"
     SNAPSHOTS: ClassVar[str] = "snapshots"
+    VIDEOS: ClassVar[str] = "videos"
     #: In a trial's snapshot folder: the sheet of its stages and the close-up of the build.
     STAGE_SHEET: ClassVar[str] = "stages.png"
     FINAL_BUILD: ClassVar[str] = "final_build.png"
@@ -69,6 +71,10 @@ class RunDir:
     def snapshots(self, trial: int) -> Path:
         """The folder of trial ``trial``'s pictures."""
         return self.root / self.SNAPSHOTS / trial_name(trial)
+
+    def video(self, trial: int, outcome: str) -> Path:
+        """Where trial ``trial``'s video is: ``outcome`` is ``ok`` or its failure code."""
+        return self.root / self.VIDEOS / f"{trial_name(trial)}_{outcome}.mp4"
 
     @property
     def demo_page(self) -> Path:

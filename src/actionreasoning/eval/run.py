@@ -60,6 +60,7 @@ class RunConfig:
     config: TrialConfig = TrialConfig()
     snapshots: bool = False
     transcripts: bool = False
+    video: bool = False
     workers: int = 1
     ray: str | None = None
 
@@ -169,7 +170,9 @@ def _jobs(run: RunConfig, config: TrialConfig, done: set[int]) -> Iterator[Trial
             trial=trial,
             config=config,
         )
-        yield TrialJob(spec=spec, snapshots=run.snapshots, transcripts=run.transcripts)
+        yield TrialJob(
+            spec=spec, snapshots=run.snapshots, transcripts=run.transcripts, video=run.video
+        )
 
 
 def _engine(config: RunConfig, jobs: Iterator[TrialJob], count: int) -> Iterator[TrialOutput]:
@@ -182,14 +185,18 @@ def _engine(config: RunConfig, jobs: Iterator[TrialJob], count: int) -> Iterator
 
 
 def _write_outputs(run: RunDir, config: RunConfig, output: TrialOutput, kept: str) -> None:
-    """A trial's transcript and pictures, written after its result line."""
-    trial = output.result.trial
+    """A trial's transcript, pictures and video, written after its result line."""
+    result = output.result
+    trial = result.trial
     files: dict[Path, bytes] = {}
     if config.transcripts:
         files[run.transcript(trial)] = output.transcript.encode()
     if config.snapshots:
         folder = run.snapshots(trial)
         files |= {folder / path: data for path, data in output.pictures.items()}
-    incomplete = f"not all of trial {trial}'s pictures and transcript are written"
+    if config.video and output.video:
+        outcome = "ok" if result.failure is None else str(result.failure.reason)
+        files[run.video(trial, outcome)] = output.video
+    incomplete = f"not all of trial {trial}'s pictures, video and transcript are written"
     for path, data in files.items():
         write_file(path, data, f"{incomplete}; {kept}")

@@ -12,7 +12,7 @@ under every profile: it makes a trial repeatable and changes no contact property
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -95,6 +95,8 @@ class Scene:
         self.arm_targets = np.array(ready_joints_rad, dtype=float)
         self.finger_target_m = FINGER_MAX_M
         self.ticks = 0
+        #: Called with the scene after every tick (cameras, recorders); must not change it.
+        self.tick_observers: list[Callable[[Scene], None]] = []
         self._apply_targets()
 
     # --- set-up -----------------------------------------------------------------------
@@ -233,6 +235,8 @@ class Scene:
                 )
             if self.ticks % WALL_CHECK_TICKS == 0:
                 self.check_wall_time()
+            for observe in self.tick_observers:
+                observe(self)
 
     @property
     def deadline(self) -> float:
