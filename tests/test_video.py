@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import imageio.v3 as iio
 import numpy as np
 import pytest
-from conftest import SMALL_PATTERN
+from conftest import SMALL_PATTERN, cli
 
 from actionreasoning.eval.rules import Method
 from actionreasoning.eval.run import RunConfig, run_eval
@@ -79,3 +80,22 @@ def test_videos_come_back_from_worker_processes(tmp_path: Path, one_brick: Path)
     for line in lines.splitlines():
         check_video(tmp_path, line)
     assert len(list((tmp_path / "videos").glob("*.mp4"))) == 2
+
+
+def test_the_report_shows_failed_trials_videos_first(tmp_path: Path, one_brick: Path) -> None:
+    common = ["eval", "--method", "classical", "--pattern", str(one_brick), "--trials", "1"]
+    common += ["--physics", "precise", "--video"]  # where the classical script succeeds
+    assert cli(*common, "--out", str(tmp_path / "built")).returncode == 0
+    cut = cli(*common, "--out", str(tmp_path / "cut"), "--max-steps", "200")
+    assert cut.returncode == 0, cut.stderr
+    assert [p.name for p in (tmp_path / "cut" / "videos").iterdir()] == [
+        "trial_000_step_budget.mp4"
+    ]
+    report = tmp_path / "report"
+    made = cli("report", str(tmp_path / "built"), str(tmp_path / "cut"), "--out", str(report))
+    assert made.returncode == 0, made.stderr
+    page = (report / "report.html").read_text()
+    sources = re.findall(r'<video [^>]*src="([^"]+)"', page)
+    assert len(sources) == 2 and "max_steps_200" in sources[0]  # the failed trial first
+    assert "(step_budget)" in page.split(sources[1])[0]  # its caption, before the other video
+    assert all((report / source).read_bytes()[4:8] == b"ftyp" for source in sources)

@@ -42,7 +42,7 @@ class RunDir:
     DEMO_MARKER: ClassVar[str] = ".actionreasoning-demo"
     #: What a demo writes, all removed before the next demo into the same directory.
     DEMO_FILES: ClassVar[tuple[str, ...]] = (RESULTS, MANIFEST, SUMMARY, SUMMARY_MD, DEMO_PAGE)
-    DEMO_FOLDERS: ClassVar[tuple[str, ...]] = (SNAPSHOTS, DEMO_REPORT)
+    DEMO_FOLDERS: ClassVar[tuple[str, ...]] = (SNAPSHOTS, VIDEOS, DEMO_REPORT)
 
     @property
     def results(self) -> Path:
@@ -72,9 +72,9 @@ class RunDir:
         """The folder of trial ``trial``'s pictures."""
         return self.root / self.SNAPSHOTS / trial_name(trial)
 
-    def video(self, trial: int, outcome: str) -> Path:
-        """Where trial ``trial``'s video is: ``outcome`` is ``ok`` or its failure code."""
-        return self.root / self.VIDEOS / f"{trial_name(trial)}_{outcome}.mp4"
+    def video(self, trial: int, failure: str | None) -> Path:
+        """Where trial ``trial``'s video is, named by its failure code (``ok`` if none)."""
+        return self.root / self.VIDEOS / f"{trial_name(trial)}_{failure or 'ok'}.mp4"
 
     @property
     def demo_page(self) -> Path:

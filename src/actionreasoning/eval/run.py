@@ -195,8 +195,8 @@ def _write_outputs(run: RunDir, config: RunConfig, output: TrialOutput, kept: st
         folder = run.snapshots(trial)
         files |= {folder / path: data for path, data in output.pictures.items()}
     if config.video and output.video:
-        outcome = "ok" if result.failure is None else str(result.failure.reason)
-        files[run.video(trial, outcome)] = output.video
+        failure = None if result.failure is None else str(result.failure.reason)
+        files[run.video(trial, failure)] = output.video
     incomplete = f"not all of trial {trial}'s pictures, video and transcript are written"
     for path, data in files.items():
         write_file(path, data, f"{incomplete}; {kept}")
