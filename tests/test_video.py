@@ -14,6 +14,8 @@ from conftest import SMALL_PATTERN, cli
 from actionreasoning.eval.rules import Method
 from actionreasoning.eval.run import RunConfig, run_eval
 from actionreasoning.eval.video import FPS
+from actionreasoning.sim.camera import FixedCamera, overview, render
+from actionreasoning.sim.scene import Scene
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PAPER
 from actionreasoning.world.scene_spec import SceneSpec
@@ -99,3 +101,13 @@ def test_the_report_shows_failed_trials_videos_first(tmp_path: Path, one_brick: 
     assert len(sources) == 2 and "max_steps_200" in sources[0]  # the failed trial first
     assert "(step_budget)" in page.split(sources[1])[0]  # its caption, before the other video
     assert all((report / source).read_bytes()[4:8] == b"ftyp" for source in sources)
+
+
+def test_the_fixed_camera_films_what_render_shows(scene: Scene) -> None:
+    """Laying the scene over a ground rendered once gives render's very pixels, and leaves
+    the ground as it was."""
+    view = overview(scene)
+    camera = FixedCamera(view, 160, 120)
+    for _ in range(2):
+        assert np.array_equal(camera.render(scene), render(scene, view, 160, 120))
+        scene.step(scene.ticks_for(0.5))

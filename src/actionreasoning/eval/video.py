@@ -18,7 +18,7 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from actionreasoning.control.classical import StageEvent
-from actionreasoning.sim.camera import overview, render
+from actionreasoning.sim.camera import FixedCamera, overview
 from actionreasoning.sim.scene import Scene
 
 #: Frames per simulated second; also the playback rate, so videos play in real time.
@@ -40,15 +40,18 @@ class VideoRecorder:
             codec="libx264",
             quality=6,
             macro_block_size=16,
-            output_params=["-movflags", "+faststart"],
+            output_params=["-movflags", "+faststart", "-preset", "veryfast"],
         )
         self._caption = "settling"
+        self._camera: FixedCamera | None = None
         self.frames = 0
 
     def on_tick(self, scene: Scene) -> None:
         """Film a frame whenever a whole frame interval of simulated time has passed."""
         if scene.ticks % scene.ticks_for(1.0 / FPS) == 0:
-            image = render(scene, overview(scene), WIDTH, HEIGHT)
+            if self._camera is None:
+                self._camera = FixedCamera(overview(scene), WIDTH, HEIGHT)
+            image = self._camera.render(scene)
             self._writer.append_data(captioned(image, f"{scene.time_s:5.1f} s  {self._caption}"))
             self.frames += 1
 
