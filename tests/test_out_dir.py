@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import resource
 import shlex
 import shutil
@@ -97,10 +98,17 @@ def test_demo_writes_a_new_or_empty_directory_and_replaces_its_own(
         result = cli("demo", "--pattern", str(one_brick), "--out", str(out))
         assert result.returncode == 0, result.stderr
         assert (out / ".actionreasoning-demo").is_file() and (out / "report.md").is_file()
+        assert len(list((out / "videos").glob("trial_000_*.mp4"))) == 1  # it films its trial
+        (linked,) = re.findall(
+            r"\[The video of the build\]\(([^)]+)\)", (out / "report.md").read_text()
+        )
+        assert (out / linked).read_bytes() == next((out / "videos").iterdir()).read_bytes()
     (empty / "snapshots" / "stale.png").write_bytes(b"old picture")
+    (empty / "videos" / "trial_000_stale.mp4").write_bytes(b"old video")
     again = cli("demo", "--pattern", str(one_brick), "--seed", "1", "--out", str(empty))
     assert again.returncode == 0, again.stderr
     assert not (empty / "snapshots" / "stale.png").exists()
+    assert not (empty / "videos" / "trial_000_stale.mp4").exists()
     assert json.loads(lines_of(empty)[0])["seed"] == 1 and len(lines_of(empty)) == 1
 
 

@@ -18,8 +18,8 @@ CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
-    """Two methods on the small pattern, with snapshots, under precise physics (where the
-    classical script succeeds too, so every cell of the table has figures)."""
+    """Two methods on the small pattern, with snapshots and videos, under precise physics
+    (where the classical script succeeds too, so every cell of the table has figures)."""
     root = tmp_path_factory.mktemp("runs")
     pattern = root / "small.json"
     pattern.write_text(json.dumps(SMALL_PATTERN))
@@ -28,7 +28,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
         out = root / method
         result = cli(
             "eval", "--method", method, "--pattern", str(pattern), "--trials", trials,
-            "--out", str(out), "--snapshots", "--physics", "precise",
+            "--out", str(out), "--snapshots", "--video", "--physics", "precise",
         )  # fmt: skip
         assert result.returncode == 0, result.stderr
         made.append(out)
@@ -111,6 +111,16 @@ def test_the_html_page_renders_in_chromium(runs: list[Path], report: Path) -> No
             "img", "all => all.map(i => [i.complete, i.naturalWidth, i.naturalHeight])"
         )
         shown = page.locator("img").first.bounding_box()
+        videos = page.eval_on_selector_all("video", "all => all.map(v => v.getAttribute('src'))")
+        played = page.evaluate(
+            """async () => {
+                const video = document.querySelector('video');
+                video.muted = true;
+                await video.play();
+                await new Promise(done => setTimeout(done, 1500));
+                return [video.readyState, video.currentTime, video.error === null];
+            }"""
+        )
         browser.close()
     classical = summary_of(runs[0])["successful"]
     assert [row[0] for row in cells] == ["classical, precise", "agents (builtin), precise"]
@@ -122,7 +132,14 @@ def test_the_html_page_renders_in_chromium(runs: list[Path], report: Path) -> No
     assert len(images) == 2 + 1 + 3  # two plots, one stage grid, three GIFs
     assert all(done and width > 0 and height > 0 for done, width, height in images)
     assert shown is not None and shown["width"] > 100 and shown["height"] > 100
-    assert 'src="data:image/png;base64,' in page_path.read_text()  # nothing to fetch
+    assert 'src="data:image/png;base64,' in page_path.read_text()  # no picture to fetch
+    assert videos == [
+        "videos/classical_precise_small_trial_000.mp4",
+        "videos/classical_precise_small_trial_001.mp4",
+        "videos/agents_builtin_precise_small_trial_000.mp4",
+    ]  # copied beside the page; all succeeded, so in table order
+    ready, played_s, no_error = played
+    assert ready >= 2 and played_s > 0.5 and no_error  # Chromium decodes and plays the MP4
 
 
 def test_a_directory_without_results_is_refused(tmp_path: Path) -> None:

@@ -210,6 +210,13 @@ def eval_command(
             "open it with `rerun FILE`. Needs the rerun extra."
         ),
     ] = False,
+    video: Annotated[
+        bool,
+        typer.Option(
+            help="Film every trial from above, 8 frames per simulated second, to "
+            "videos/trial_k_OUTCOME.mp4 (OUTCOME: ok or the failure code)."
+        ),
+    ] = False,
 ) -> None:
     """Run randomized trials of one method on one pattern and write results and summaries.
 
@@ -241,6 +248,7 @@ def eval_command(
         snapshots=snapshots,
         transcripts=transcripts,
         rerun=rerun,
+        video=video,
         workers=workers,
         ray=ray,
         budget=TrialBudget(max_steps=max_steps, max_wall_s=max_trial_s),
@@ -280,6 +288,7 @@ def demo(
                 out,
                 llm=LLMConfig(),
                 snapshots=True,
+                video=True,
                 physics=physics,
                 noise=noise,
             )
@@ -302,6 +311,7 @@ def _evaluate(
     snapshots: bool,
     transcripts: bool = False,
     rerun: bool = False,
+    video: bool = False,
     workers: int = 1,
     ray: str | None = None,
     budget: TrialBudget = TrialBudget(),
@@ -332,6 +342,7 @@ def _evaluate(
             snapshots=snapshots,
             transcripts=transcripts,
             rerun=rerun,
+            video=video,
             workers=workers,
             ray=ray,
         )

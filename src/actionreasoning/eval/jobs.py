@@ -2,7 +2,8 @@
 processes, or tasks on a Ray cluster.
 
 A job carries everything its trial needs and returns everything it produced (result,
-transcript, pictures, recording), so only the process that owns the output directory writes files:
+transcript, pictures, video, Rerun recording), so only the process that owns the output directory
+writes files:
 the same code serves a worker on this machine and a Ray task on another.
 """
 
@@ -19,11 +20,14 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from itertools import islice
 
+from actionreasoning.control.classical import StageEvent
 from actionreasoning.errors import ConfigError, EngineError
 from actionreasoning.eval.rerun_log import RerunRecorder
 from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.snapshots import SnapshotRecorder
 from actionreasoning.eval.trial import TrialSpec, run_trial
+from actionreasoning.eval.video import VideoRecorder
+from actionreasoning.sim.scene import Scene
 
 PARENT_POLL_S = 0.5
 #: Jobs handed out ahead per worker (or Ray CPU): one running, one waiting to start.
@@ -39,24 +43,38 @@ class TrialJob:
     snapshots: bool = False
     transcripts: bool = False
     rerun: bool = False
+    video: bool = False
 
 
 @dataclass(frozen=True)
 class TrialOutput:
     """What a job produced: the result line, the transcript lines, the pictures, the Rerun
-    recording."""
+    recording, the MP4."""
 
     result: TrialResult
     transcript: str = ""
     pictures: dict[str, bytes] = field(default_factory=dict)
     recording: bytes = b""
+    video: bytes = b""
 
 
 def execute(job: TrialJob) -> TrialOutput:
     """Run one trial (in whatever process this is) and collect its outputs."""
     recorder = SnapshotRecorder() if job.snapshots else None
     rerun = RerunRecorder(job.spec) if job.rerun else None
-    run = run_trial(job.spec, recorder, rerun)
+    camera = VideoRecorder() if job.video else None
+    hooks = [hook for hook in (recorder, camera and camera.on_stage) if hook is not None]
+
+    def on_stage(scene: Scene, event: StageEvent) -> None:
+        for hook in hooks:
+            hook(scene, event)
+
+    try:
+        run = run_trial(
+            job.spec, on_stage if hooks else None, rerun, [camera.on_tick] if camera else []
+        )
+    finally:
+        video = camera.close() if camera is not None else b""
     transcript = (
         "".join(call.model_dump_json() + "\n" for call in run.transcript) if job.transcripts else ""
     )
@@ -65,6 +83,7 @@ def execute(job: TrialJob) -> TrialOutput:
         transcript=transcript,
         pictures=recorder.files if recorder is not None else {},
         recording=rerun.rrd() if rerun is not None else b"",
+        video=video,
     )
 
 

@@ -9,6 +9,7 @@
     snapshots/trial_NNN/...          its pictures (--snapshots): stages.png, final_build.png,
                                      frames/ and a close-up per stage
     rerun/trial_NNN.rrd              its Rerun recording (--rerun): open with `rerun FILE`
+    videos/trial_NNN_OUTCOME.mp4     its video (--video); OUTCOME is ok or the failure code
     report.md, report/               the demo's pages (`demo` only)
     .actionreasoning-demo            marks a directory `demo` may write into again
 """
@@ -34,6 +35,7 @@ class RunDir:
     TRANSCRIPTS: ClassVar[str] = "transcripts"
     SNAPSHOTS: ClassVar[str] = "snapshots"
     RERUN: ClassVar[str] = "rerun"
+    VIDEOS: ClassVar[str] = "videos"
     #: In a trial's snapshot folder: the sheet of its stages and the close-up of the build.
     STAGE_SHEET: ClassVar[str] = "stages.png"
     FINAL_BUILD: ClassVar[str] = "final_build.png"
@@ -42,7 +44,7 @@ class RunDir:
     DEMO_MARKER: ClassVar[str] = ".actionreasoning-demo"
     #: What a demo writes, all removed before the next demo into the same directory.
     DEMO_FILES: ClassVar[tuple[str, ...]] = (RESULTS, MANIFEST, SUMMARY, SUMMARY_MD, DEMO_PAGE)
-    DEMO_FOLDERS: ClassVar[tuple[str, ...]] = (SNAPSHOTS, DEMO_REPORT)
+    DEMO_FOLDERS: ClassVar[tuple[str, ...]] = (SNAPSHOTS, VIDEOS, DEMO_REPORT)
 
     @property
     def results(self) -> Path:
@@ -75,6 +77,10 @@ class RunDir:
     def recording(self, trial: int) -> Path:
         """Where trial ``trial``'s Rerun recording is."""
         return self.root / self.RERUN / f"{trial_name(trial)}.rrd"
+
+    def video(self, trial: int, failure: str | None) -> Path:
+        """Where trial ``trial``'s video is, named by its failure code (``ok`` if none)."""
+        return self.root / self.VIDEOS / f"{trial_name(trial)}_{failure or 'ok'}.mp4"
 
     @property
     def demo_page(self) -> Path:

@@ -62,6 +62,7 @@ class RunConfig:
     snapshots: bool = False
     transcripts: bool = False
     rerun: bool = False
+    video: bool = False
     workers: int = 1
     ray: str | None = None
 
@@ -174,7 +175,11 @@ def _jobs(run: RunConfig, config: TrialConfig, done: set[int]) -> Iterator[Trial
             config=config,
         )
         yield TrialJob(
-            spec=spec, snapshots=run.snapshots, transcripts=run.transcripts, rerun=run.rerun
+            spec=spec,
+            snapshots=run.snapshots,
+            transcripts=run.transcripts,
+            rerun=run.rerun,
+            video=run.video,
         )
 
 
@@ -188,8 +193,9 @@ def _engine(config: RunConfig, jobs: Iterator[TrialJob], count: int) -> Iterator
 
 
 def _write_outputs(run: RunDir, config: RunConfig, output: TrialOutput, kept: str) -> None:
-    """A trial's transcript, pictures and recording, written after its result line."""
-    trial = output.result.trial
+    """A trial's transcript, pictures, recording and video, written after its result line."""
+    result = output.result
+    trial = result.trial
     files: dict[Path, bytes] = {}
     if config.transcripts:
         files[run.transcript(trial)] = output.transcript.encode()
@@ -198,6 +204,9 @@ def _write_outputs(run: RunDir, config: RunConfig, output: TrialOutput, kept: st
         files |= {folder / path: data for path, data in output.pictures.items()}
     if config.rerun:
         files[run.recording(trial)] = output.recording
-    incomplete = f"not all of trial {trial}'s pictures, transcript and recording are written"
+    if config.video and output.video:
+        failure = None if result.failure is None else str(result.failure.reason)
+        files[run.video(trial, failure)] = output.video
+    incomplete = f"not all of trial {trial}'s pictures, transcript, recording and video are written"
     for path, data in files.items():
         write_file(path, data, f"{incomplete}; {kept}")

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pybullet as p
+import pybullet_data
 
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.geometry import Vec3
@@ -50,7 +51,41 @@ def build_closeup(scene: Scene) -> CameraView:
 
 def render(scene: Scene, view: CameraView, width: int = 480, height: int = 360) -> np.ndarray:
     """An RGB image (height x width x 3, uint8) of the scene from ``view``."""
-    cid = scene.client
+    return _camera_image(scene.client, view, width, height)[0]
+
+
+class FixedCamera:
+    """One view filmed frame after frame, fast: TinyRenderer spends most of a frame on the
+    ground (a 100 m textured plane), so the ground is rendered once, in a client of its own,
+    and each frame renders the scene with its ground hidden and lays it over that picture.
+    The ground is hidden by its colour's alpha only while rendering: no physics changes."""
+
+    def __init__(self, view: CameraView, width: int, height: int) -> None:
+        self.view, self.width, self.height = view, width, height
+        client = p.connect(p.DIRECT)
+        try:
+            p.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=client)
+            p.loadURDF("plane.urdf", physicsClientId=client)
+            self._ground = _camera_image(client, view, width, height)[0]
+        finally:
+            p.disconnect(client)
+
+    def render(self, scene: Scene) -> np.ndarray:
+        """An RGB image (height x width x 3, uint8) of the scene, as ``render`` makes it."""
+        cid, ground = scene.client, scene.ground
+        colour = p.getVisualShapeData(ground, physicsClientId=cid)[0][7]
+        p.changeVisualShape(ground, -1, rgbaColor=[*colour[:3], 0.0], physicsClientId=cid)
+        try:
+            rgb, segments = _camera_image(cid, self.view, self.width, self.height)
+        finally:
+            p.changeVisualShape(ground, -1, rgbaColor=colour, physicsClientId=cid)
+        return np.where((segments < 0)[:, :, None], self._ground, rgb)
+
+
+def _camera_image(
+    client: int, view: CameraView, width: int, height: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The RGB image and the segmentation mask (body id per pixel, -1: nothing) of ``view``."""
     view_matrix = p.computeViewMatrixFromYawPitchRoll(
         cameraTargetPosition=view.target_m,
         distance=view.distance_m,
@@ -58,12 +93,13 @@ def render(scene: Scene, view: CameraView, width: int = 480, height: int = 360) 
         pitch=view.pitch_deg,
         roll=0.0,
         upAxisIndex=2,
-        physicsClientId=cid,
+        physicsClientId=client,
     )
     projection = p.computeProjectionMatrixFOV(
-        fov=view.fov_deg, aspect=width / height, nearVal=0.05, farVal=5.0, physicsClientId=cid
+        fov=view.fov_deg, aspect=width / height, nearVal=0.05, farVal=5.0, physicsClientId=client
     )
-    _, _, rgba, _, _ = p.getCameraImage(
-        width, height, view_matrix, projection, renderer=p.ER_TINY_RENDERER, physicsClientId=cid
+    _, _, rgba, _, segments = p.getCameraImage(
+        width, height, view_matrix, projection, renderer=p.ER_TINY_RENDERER, physicsClientId=client
     )
-    return np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3]
+    rgb = np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3]
+    return rgb, np.asarray(segments, dtype=np.int64).reshape(height, width)

@@ -1,13 +1,16 @@
-"""Write a report of eval runs: tables, plots, stage grids, GIFs on request, one HTML page.
+"""Write a report of eval runs: tables, plots, stage grids, GIFs on request, the trials'
+videos, one HTML page.
 
-The HTML page embeds every picture (data URIs), so it can be mailed or archived alone.
+The HTML page embeds every picture (data URIs). Videos are copied into the report's
+``videos/`` folder and linked from the page relatively, failed trials first.
 """
 
 from __future__ import annotations
 
 import base64
 import re
-from collections.abc import Sequence
+import shutil
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,6 +29,7 @@ from actionreasoning.eval.report.tables import (
     to_latex,
     to_markdown,
 )
+from actionreasoning.eval.results import TrialResult
 
 HTML_FILE = "report.html"
 
@@ -41,6 +45,7 @@ class Report:
     plots: list[tuple[Path, str]] = field(default_factory=list)
     grids: list[tuple[Path, str]] = field(default_factory=list)
     gifs: list[tuple[Path, str]] = field(default_factory=list)
+    videos: list[tuple[Path, str]] = field(default_factory=list)
     html: Path | None = None
 
 
@@ -75,27 +80,46 @@ def build_report(directories: Sequence[Path], out: Path, gifs: bool = False) -> 
             report.grids.append((grid, f"Stages on {pattern}"))
     if gifs:
         report.gifs = _gifs(groups, out / "gifs")
+    report.videos = _videos(groups, out / "videos")
     report.html = write_html(report, directories)
     return report
 
 
-def _gifs(groups: Sequence[Group], directory: Path) -> list[tuple[Path, str]]:
-    made = []
+def _trials(groups: Sequence[Group]) -> Iterator[tuple[Group, TrialResult, str, str]]:
+    """Every trial with a file name and a caption for what is made of it."""
     for group in groups:
         seeds = len({r.seed for r in group.results}) > 1  # pooled: trial k of each seed
         for result in group.results:
-            snapshots = group.snapshot_dir(result)
-            if snapshots is None:
-                continue
             trial = f"trial {result.trial}"
             name = f"{_slug(group.label)}_{_slug(group.pattern)}_trial_{result.trial:03d}"
             if seeds:
                 trial, name = f"seed {result.seed}, {trial}", f"{name}_seed_{result.seed}"
-            gif = trial_gif(snapshots, directory / f"{name}.gif")
-            if gif is not None:
-                status = "success" if result.failure is None else result.failure.reason
-                made.append((gif, f"{group.label} on {group.pattern}, {trial} ({status})"))
+            status = "success" if result.failure is None else result.failure.reason
+            yield group, result, name, f"{group.label} on {group.pattern}, {trial} ({status})"
+
+
+def _gifs(groups: Sequence[Group], directory: Path) -> list[tuple[Path, str]]:
+    made = []
+    for group, result, name, caption in _trials(groups):
+        snapshots = group.snapshot_dir(result)
+        gif = None if snapshots is None else trial_gif(snapshots, directory / f"{name}.gif")
+        if gif is not None:
+            made.append((gif, caption))
     return made
+
+
+def _videos(groups: Sequence[Group], directory: Path) -> list[tuple[Path, str]]:
+    """The trials' videos copied into ``directory``, failed trials first."""
+    found = [
+        (result.failure is None, video, name, caption)
+        for group, result, name, caption in _trials(groups)
+        if (video := group.video(result)) is not None
+    ]
+    copied = []
+    for _, video, name, caption in sorted(found, key=lambda item: item[0]):
+        directory.mkdir(parents=True, exist_ok=True)
+        copied.append((Path(shutil.copyfile(video, directory / f"{name}.mp4")), caption))
+    return copied
 
 
 def _data_uri(path: Path) -> str:
@@ -139,6 +163,10 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
         plots=[{"data": _data_uri(p), "caption": c} for p, c in report.plots],
         grids=[{"data": _data_uri(p), "caption": c} for p, c in report.grids],
         gifs=[{"data": _data_uri(p), "caption": c} for p, c in report.gifs],
+        videos=[
+            {"src": p.relative_to(report.directory).as_posix(), "caption": c}
+            for p, c in report.videos
+        ],
     )
     path = report.directory / HTML_FILE
     path.write_text(page, encoding="utf-8")

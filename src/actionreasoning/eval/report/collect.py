@@ -45,6 +45,15 @@ class Group:
                 return path
         return None
 
+    def video(self, result: TrialResult) -> Path | None:
+        """The video of ``result``, if its run filmed it (eval --video)."""
+        failure = None if result.failure is None else str(result.failure.reason)
+        for directory in self.sources[(result.seed, result.trial)]:
+            path = RunDir(directory).video(result.trial, failure)
+            if path.is_file():
+                return path
+        return None
+
 
 def pattern_title(pattern: str) -> str:
     """A pattern as given, as a title: a built-in name, or a pattern file's stem."""

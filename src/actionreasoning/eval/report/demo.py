@@ -1,5 +1,6 @@
 """The pages of `demo`: its one-trial run's summary with the pictures of every stage
-(report.md), and the full report of the run with an animation of the build (report/)."""
+(report.md), and the full report of the run with an animation and the video of the build
+(report/)."""
 
 from __future__ import annotations
 
@@ -22,16 +23,18 @@ class DemoPages:
 
 def write_demo_pages(run: RunDir) -> DemoPages:
     """Write the report of the demo run in ``run`` (GIFs on), then report.md, which links
-    its pictures and the animation."""
+    its pictures, the animation and the video."""
     report = build_report([run.root], run.demo_report, gifs=True)
     assert report.html is not None  # build_report always writes the page
     animation = report.gifs[0][0].relative_to(run.root).as_posix()
     snapshots = run.snapshots(DEMO_TRIAL).relative_to(run.root).as_posix()
+    video = report.videos[0][0].relative_to(run.root).as_posix()
     run.demo_page.write_text(
         run.summary_md.read_text()
         + "\n## Stages\n\nStages left to right, bricks top to bottom.\n\n"
         + f"![stages]({snapshots}/{RunDir.STAGE_SHEET})\n\n## Result\n\n"
         + f"![build]({snapshots}/{RunDir.FINAL_BUILD})\n"
-        + f"![the build, stage by stage]({animation})\n"
+        + f"![the build, stage by stage]({animation})\n\n"
+        + f"[The video of the build]({video}) (8 frames per simulated second).\n"
     )
     return DemoPages(markdown=run.demo_page, html=report.html)

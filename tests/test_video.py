@@ -1,0 +1,113 @@
+"""`eval --video`: a trial filmed on its simulated-time cadence, without changing the trial."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+from conftest import SMALL_PATTERN, cli
+
+from actionreasoning.eval.rules import Method
+from actionreasoning.eval.run import RunConfig, run_eval
+from actionreasoning.eval.video import FPS
+from actionreasoning.sim.camera import FixedCamera, overview, render
+from actionreasoning.sim.scene import Scene
+from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.physics import PAPER
+from actionreasoning.world.scene_spec import SceneSpec
+
+
+@pytest.fixture
+def one_brick(tmp_path: Path) -> Path:
+    path = tmp_path / "one.json"
+    path.write_text(json.dumps({**SMALL_PATTERN, "bricks": SMALL_PATTERN["bricks"][:1]}))
+    return path
+
+
+def run(
+    out: Path, pattern: Path, method: Method, video: bool, trials: int = 1, workers: int = 1
+) -> str:
+    config = RunConfig(
+        method=method,
+        pattern_name=str(pattern),
+        goal=load_pattern(pattern, SceneSpec()),
+        trials=trials,
+        seed=3,
+        out=out,
+        video=video,
+        workers=workers,
+    )
+    run_eval(config)
+    return (out / "results.jsonl").read_text()
+
+
+def check_video(out: Path, line: str) -> None:
+    """The trial's MP4 is named by its outcome, has a frame per 1/FPS simulated seconds
+    and is not a still."""
+    result = json.loads(line)
+    outcome = "ok" if result["success"] else result["failure"]["reason"]
+    path = out / "videos" / f"trial_{result['trial']:03d}_{outcome}.mp4"
+    frames = list(iio.imiter(path, plugin="FFMPEG"))
+    ticks_per_frame = round(1.0 / FPS / PAPER.time_step_s)
+    assert len(frames) == result["sim_steps"] // ticks_per_frame
+    assert frames[0].shape == (240, 320, 3)
+    assert any(not np.array_equal(frames[0], frame) for frame in frames[1:])
+
+
+@pytest.mark.parametrize(
+    "method",
+    [
+        Method.CLASSICAL,
+        pytest.param(Method.AGENTS, marks=pytest.mark.slow),  # about 10 s each
+        pytest.param(Method.SINGLE_AGENT, marks=pytest.mark.slow),
+    ],
+)
+def test_a_filmed_trial_has_its_video_and_the_same_result(
+    tmp_path: Path, one_brick: Path, method: Method
+) -> None:
+    plain = run(tmp_path / "plain", one_brick, method, video=False)
+    filmed = run(tmp_path / "filmed", one_brick, method, video=True)
+    assert plain == filmed
+    assert not (tmp_path / "plain" / "videos").exists()
+    check_video(tmp_path / "filmed", filmed)
+
+
+@pytest.mark.slow
+def test_videos_come_back_from_worker_processes(tmp_path: Path, one_brick: Path) -> None:
+    lines = run(tmp_path, one_brick, Method.CLASSICAL, video=True, trials=2, workers=2)
+    for line in lines.splitlines():
+        check_video(tmp_path, line)
+    assert len(list((tmp_path / "videos").glob("*.mp4"))) == 2
+
+
+def test_the_report_shows_failed_trials_videos_first(tmp_path: Path, one_brick: Path) -> None:
+    common = ["eval", "--method", "classical", "--pattern", str(one_brick), "--trials", "1"]
+    common += ["--physics", "precise", "--video"]  # where the classical script succeeds
+    assert cli(*common, "--out", str(tmp_path / "built")).returncode == 0
+    cut = cli(*common, "--out", str(tmp_path / "cut"), "--max-steps", "200")
+    assert cut.returncode == 0, cut.stderr
+    assert [p.name for p in (tmp_path / "cut" / "videos").iterdir()] == [
+        "trial_000_step_budget.mp4"
+    ]
+    report = tmp_path / "report"
+    made = cli("report", str(tmp_path / "built"), str(tmp_path / "cut"), "--out", str(report))
+    assert made.returncode == 0, made.stderr
+    page = (report / "report.html").read_text()
+    sources = re.findall(r'<video [^>]*src="([^"]+)"', page)
+    assert len(sources) == 2 and "max_steps_200" in sources[0]  # the failed trial first
+    assert "(step_budget)" in page.split(sources[1])[0]  # its caption, before the other video
+    assert all((report / source).read_bytes()[4:8] == b"ftyp" for source in sources)
+
+
+def test_the_fixed_camera_films_what_render_shows(scene: Scene) -> None:
+    """Laying the scene over a ground rendered once gives render's very pixels, and leaves
+    the ground as it was."""
+    view = overview(scene)
+    camera = FixedCamera(view, 160, 120)
+    for _ in range(2):
+        assert np.array_equal(camera.render(scene), render(scene, view, 160, 120))
+        scene.step(scene.ticks_for(0.5))
