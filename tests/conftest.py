@@ -17,6 +17,8 @@ import numpy as np
 import pytest
 
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
+from actionreasoning.eval.rules import Method
+from actionreasoning.eval.run import RunConfig, run_eval
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.geometry import top_down_quat
@@ -36,6 +38,25 @@ SMALL_PATTERN = {
         {"position": [0.0, 0.0, 0.09], "yaw_deg": 0},
     ],
 }
+
+
+def eval_lines(
+    out: Path, pattern: Path, method: Method, trials: int = 1, workers: int = 1, **outputs: bool
+) -> str:
+    """results.jsonl of an in-process run of ``pattern`` at seed 3, with the extra outputs
+    named in ``outputs`` (``video=True``, ``rerun=True``)."""
+    config = RunConfig(
+        method=method,
+        pattern_name=str(pattern),
+        goal=load_pattern(pattern, SceneSpec()),
+        trials=trials,
+        seed=3,
+        out=out,
+        workers=workers,
+        **outputs,
+    )
+    run_eval(config)
+    return (out / "results.jsonl").read_text()
 
 
 HOSTILE_CASES: dict[str, int] = {}

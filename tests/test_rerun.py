@@ -10,14 +10,11 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import assert_clean_error, cli
+from conftest import assert_clean_error, cli, eval_lines
 from rerun.chunk import RrdReader
 
 from actionreasoning.eval.rerun_log import SAMPLE_S, TIMELINE
 from actionreasoning.eval.rules import Method
-from actionreasoning.eval.run import RunConfig, run_eval
-from actionreasoning.world.patterns import load_pattern
-from actionreasoning.world.scene_spec import SceneSpec
 
 ONE_BRICK = {
     "name": "one",
@@ -31,23 +28,6 @@ def one_brick(tmp_path: Path) -> Path:
     path = tmp_path / "one.json"
     path.write_text(json.dumps(ONE_BRICK))
     return path
-
-
-def run(
-    out: Path, pattern: Path, method: Method, rerun: bool, trials: int = 1, workers: int = 1
-) -> str:
-    config = RunConfig(
-        method=method,
-        pattern_name=str(pattern),
-        goal=load_pattern(pattern, SceneSpec()),
-        trials=trials,
-        seed=3,
-        out=out,
-        rerun=rerun,
-        workers=workers,
-    )
-    run_eval(config)
-    return (out / "results.jsonl").read_text()
 
 
 def columns(path: Path, entity: str, component: str) -> list[tuple[float, Any]]:
@@ -65,7 +45,7 @@ def columns(path: Path, entity: str, component: str) -> list[tuple[float, Any]]:
 def test_recording_holds_the_bricks_pose_and_the_gate_verdicts(
     tmp_path: Path, one_brick: Path
 ) -> None:
-    result = json.loads(run(tmp_path / "run", one_brick, Method.AGENTS, rerun=True))
+    result = json.loads(eval_lines(tmp_path / "run", one_brick, Method.AGENTS, rerun=True))
     rrd = tmp_path / "run" / "rerun" / "trial_000.rrd"
 
     centers = columns(rrd, "/world/bricks", "Boxes3D:centers")
@@ -96,8 +76,8 @@ def test_recording_holds_the_bricks_pose_and_the_gate_verdicts(
 @pytest.mark.slow
 @pytest.mark.parametrize("method", list(Method))
 def test_recording_changes_no_result(tmp_path: Path, one_brick: Path, method: Method) -> None:
-    plain = run(tmp_path / "a", one_brick, method, rerun=False)
-    recorded = run(tmp_path / "b", one_brick, method, rerun=True)
+    plain = eval_lines(tmp_path / "a", one_brick, method, rerun=False)
+    recorded = eval_lines(tmp_path / "b", one_brick, method, rerun=True)
     assert plain == recorded
     assert (tmp_path / "b" / "rerun" / "trial_000.rrd").stat().st_size > 10_000
     assert not (tmp_path / "a" / "rerun").exists()
@@ -105,8 +85,10 @@ def test_recording_changes_no_result(tmp_path: Path, one_brick: Path, method: Me
 
 @pytest.mark.slow
 def test_recordings_come_back_from_worker_processes(tmp_path: Path, one_brick: Path) -> None:
-    serial = run(tmp_path / "a", one_brick, Method.CLASSICAL, rerun=False, trials=2)
-    parallel = run(tmp_path / "b", one_brick, Method.CLASSICAL, rerun=True, trials=2, workers=2)
+    serial = eval_lines(tmp_path / "a", one_brick, Method.CLASSICAL, rerun=False, trials=2)
+    parallel = eval_lines(
+        tmp_path / "b", one_brick, Method.CLASSICAL, rerun=True, trials=2, workers=2
+    )
     assert sorted(serial.splitlines()) == sorted(parallel.splitlines())
     for trial in ("trial_000", "trial_001"):
         rrd = tmp_path / "b" / "rerun" / f"{trial}.rrd"

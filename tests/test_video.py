@@ -9,16 +9,13 @@ from pathlib import Path
 import imageio.v3 as iio
 import numpy as np
 import pytest
-from conftest import SMALL_PATTERN, cli
+from conftest import SMALL_PATTERN, cli, eval_lines
 
 from actionreasoning.eval.rules import Method
-from actionreasoning.eval.run import RunConfig, run_eval
 from actionreasoning.eval.video import FPS
 from actionreasoning.sim.camera import FixedCamera, overview, render
 from actionreasoning.sim.scene import Scene
-from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PAPER
-from actionreasoning.world.scene_spec import SceneSpec
 
 
 @pytest.fixture
@@ -26,23 +23,6 @@ def one_brick(tmp_path: Path) -> Path:
     path = tmp_path / "one.json"
     path.write_text(json.dumps({**SMALL_PATTERN, "bricks": SMALL_PATTERN["bricks"][:1]}))
     return path
-
-
-def run(
-    out: Path, pattern: Path, method: Method, video: bool, trials: int = 1, workers: int = 1
-) -> str:
-    config = RunConfig(
-        method=method,
-        pattern_name=str(pattern),
-        goal=load_pattern(pattern, SceneSpec()),
-        trials=trials,
-        seed=3,
-        out=out,
-        video=video,
-        workers=workers,
-    )
-    run_eval(config)
-    return (out / "results.jsonl").read_text()
 
 
 def check_video(out: Path, line: str) -> None:
@@ -69,8 +49,8 @@ def check_video(out: Path, line: str) -> None:
 def test_a_filmed_trial_has_its_video_and_the_same_result(
     tmp_path: Path, one_brick: Path, method: Method
 ) -> None:
-    plain = run(tmp_path / "plain", one_brick, method, video=False)
-    filmed = run(tmp_path / "filmed", one_brick, method, video=True)
+    plain = eval_lines(tmp_path / "plain", one_brick, method, video=False)
+    filmed = eval_lines(tmp_path / "filmed", one_brick, method, video=True)
     assert plain == filmed
     assert not (tmp_path / "plain" / "videos").exists()
     check_video(tmp_path / "filmed", filmed)
@@ -78,7 +58,7 @@ def test_a_filmed_trial_has_its_video_and_the_same_result(
 
 @pytest.mark.slow
 def test_videos_come_back_from_worker_processes(tmp_path: Path, one_brick: Path) -> None:
-    lines = run(tmp_path, one_brick, Method.CLASSICAL, video=True, trials=2, workers=2)
+    lines = eval_lines(tmp_path, one_brick, Method.CLASSICAL, video=True, trials=2, workers=2)
     for line in lines.splitlines():
         check_video(tmp_path, line)
     assert len(list((tmp_path / "videos").glob("*.mp4"))) == 2
