@@ -26,7 +26,7 @@ from actionreasoning.eval.rerun_log import RerunRecorder
 from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.snapshots import SnapshotRecorder
 from actionreasoning.eval.trial import TrialSpec, run_trial
-from actionreasoning.eval.video import VideoRecorder
+from actionreasoning.eval.video import FRAME_S, VideoRecorder
 from actionreasoning.sim.scene import Scene
 
 PARENT_POLL_S = 0.5
@@ -71,7 +71,10 @@ def execute(job: TrialJob) -> TrialOutput:
 
     try:
         run = run_trial(
-            job.spec, on_stage if hooks else None, rerun, [camera.on_tick] if camera else []
+            job.spec,
+            on_stage if hooks else None,
+            rerun,
+            [(FRAME_S, camera.on_tick)] if camera else [],
         )
     finally:
         video = camera.close() if camera is not None else b""

@@ -60,7 +60,7 @@ class TrialSpec:
 
 
 StageHook = Callable[[Scene, StageEvent], None]
-#: Called with the scene after every simulation tick, from the first spawn settle on.
+#: Called with the scene every so many simulated seconds, from the first spawn settle on.
 TickHook = Callable[[Scene], None]
 
 
@@ -91,10 +91,12 @@ class TrialWorld:
 
 
 @contextmanager
-def trial_world(spec: TrialSpec, on_tick: Sequence[TickHook] = ()) -> Iterator[TrialWorld]:
+def trial_world(
+    spec: TrialSpec, on_tick: Sequence[tuple[float, TickHook]] = ()
+) -> Iterator[TrialWorld]:
     """The trial's world under its physics profile and perturbations, closed on exit: one
     brick of the goal's size per target, its mass scaled from the catalogue brick's.
-    ``on_tick`` observe every tick of the scene."""
+    ``on_tick`` are hooks with their periods in simulated seconds (``Scene.watch``)."""
     config, seed = spec.config, trial_seed(spec.run_seed, spec.trial)
     count, size = len(spec.goal.targets), spec.goal.brick_size_m
     nominal = config.scene.brick_body(config.physics.brick_lateral_friction, size)
@@ -110,8 +112,8 @@ def trial_world(spec: TrialSpec, on_tick: Sequence[TickHook] = ()) -> Iterator[T
         ready = arm.solve(READY_POSE.position_m, READY_POSE.quat_xyzw).joints_rad
         scene = Scene(config.scene, poses, ready, config.physics, config.budget, bodies, nominal)
         cleanup.callback(scene.close)
-        for observe in on_tick:
-            scene.watch(1, observe)
+        for period_s, observe in on_tick:
+            scene.watch(scene.ticks_for(period_s), observe)
         scene.step(scene.ticks_for(SPAWN_SETTLE_S))
         yield TrialWorld(
             scene=scene,
@@ -134,7 +136,7 @@ def run_trial(
     spec: TrialSpec,
     on_stage: StageHook | None = None,
     observer: TrialObserver | None = None,
-    on_tick: Sequence[TickHook] = (),
+    on_tick: Sequence[tuple[float, TickHook]] = (),
 ) -> TrialRun:
     """Run one trial start to finish; failures become a ``failure`` record, never a crash."""
     with trial_world(spec, on_tick) as world:

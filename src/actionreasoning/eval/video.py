@@ -1,7 +1,7 @@
 """A video of a trial: overview frames on a fixed simulated-time cadence, as an MP4.
 
-The recorder observes the scene every tick (``Scene.watch``) and renders a frame
-every ``1 / FPS`` simulated seconds, so the video plays in real time. Each frame carries a
+The scene calls the recorder every ``FRAME_S`` (``1 / FPS``) simulated seconds
+(``Scene.watch``) and it renders a frame, so the video plays in real time. Each frame carries a
 caption: simulated time, the brick in hand and the current stage or agent step (from the
 trial's stage hook). Rendering only reads the simulator, so a filmed trial gives the same
 results as one without (tests check this).
@@ -23,6 +23,8 @@ from actionreasoning.sim.scene import Scene
 
 #: Frames per simulated second; also the playback rate, so videos play in real time.
 FPS = 8
+#: Simulated time between two frames.
+FRAME_S = 1.0 / FPS
 WIDTH, HEIGHT = 320, 240
 
 
@@ -47,13 +49,12 @@ class VideoRecorder:
         self.frames = 0
 
     def on_tick(self, scene: Scene) -> None:
-        """Film a frame whenever a whole frame interval of simulated time has passed."""
-        if scene.ticks % scene.ticks_for(1.0 / FPS) == 0:
-            if self._camera is None:
-                self._camera = FixedCamera(overview(scene), WIDTH, HEIGHT)
-            image = self._camera.render(scene)
-            self._writer.append_data(captioned(image, f"{scene.time_s:5.1f} s  {self._caption}"))
-            self.frames += 1
+        """Film a frame (called every ``FRAME_S`` of simulated time)."""
+        if self._camera is None:
+            self._camera = FixedCamera(overview(scene), WIDTH, HEIGHT)
+        image = self._camera.render(scene)
+        self._writer.append_data(captioned(image, f"{scene.time_s:5.1f} s  {self._caption}"))
+        self.frames += 1
 
     def on_stage(self, scene: Scene, event: StageEvent) -> None:
         """Caption the following frames with the stage just reached."""
