@@ -58,7 +58,7 @@ def main() -> None:
         filmed_s, filmed = timed(TrialJob(spec=spec, video=True))
         if plain.result != filmed.result:
             raise SystemExit(f"trial {trial}: filming changed the result")
-        frames = filmed.result.sim_steps // round(1.0 / FPS / spec.config.physics.time_step_s)
+        frames = 1 + filmed.result.sim_steps // round(1.0 / FPS / spec.config.physics.time_step_s)
         table.add_row(
             str(trial),
             f"{plain_s:.1f}",

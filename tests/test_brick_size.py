@@ -11,9 +11,10 @@ import pybullet as p
 import pytest
 from conftest import assert_clean_error, cli
 
+from actionreasoning.control.classical import StageEvent
 from actionreasoning.errors import PatternError
 from actionreasoning.eval.rules import Method
-from actionreasoning.eval.trial import TrialSpec, run_trial, trial_world
+from actionreasoning.eval.trial import TrialObserver, TrialSpec, run_trial, trial_world
 from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.patterns import load_pattern
@@ -59,11 +60,12 @@ def test_the_classical_script_builds_a_pattern_of_other_bricks_with_those_bricks
     )  # fmt: skip
     seen: dict[int, tuple[tuple[float, ...], float]] = {}
 
-    def look(scene: Scene, event: object) -> None:
-        for brick in range(len(scene.bricks)):
-            seen[brick] = spawned_size(scene, brick), spawned_mass(scene, brick)
+    class Look(TrialObserver):
+        def stage(self, scene: Scene, event: StageEvent) -> None:
+            for brick in range(len(scene.bricks)):
+                seen[brick] = spawned_size(scene, brick), spawned_mass(scene, brick)
 
-    result = run_trial(spec, on_stage=look).result
+    result = run_trial(spec, [Look()]).result
     assert set(seen) == {0, 1}
     for size, mass in seen.values():
         assert size == pytest.approx(SIZE, abs=1e-9)

@@ -11,10 +11,12 @@ import pybullet_data
 import pytest
 from conftest import assert_clean_error, cli
 
+from actionreasoning.control.classical import StageEvent
 from actionreasoning.eval.rules import Method
-from actionreasoning.eval.trial import TrialSpec, run_trial, trial_world
+from actionreasoning.eval.trial import TrialObserver, TrialSpec, run_trial, trial_world
 from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.sim.robot_model import FINGER_LEFT, FINGER_RIGHT
+from actionreasoning.sim.scene import Scene
 from actionreasoning.world.noise import LEVELS, NoiseLevel, vary_bricks
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PAPER, PROFILES, PhysicsProfile
@@ -122,15 +124,16 @@ def test_the_same_seed_gives_the_same_line_under_noise_and_metrics_use_true_pose
     goal = load_pattern(small_pattern, SceneSpec())
     truth: dict[int, tuple[float, ...]] = {}
 
-    def at_the_end(scene, event) -> None:
-        if event.stage == "final":
-            truth.update({i: scene.brick_pose(i)[0] for i in range(len(scene.bricks))})
+    class AtTheEnd(TrialObserver):
+        def stage(self, scene: Scene, event: StageEvent) -> None:
+            if event.stage == "final":
+                truth.update({i: scene.brick_pose(i)[0] for i in range(len(scene.bricks))})
 
     spec = TrialSpec(
         method=Method.CLASSICAL, pattern_name="small", goal=goal, run_seed=1, trial=0,
         config=TrialConfig(noise=LEVELS["high"]),
     )  # fmt: skip
-    first = run_trial(spec, on_stage=at_the_end).result
+    first = run_trial(spec, [AtTheEnd()]).result
     again = run_trial(spec).result
     assert first.model_dump_json() == again.model_dump_json()
     assert first.physics == "paper" and first.noise == "high"

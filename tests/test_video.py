@@ -11,9 +11,11 @@ import numpy as np
 import pytest
 from conftest import SMALL_PATTERN, cli, eval_lines
 
+from actionreasoning.agents.transcript import AgentCall, CheckRecord, GateRecord
 from actionreasoning.eval.rules import Method
-from actionreasoning.eval.video import FPS
+from actionreasoning.eval.video import FPS, verdict_text
 from actionreasoning.sim.camera import FixedCamera, overview, render
+from actionreasoning.sim.replica import Replica, SceneLooks, ScenePose
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.physics import PAPER
 
@@ -26,14 +28,14 @@ def one_brick(tmp_path: Path) -> Path:
 
 
 def check_video(out: Path, line: str) -> None:
-    """The trial's MP4 is named by its outcome, has a frame per 1/FPS simulated seconds
-    and is not a still."""
+    """The trial's MP4 is named by its outcome, has a frame at the start and one per 1/FPS
+    simulated seconds, and is not a still."""
     result = json.loads(line)
     outcome = "ok" if result["success"] else result["failure"]["reason"]
     path = out / "videos" / f"trial_{result['trial']:03d}_{outcome}.mp4"
     frames = list(iio.imiter(path, plugin="FFMPEG"))
     ticks_per_frame = round(1.0 / FPS / PAPER.time_step_s)
-    assert len(frames) == result["sim_steps"] // ticks_per_frame
+    assert len(frames) == 1 + result["sim_steps"] // ticks_per_frame
     assert frames[0].shape == (240, 320, 3)
     assert any(not np.array_equal(frames[0], frame) for frame in frames[1:])
 
@@ -83,11 +85,32 @@ def test_the_report_shows_failed_trials_videos_first(tmp_path: Path, one_brick: 
     assert all((report / source).read_bytes()[4:8] == b"ftyp" for source in sources)
 
 
-def test_the_fixed_camera_films_what_render_shows(scene: Scene) -> None:
-    """Laying the scene over a ground rendered once gives render's very pixels, and leaves
-    the ground as it was."""
+def test_the_film_shows_what_render_shows(scene: Scene) -> None:
+    """A replica posed from the scene, laid over a ground rendered once, gives render's very
+    pixels, as the scene moves."""
     view = overview(scene)
-    camera = FixedCamera(view, 160, 120)
-    for _ in range(2):
-        assert np.array_equal(camera.render(scene), render(scene, view, 160, 120))
-        scene.step(scene.ticks_for(0.5))
+    camera, replica = FixedCamera(view, 160, 120), Replica(SceneLooks.of(scene))
+    try:
+        first = ScenePose.of(scene)
+        for _ in range(2):
+            replica.show(ScenePose.of(scene))
+            assert np.array_equal(camera.render(replica.client), render(scene, view, 160, 120))
+            scene.set_arm_targets(scene.arm_targets + 0.3)
+            scene.step(scene.ticks_for(0.5))
+        assert not first.same_as(ScenePose.of(scene))  # the arm moved between the two looks
+    finally:
+        replica.close()
+
+
+def test_a_caption_names_the_gate_and_the_checks_that_failed() -> None:
+    failed = CheckRecord(
+        name="clearance_m", value=0.01, relation=">=", threshold=0.02, passed=False
+    )
+    passed = CheckRecord(name="reachable", value=1.0, relation=">=", threshold=1.0, passed=True)
+    call = AgentCall(
+        call=3, agent="descent", brick=0, target=0, attempt=1, prompt_chars=10, answer={},
+        gates=[GateRecord(gate="sigma2_descent", passed=False, checks=[passed, failed])],
+    )  # fmt: skip
+    assert verdict_text(call) == "descent: sigma2_descent FAILED (clearance_m)"
+    call.gates.append(GateRecord(gate="sigma2_descent", passed=True, checks=[passed]))
+    assert verdict_text(call) == "descent: sigma2_descent passed"

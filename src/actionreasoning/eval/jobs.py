@@ -12,24 +12,20 @@ from __future__ import annotations
 import multiprocessing
 import os
 import socket
-import threading
-import time
 from collections.abc import Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from itertools import islice
 
-from actionreasoning.control.classical import StageEvent
 from actionreasoning.errors import ConfigError, EngineError
+from actionreasoning.eval.lifeline import exit_with_parent
 from actionreasoning.eval.rerun_log import RerunRecorder
 from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.snapshots import SnapshotRecorder
 from actionreasoning.eval.trial import TrialSpec, run_trial
-from actionreasoning.eval.video import FRAME_S, VideoRecorder
-from actionreasoning.sim.scene import Scene
+from actionreasoning.eval.video import VideoRecorder
 
-PARENT_POLL_S = 0.5
 #: Jobs handed out ahead per worker (or Ray CPU): one running, one waiting to start.
 IN_FLIGHT = 2
 RESUME_HINT = "the finished trials are saved: run the same command to run the rest"
@@ -60,33 +56,22 @@ class TrialOutput:
 
 def execute(job: TrialJob) -> TrialOutput:
     """Run one trial (in whatever process this is) and collect its outputs."""
-    recorder = SnapshotRecorder() if job.snapshots else None
+    snapshots = SnapshotRecorder() if job.snapshots else None
     rerun = RerunRecorder(job.spec) if job.rerun else None
-    camera = VideoRecorder() if job.video else None
-    hooks = [hook for hook in (recorder, camera and camera.on_stage) if hook is not None]
-
-    def on_stage(scene: Scene, event: StageEvent) -> None:
-        for hook in hooks:
-            hook(scene, event)
-
+    video = VideoRecorder() if job.video else None
     try:
-        run = run_trial(
-            job.spec,
-            on_stage if hooks else None,
-            rerun,
-            [(FRAME_S, camera.on_tick)] if camera else [],
-        )
+        run = run_trial(job.spec, [o for o in (snapshots, rerun, video) if o is not None])
     finally:
-        video = camera.close() if camera is not None else b""
+        film = video.close() if video is not None else b""
     transcript = (
         "".join(call.model_dump_json() + "\n" for call in run.transcript) if job.transcripts else ""
     )
     return TrialOutput(
         result=run.result,
         transcript=transcript,
-        pictures=recorder.files if recorder is not None else {},
+        pictures=snapshots.files if snapshots is not None else {},
         recording=rerun.rrd() if rerun is not None else b"",
-        video=video,
+        video=film,
     )
 
 
@@ -94,18 +79,6 @@ def run_serial(jobs: Iterable[TrialJob]) -> Iterator[TrialOutput]:
     """Jobs one after another in this process."""
     for job in jobs:
         yield execute(job)
-
-
-def _exit_with_parent(parent: int) -> None:
-    """In a worker: end at once if the run's process dies (SIGKILL leaves no time to stop
-    its workers, which would otherwise finish their trial for nobody and wait forever)."""
-
-    def watch() -> None:
-        while os.getppid() == parent:
-            time.sleep(PARENT_POLL_S)
-        os._exit(1)
-
-    threading.Thread(target=watch, daemon=True).start()
 
 
 def run_in_processes(jobs: Iterable[TrialJob], workers: int) -> Iterator[TrialOutput]:
@@ -118,7 +91,7 @@ def run_in_processes(jobs: Iterable[TrialJob], workers: int) -> Iterator[TrialOu
     pool = ProcessPoolExecutor(
         max_workers=workers,
         mp_context=context,
-        initializer=_exit_with_parent,
+        initializer=exit_with_parent,
         initargs=(os.getpid(),),
     )
     queue = iter(jobs)

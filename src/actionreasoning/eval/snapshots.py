@@ -14,6 +14,7 @@ import numpy as np
 from actionreasoning.control.classical import StageEvent
 from actionreasoning.eval.images import FRAMES_DIR, image_grid, png
 from actionreasoning.eval.layout import RunDir
+from actionreasoning.eval.trial import TrialObserver
 from actionreasoning.sim.camera import build_closeup, closeup, overview, render
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.geometry import Vec3
@@ -23,8 +24,8 @@ WIDTH, HEIGHT = 320, 240
 PICK_STAGES = frozenset({Stage.PRE_GRASP, Stage.DESCENT, Stage.GRASP, Stage.LIFT})
 
 
-class SnapshotRecorder:
-    """A stage hook collecting ``files``: relative path -> PNG bytes.
+class SnapshotRecorder(TrialObserver):
+    """A trial observer collecting ``files``: relative path -> PNG bytes.
 
     ``b<brick>_<n>_<stage>.png`` are the close-ups, ``frames/<k>_b<brick>_<stage>.png`` the
     overview frames in trial order, then ``final_overview.png``, ``final_build.png`` and
@@ -37,7 +38,7 @@ class SnapshotRecorder:
         self._pick_spot: dict[int, Vec3] = {}
         self._frames = 0
 
-    def __call__(self, scene: Scene, event: StageEvent) -> None:
+    def stage(self, scene: Scene, event: StageEvent) -> None:
         if event.brick < 0:
             self._frame(scene, "final")
             self._finish(scene)

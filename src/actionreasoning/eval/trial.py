@@ -5,8 +5,6 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
-from functools import partial
-from typing import Protocol
 
 import numpy as np
 
@@ -59,23 +57,22 @@ class TrialSpec:
             raise ConfigError(f"--method {self.method} needs a reasoning backend (config.llm)")
 
 
-StageHook = Callable[[Scene, StageEvent], None]
-#: Called with the scene every so many simulated seconds, from the first spawn settle on.
-TickHook = Callable[[Scene], None]
-
-
-class TrialObserver(Protocol):
+class TrialObserver:
     """Watches a trial as it runs, reading only: the scene every ``every_s`` of simulated
-    time (and once at the start), each finished stage, and each agent call as its record
-    grows (answer, gate verdicts, outcome)."""
+    time (and once before the first step), each finished stage, and each agent call as its
+    record grows (answer, gate verdicts, outcome). Subclasses override what they watch."""
 
-    every_s: float
+    #: Simulated seconds between two ``tick`` calls; None: no ticks.
+    every_s: float | None = None
 
-    def tick(self, scene: Scene) -> None: ...
+    def tick(self, scene: Scene) -> None:
+        """The scene, every ``every_s`` simulated seconds."""
 
-    def stage(self, scene: Scene, event: StageEvent) -> None: ...
+    def stage(self, scene: Scene, event: StageEvent) -> None:
+        """A stage just finished (``event.brick`` -1: the trial's final settle)."""
 
-    def call(self, scene: Scene, call: AgentCall) -> None: ...
+    def call(self, scene: Scene, call: AgentCall) -> None:
+        """An agent call's record, each time it grows."""
 
 
 @dataclass(frozen=True)
@@ -91,12 +88,10 @@ class TrialWorld:
 
 
 @contextmanager
-def trial_world(
-    spec: TrialSpec, on_tick: Sequence[tuple[float, TickHook]] = ()
-) -> Iterator[TrialWorld]:
+def trial_world(spec: TrialSpec, observers: Sequence[TrialObserver] = ()) -> Iterator[TrialWorld]:
     """The trial's world under its physics profile and perturbations, closed on exit: one
-    brick of the goal's size per target, its mass scaled from the catalogue brick's.
-    ``on_tick`` are hooks with their periods in simulated seconds (``Scene.watch``)."""
+    brick of the goal's size per target, its mass scaled from the catalogue brick's. The
+    ``observers`` tick from the spawn settle on."""
     config, seed = spec.config, trial_seed(spec.run_seed, spec.trial)
     count, size = len(spec.goal.targets), spec.goal.brick_size_m
     nominal = config.scene.brick_body(config.physics.brick_lateral_friction, size)
@@ -112,8 +107,10 @@ def trial_world(
         ready = arm.solve(READY_POSE.position_m, READY_POSE.quat_xyzw).joints_rad
         scene = Scene(config.scene, poses, ready, config.physics, config.budget, bodies, nominal)
         cleanup.callback(scene.close)
-        for period_s, observe in on_tick:
-            scene.watch(scene.ticks_for(period_s), observe)
+        for observer in observers:
+            if observer.every_s is not None:
+                scene.watch(scene.ticks_for(observer.every_s), observer.tick)
+                observer.tick(scene)
         scene.step(scene.ticks_for(SPAWN_SETTLE_S))
         yield TrialWorld(
             scene=scene,
@@ -132,27 +129,20 @@ class TrialRun:
     transcript: tuple[AgentCall, ...]
 
 
-def run_trial(
-    spec: TrialSpec,
-    on_stage: StageHook | None = None,
-    observer: TrialObserver | None = None,
-    on_tick: Sequence[tuple[float, TickHook]] = (),
-) -> TrialRun:
-    """Run one trial start to finish; failures become a ``failure`` record, never a crash."""
-    with trial_world(spec, on_tick) as world:
+def run_trial(spec: TrialSpec, observers: Sequence[TrialObserver] = ()) -> TrialRun:
+    """Run one trial start to finish, watched by ``observers``; failures become a
+    ``failure`` record, never a crash."""
+    with trial_world(spec, observers) as world:
         scene, seed, controller = world.scene, world.seed, world.controller
-        on_call = None
-        if observer is not None:
-            scene.watch(scene.ticks_for(observer.every_s), observer.tick)
-            observer.tick(scene)
-            on_call = partial(observer.call, scene)
 
         def stage(brick: int, name: str) -> None:
             event = StageEvent(brick=brick, stage=name)
-            if on_stage is not None:
-                on_stage(scene, event)
-            if observer is not None:
+            for observer in observers:
                 observer.stage(scene, event)
+
+        def on_call(call: AgentCall) -> None:
+            for observer in observers:
+                observer.call(scene, call)
 
         if spec.method is Method.CLASSICAL:
             outcome = _run_classical(controller, world.sensor, spec.goal, stage)

@@ -1,78 +1,124 @@
-"""A video of a trial: overview frames on a fixed simulated-time cadence, as an MP4.
+"""A video of a trial (``eval --video``): overview frames on a fixed simulated-time cadence,
+as an MP4.
 
-The scene calls the recorder every ``FRAME_S`` (``1 / FPS``) simulated seconds
-(``Scene.watch``) and it renders a frame, so the video plays in real time. Each frame carries a
-caption: simulated time, the brick in hand and the current stage or agent step (from the
-trial's stage hook). Rendering only reads the simulator, so a filmed trial gives the same
-results as one without (tests check this).
+Every ``FRAME_S`` (``1 / FPS``) simulated seconds the recorder reads where the arm's joints
+and the bricks are (a :class:`ScenePose`, some 50 microseconds) and hands it, with the
+frame's caption, to the film process (``eval/film.py``), which renders and encodes on
+another core while the trial runs on. The video plays in real time. Its caption: simulated
+time, the brick and the stage, and the last gate verdict until the stage ends. Filming only
+reads the simulator, so a filmed trial gives the same results as one without (tests check
+this).
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
+import pickle
+import subprocess
+import sys
 import tempfile
+import threading
 from pathlib import Path
+from queue import SimpleQueue
+from typing import IO
 
-import imageio.v2 as imageio
-import numpy as np
-from PIL import Image, ImageDraw
-
+import actionreasoning
+from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.control.classical import StageEvent
-from actionreasoning.sim.camera import FixedCamera, overview
+from actionreasoning.errors import EngineError
+from actionreasoning.eval.film import Frame, Reel
+from actionreasoning.eval.trial import TrialObserver
+from actionreasoning.sim.camera import overview
+from actionreasoning.sim.replica import SceneLooks, ScenePose
 from actionreasoning.sim.scene import Scene
 
 #: Frames per simulated second; also the playback rate, so videos play in real time.
-FPS = 8
+FPS = 5
 #: Simulated time between two frames.
 FRAME_S = 1.0 / FPS
 WIDTH, HEIGHT = 320, 240
 
 
-class VideoRecorder:
-    """A tick observer and a stage hook that film a trial; ``close()`` gives the MP4."""
+class VideoRecorder(TrialObserver):
+    """Films a trial through a film process; ``close()`` waits for it and gives the MP4."""
+
+    every_s = FRAME_S
 
     def __init__(self) -> None:
+        self._queue: SimpleQueue[Reel | Frame | None] = SimpleQueue()
+        self._film: subprocess.Popen[bytes] | None = None
+        self._feeder: threading.Thread | None = None
+        self._path: Path | None = None
+        self._stage = "settling"
+        self._verdict = ""
+        self.frames = 0
+
+    def tick(self, scene: Scene) -> None:
+        if self._film is None:
+            self._start(Reel(SceneLooks.of(scene), overview(scene), WIDTH, HEIGHT, FPS))
+        caption = (f"{scene.time_s:5.1f} s  {self._stage}", self._verdict)
+        self._queue.put(Frame(ScenePose.of(scene), caption))
+        self.frames += 1
+
+    def stage(self, scene: Scene, event: StageEvent) -> None:
+        self._stage = "final settle" if event.brick < 0 else f"brick {event.brick}: {event.stage}"
+        self._verdict = ""
+
+    def call(self, scene: Scene, call: AgentCall) -> None:
+        if call.gates:
+            self._verdict = verdict_text(call)
+
+    def _start(self, reel: Reel) -> None:
         handle, name = tempfile.mkstemp(suffix=".mp4")
         os.close(handle)
         self._path = Path(name)
-        self._writer = imageio.get_writer(
-            self._path,
-            format="FFMPEG",
-            fps=FPS,
-            codec="libx264",
-            quality=6,
-            macro_block_size=16,
-            output_params=["-movflags", "+faststart", "-preset", "veryfast"],
+        # The film process finds this very package, however this process found it.
+        package_root = str(Path(actionreasoning.__file__).parents[1])
+        paths = [package_root, *filter(None, [os.environ.get("PYTHONPATH")])]
+        command = [sys.executable, "-m", "actionreasoning.eval.film", name, str(os.getpid())]
+        self._film = subprocess.Popen(
+            command,
+            stdin=subprocess.PIPE,
+            env={**os.environ, "PYTHONPATH": os.pathsep.join(paths)},
         )
-        self._caption = "settling"
-        self._camera: FixedCamera | None = None
-        self.frames = 0
+        assert self._film.stdin is not None
+        self._queue.put(reel)
+        self._feeder = threading.Thread(target=self._feed, args=(self._film.stdin,), daemon=True)
+        self._feeder.start()
 
-    def on_tick(self, scene: Scene) -> None:
-        """Film a frame (called every ``FRAME_S`` of simulated time)."""
-        if self._camera is None:
-            self._camera = FixedCamera(overview(scene), WIDTH, HEIGHT)
-        image = self._camera.render(scene)
-        self._writer.append_data(captioned(image, f"{scene.time_s:5.1f} s  {self._caption}"))
-        self.frames += 1
-
-    def on_stage(self, scene: Scene, event: StageEvent) -> None:
-        """Caption the following frames with the stage just reached."""
-        self._caption = "final settle" if event.brick < 0 else f"brick {event.brick}: {event.stage}"
+    def _feed(self, pipe: IO[bytes]) -> None:
+        """Send the queued reel and frames to the film process, until ``None``; if it died,
+        ``close()`` says so."""
+        with contextlib.suppress(BrokenPipeError), pipe:
+            while True:
+                item = self._queue.get()
+                pickle.dump(item, pipe)
+                if item is None:
+                    return
 
     def close(self) -> bytes:
-        """The MP4 (empty if no frame was filmed); the recorder is done."""
+        """The MP4 (empty if no frame was filmed), once the film process has encoded every
+        frame; the recorder is done."""
+        if self._film is None or self._feeder is None or self._path is None:
+            return b""
         try:
-            self._writer.close()
-            return self._path.read_bytes() if self.frames else b""
+            self._queue.put(None)
+            self._feeder.join()
+            code = self._film.wait()
+            if code != 0:
+                raise EngineError(
+                    f"the film process failed (exit code {code}); see its error above"
+                )
+            return self._path.read_bytes()
         finally:
             self._path.unlink(missing_ok=True)
 
 
-def captioned(image: np.ndarray, text: str) -> np.ndarray:
-    """``image`` with ``text`` in white on a dark band along its top."""
-    picture = Image.fromarray(image)
-    draw = ImageDraw.Draw(picture)
-    draw.rectangle((0, 0, picture.width, 14), fill=(0, 0, 0))
-    draw.text((4, 2), text, fill=(255, 255, 255))
-    return np.asarray(picture)
+def verdict_text(call: AgentCall) -> str:
+    """The last gate verdict of ``call``, with the checks that failed."""
+    gate = call.gates[-1]
+    if gate.passed:
+        return f"{call.agent}: {gate.gate} passed"
+    failed = ", ".join(check.name for check in gate.checks if not check.passed)
+    return f"{call.agent}: {gate.gate} FAILED ({failed})"

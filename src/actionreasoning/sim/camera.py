@@ -57,8 +57,8 @@ def render(scene: Scene, view: CameraView, width: int = 480, height: int = 360) 
 class FixedCamera:
     """One view filmed frame after frame, fast: TinyRenderer spends most of a frame on the
     ground (a 100 m textured plane), so the ground is rendered once, in a client of its own,
-    and each frame renders the scene with its ground hidden and lays it over that picture.
-    The ground is hidden by its colour's alpha only while rendering: no physics changes."""
+    and each frame renders a client without ground (a :class:`~.replica.Replica`) and lays
+    it over that picture."""
 
     def __init__(self, view: CameraView, width: int, height: int) -> None:
         self.view, self.width, self.height = view, width, height
@@ -70,15 +70,9 @@ class FixedCamera:
         finally:
             p.disconnect(client)
 
-    def render(self, scene: Scene) -> np.ndarray:
-        """An RGB image (height x width x 3, uint8) of the scene, as ``render`` makes it."""
-        cid, ground = scene.client, scene.ground
-        colour = p.getVisualShapeData(ground, physicsClientId=cid)[0][7]
-        p.changeVisualShape(ground, -1, rgbaColor=[*colour[:3], 0.0], physicsClientId=cid)
-        try:
-            rgb, segments = _camera_image(cid, self.view, self.width, self.height)
-        finally:
-            p.changeVisualShape(ground, -1, rgbaColor=colour, physicsClientId=cid)
+    def render(self, client: int) -> np.ndarray:
+        """An RGB image (height x width x 3, uint8) of what ``client`` holds, on the ground."""
+        rgb, segments = _camera_image(client, self.view, self.width, self.height)
         return np.where((segments < 0)[:, :, None], self._ground, rgb)
 
 
