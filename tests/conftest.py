@@ -89,14 +89,18 @@ def cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]
     return subprocess.CompletedProcess(args, result.exit_code, result.stdout, result.stderr)
 
 
-def cli_process(*args: str, timeout: float = 600) -> subprocess.CompletedProcess[str]:
+def cli_process(
+    *args: str, timeout: float = 600, env: dict[str, str] | None = None
+) -> subprocess.CompletedProcess[str]:
     """The `actionreasoning` command in a process of its own, for what only a process shows:
-    a hang cut by ``timeout``, memory it would exhaust, the real entry point."""
+    a hang cut by ``timeout``, memory it would exhaust, the real entry point; in ``env``
+    (default: this process's environment)."""
     return subprocess.run(
         [sys.executable, "-m", "actionreasoning", *args],
         capture_output=True,
         text=True,
         timeout=timeout,
+        env=env,
     )
 
 

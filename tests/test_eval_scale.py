@@ -91,6 +91,14 @@ def test_a_run_killed_with_sigkill_resumes_without_loss_or_duplicates(
     assert sorted_lines(out) == serial
 
 
+def ray_env() -> dict[str, str]:
+    """The environment of the test's Ray cluster and its client, with Ray's token
+    authentication off whatever the user's Ray state: a token left in ~/.ray/auth_token (by
+    an earlier local ``ray.init``) turns it on for ``ray start`` but not for a client given
+    the cluster's address, which the cluster then refuses (InvalidAuthToken)."""
+    return {**os.environ, "RAY_AUTH_MODE": "disabled"}
+
+
 @pytest.fixture(scope="module")
 def ray_cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     """A real local Ray head node, started as a user would, stopped afterwards."""
@@ -101,7 +109,7 @@ def ray_cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     start = subprocess.run(
         [ray, "start", "--head", f"--port={port}", "--num-cpus=2", "--include-dashboard=false",
          "--disable-usage-stats", f"--temp-dir={temp}"],
-        capture_output=True, text=True, timeout=180,
+        capture_output=True, text=True, timeout=180, env=ray_env(),
     )  # fmt: skip
     assert start.returncode == 0, start.stderr
     try:
@@ -114,7 +122,8 @@ def ray_cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
 def test_trials_on_a_local_ray_cluster_give_the_serial_results_and_recordings(
     pattern: Path, serial: list[str], ray_cluster: str, tmp_path: Path
 ) -> None:
-    result = cli_process(*eval_args(pattern, tmp_path / "run", "--ray", ray_cluster, "--rerun"))
+    args = eval_args(pattern, tmp_path / "run", "--ray", ray_cluster, "--rerun")
+    result = cli_process(*args, env=ray_env())
     assert result.returncode == 0, result.stderr
     assert sorted_lines(tmp_path / "run") == serial
     # The recordings come back from the tasks with their results.

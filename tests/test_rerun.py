@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -92,6 +93,22 @@ def test_recordings_come_back_from_worker_processes(tmp_path: Path, one_brick: P
     assert sorted(serial.splitlines()) == sorted(parallel.splitlines())
     for trial in ("trial_000", "trial_001"):
         rrd = tmp_path / "b" / "rerun" / f"{trial}.rrd"
+        assert columns(rrd, "/world/bricks", "Boxes3D:centers")
+
+
+def os_threads() -> int:
+    """This process's threads, the SDK's native ones included (``threading`` sees none)."""
+    return len(os.listdir("/proc/self/task"))
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="counts threads in /proc")
+def test_recordings_leave_no_threads_behind(tmp_path: Path, one_brick: Path) -> None:
+    before = os_threads()  # the SDK's own runtime threads start when it is imported
+    eval_lines(tmp_path / "run", one_brick, Method.CLASSICAL, rerun=True, trials=3)
+    assert os_threads() <= before  # a recording left behind kept two threads each
+    for trial in ("trial_000", "trial_001", "trial_002"):
+        rrd = tmp_path / "run" / "rerun" / f"{trial}.rrd"
         assert columns(rrd, "/world/bricks", "Boxes3D:centers")
 
 

@@ -69,7 +69,7 @@ class _Logged:
 @dataclass
 class RerunRecorder:
     """A :class:`~actionreasoning.eval.trial.TrialObserver` that records the trial;
-    ``rrd()`` gives the recording's bytes at the end."""
+    ``rrd()`` gives the recording's bytes at the end, once: it ends the recording."""
 
     spec: TrialSpec
     every_s: float = SAMPLE_S
@@ -151,8 +151,16 @@ class RerunRecorder:
 
     # --- the recording ------------------------------------------------------------------
     def rrd(self) -> bytes:
-        """The recording, as the bytes of an ``.rrd`` file. The samples are sent here, in
-        columns: logged one by one they would cost a third of the trial's time."""
+        """The recording, as the bytes of an ``.rrd`` file; this ends the recording."""
+        self._send_samples()
+        self._rec.flush()
+        data = bytes(self._stream.drain_as_bytes())
+        self._release()
+        return data
+
+    def _send_samples(self) -> None:
+        """The samples go in here, in columns: logged one by one they would cost a third of
+        the trial's time."""
         rr, rec, rows = self._rr, self._rec, len(self._times)
         if rows:
             index = [rr.TimeColumn(TIMELINE, duration=self._times)]
@@ -180,8 +188,15 @@ class RerunRecorder:
         for entity, (times, values) in self._scalars.items():
             index = [rr.TimeColumn(TIMELINE, duration=times)]
             rec.send_columns(entity, indexes=index, columns=rr.Scalars.columns(scalars=values))
-        rec.flush()
-        return bytes(self._stream.drain_as_bytes())
+
+    def _release(self) -> None:
+        """Free the stream's threads and buffers now, not at the process's exit. The memory
+        sink holds its stream, so ``disconnect`` first breaks that cycle; the SDK then keeps
+        the orphaned stream, threads and all, until ``rr.init`` destroys orphaned recordings
+        (its documented side effect; ``init_logging=False`` makes no new recording)."""
+        self._rec.disconnect()
+        del self._stream, self._rec
+        self._rr.init("actionreasoning", init_logging=False)
 
     def _time(self, scene: Scene) -> None:
         self._rec.set_time(TIMELINE, duration=scene.time_s)
