@@ -61,8 +61,11 @@ def execute(job: TrialJob) -> TrialOutput:
     video = VideoRecorder() if job.video else None
     try:
         run = run_trial(job.spec, [o for o in (snapshots, rerun, video) if o is not None])
-    finally:
-        film = video.close() if video is not None else b""
+    finally:  # the Rerun stream's threads and the film process end even if the trial raised
+        try:
+            recording = rerun.rrd() if rerun is not None else b""
+        finally:
+            film = video.close() if video is not None else b""
     transcript = (
         "".join(call.model_dump_json() + "\n" for call in run.transcript) if job.transcripts else ""
     )
@@ -70,7 +73,7 @@ def execute(job: TrialJob) -> TrialOutput:
         result=run.result,
         transcript=transcript,
         pictures=snapshots.files if snapshots is not None else {},
-        recording=rerun.rrd() if rerun is not None else b"",
+        recording=recording,
         video=film,
     )
 

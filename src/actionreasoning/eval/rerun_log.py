@@ -22,7 +22,7 @@ from actionreasoning.control.classical import StageEvent
 from actionreasoning.errors import ConfigError
 from actionreasoning.eval.metrics import center_offset_cm
 from actionreasoning.eval.rules import Method
-from actionreasoning.eval.trial import TrialSpec
+from actionreasoning.eval.trial import TrialObserver, TrialSpec
 from actionreasoning.sim.robot_model import FINGER_LEFT
 from actionreasoning.sim.scene import GRASP_CONTACT_N, Scene
 
@@ -67,8 +67,8 @@ class _Logged:
 
 
 @dataclass
-class RerunRecorder:
-    """A :class:`~actionreasoning.eval.trial.TrialObserver` that records the trial;
+class RerunRecorder(TrialObserver):
+    """A trial observer that records the trial;
     ``rrd()`` gives the recording's bytes at the end, once: it ends the recording."""
 
     spec: TrialSpec
