@@ -14,7 +14,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from conftest import SMALL_PATTERN, assert_clean_error, cli, cli_process, free_port
+from conftest import SMALL_PATTERN, assert_clean_error, children, cli, cli_process, free_port
 
 TRIALS = "3"
 
@@ -190,19 +190,6 @@ def test_ctrl_c_stops_workers_at_once_and_keeps_whole_lines(
     finished = sorted_lines(out)
     assert 0 < len(finished) < 2 * int(TRIALS)
     assert {line for line in finished if json.loads(line)["trial"] < int(TRIALS)} <= set(serial)
-
-
-def children(pid: int) -> set[int]:
-    """Processes whose parent is ``pid`` (from /proc)."""
-    found = set()
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            fields = stat.read_text().rsplit(")", 1)[1].split()
-        except OSError:
-            continue
-        if int(fields[1]) == pid:
-            found.add(int(stat.parent.name))
-    return found
 
 
 @pytest.mark.slow

@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import json
+import os
 import re
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import imageio.v3 as iio
 import numpy as np
 import pytest
-from conftest import SMALL_PATTERN, cli, eval_lines
+from conftest import SMALL_PATTERN, children, cli, eval_lines
 
 from actionreasoning.agents.transcript import AgentCall, CheckRecord, GateRecord
 from actionreasoning.eval.rules import Method
@@ -91,13 +95,11 @@ def test_the_film_shows_what_render_shows(scene: Scene) -> None:
     view = overview(scene)
     camera, replica = FixedCamera(view, 160, 120), Replica(SceneLooks.of(scene))
     try:
-        first = ScenePose.of(scene)
         for _ in range(2):
             replica.show(ScenePose.of(scene))
             assert np.array_equal(camera.render(replica.client), render(scene, view, 160, 120))
             scene.set_arm_targets(scene.arm_targets + 0.3)
             scene.step(scene.ticks_for(0.5))
-        assert not first.same_as(ScenePose.of(scene))  # the arm moved between the two looks
     finally:
         replica.close()
 
@@ -114,3 +116,61 @@ def test_a_caption_names_the_gate_and_the_checks_that_failed() -> None:
     assert verdict_text(call) == "descent: sigma2_descent FAILED (clearance_m)"
     call.gates.append(GateRecord(gate="sigma2_descent", passed=True, checks=[passed]))
     assert verdict_text(call) == "descent: sigma2_descent passed"
+
+
+def test_a_script_without_a_main_guard_films(tmp_path: Path, one_brick: Path) -> None:
+    """The film process is no ``multiprocessing`` child: it does not import the script."""
+    script = tmp_path / "film_it.py"
+    script.write_text(
+        "import sys\n"
+        "from actionreasoning.eval.jobs import TrialJob, execute\n"
+        "from actionreasoning.eval.rules import Method\n"
+        "from actionreasoning.eval.trial import TrialSpec\n"
+        "from actionreasoning.world.patterns import load_pattern\n"
+        "from actionreasoning.world.scene_spec import SceneSpec\n"
+        f"goal = load_pattern({str(one_brick)!r}, SceneSpec())\n"
+        "spec = TrialSpec(Method.CLASSICAL, 'one', goal, run_seed=3, trial=0)\n"
+        "video = execute(TrialJob(spec=spec, video=True)).video\n"
+        "sys.stdout.write(video[4:8].decode())\n"
+    )
+    run = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=300, cwd=tmp_path
+    )
+    assert run.returncode == 0, run.stderr
+    assert run.stdout == "ftyp"  # an MP4
+
+
+@pytest.mark.slow
+def test_the_film_process_ends_when_its_run_is_killed(tmp_path: Path, one_brick: Path) -> None:
+    command = [sys.executable, "-m", "actionreasoning", "eval", "--method", "classical"]
+    command += ["--pattern", str(one_brick), "--trials", "3", "--video"]
+    temp = tmp_path / "temp"  # where the run's unfinished MP4 is
+    temp.mkdir()
+    process = subprocess.Popen(
+        [*command, "--out", str(tmp_path / "run")],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env={**os.environ, "TMPDIR": str(temp)},
+    )
+    deadline = time.monotonic() + 120
+    while not (films := {c for c in children(process.pid) if "eval.film" in cmdline(c)}):
+        assert process.poll() is None and time.monotonic() < deadline, "no film process started"
+        time.sleep(0.05)
+    process.kill()
+    process.wait()
+    deadline = time.monotonic() + 15
+    while films := {f for f in films if Path(f"/proc/{f}").exists()}:
+        zombies = {f for f in films if " Z " in Path(f"/proc/{f}/stat").read_text()}
+        if films == zombies:
+            break
+        assert time.monotonic() < deadline, f"film process {films} outlived its run"
+        time.sleep(0.1)
+    assert list(temp.iterdir()) == []  # it took its unfinished MP4 with it
+
+
+def cmdline(pid: int) -> str:
+    """The command line of process ``pid`` (empty once it is gone)."""
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()
+    except OSError:
+        return ""

@@ -1,12 +1,13 @@
 """The film process: renders a trial's frames and encodes them as an MP4, beside the trial.
 
-``python -m actionreasoning.eval.film MP4 PARENT_PID`` reads pickles from its standard
-input, written by its parent (``eval/video.py``): a :class:`Reel` (what the scene looks
-like, from where), then one :class:`Frame` per frame, then ``None``. It poses a look-alike
+``python -m actionreasoning.eval.film MP4`` reads pickles from its standard input, written
+by its parent (``eval/video.py``): a :class:`Reel` (what the scene looks like, from where),
+then one :class:`Frame` per frame, then ``None``; if the input ends before ``None``, the
+parent is gone (killed, say) and the film process ends, leaving no file. It poses a look-alike
 of the scene (:class:`Replica`) for each frame, renders it with TinyRenderer over a ground
-rendered once, captions it and writes it to the MP4; a frame where nothing moved is not
-rendered again. A process of its own, not a ``multiprocessing`` child, so that filming
-works from any script, guarded by ``if __name__ == "__main__"`` or not.
+rendered once, captions it and writes it to the MP4. It is a process of its own, not a
+``multiprocessing`` child, so that filming works from any script, with or without an
+``if __name__ == "__main__"`` guard.
 """
 
 from __future__ import annotations
@@ -14,13 +15,13 @@ from __future__ import annotations
 import pickle
 import sys
 from dataclasses import dataclass
+from pathlib import Path
 from typing import BinaryIO
 
 import imageio.v2 as imageio
 import numpy as np
 from PIL import Image, ImageDraw
 
-from actionreasoning.eval.lifeline import exit_with_parent
 from actionreasoning.sim.camera import CameraView, FixedCamera
 from actionreasoning.sim.replica import Replica, SceneLooks, ScenePose
 
@@ -47,7 +48,8 @@ class Frame:
 
 
 def film(source: BinaryIO, path: str) -> None:
-    """Render and encode the reel read from ``source`` into the MP4 at ``path``."""
+    """Render and encode the reel read from ``source`` into the MP4 at ``path``; EOFError
+    if ``source`` ends before the reel does."""
     reel: Reel = pickle.load(source)
     camera = FixedCamera(reel.view, reel.width, reel.height)
     replica = Replica(reel.looks)
@@ -60,14 +62,10 @@ def film(source: BinaryIO, path: str) -> None:
         macro_block_size=16,
         output_params=["-movflags", "+faststart", "-preset", "veryfast"],
     )
-    shown: ScenePose | None = None
-    picture = np.zeros((reel.height, reel.width, 3), dtype=np.uint8)  # the first frame's
     try:
         while (frame := pickle.load(source)) is not None:
-            if shown is None or not frame.pose.same_as(shown):
-                replica.show(frame.pose)
-                picture, shown = camera.render(replica.client), frame.pose
-            writer.append_data(captioned(picture, frame.caption))
+            replica.show(frame.pose)
+            writer.append_data(captioned(camera.render(replica.client), frame.caption))
     finally:
         writer.close()
         replica.close()
@@ -85,9 +83,12 @@ def captioned(image: np.ndarray, lines: tuple[str, ...]) -> np.ndarray:
 
 
 def main() -> None:
-    path, parent = sys.argv[1], int(sys.argv[2])
-    exit_with_parent(parent)
-    film(sys.stdin.buffer, path)
+    path = sys.argv[1]
+    try:
+        film(sys.stdin.buffer, path)
+    except EOFError:  # the trial's process is gone: nobody will read the video
+        Path(path).unlink(missing_ok=True)
+        sys.exit(1)
 
 
 if __name__ == "__main__":

@@ -12,6 +12,8 @@ from __future__ import annotations
 import multiprocessing
 import os
 import socket
+import threading
+import time
 from collections.abc import Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -19,13 +21,13 @@ from dataclasses import dataclass, field
 from itertools import islice
 
 from actionreasoning.errors import ConfigError, EngineError
-from actionreasoning.eval.lifeline import exit_with_parent
 from actionreasoning.eval.rerun_log import RerunRecorder
 from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.snapshots import SnapshotRecorder
 from actionreasoning.eval.trial import TrialSpec, run_trial
 from actionreasoning.eval.video import VideoRecorder
 
+PARENT_POLL_S = 0.5
 #: Jobs handed out ahead per worker (or Ray CPU): one running, one waiting to start.
 IN_FLIGHT = 2
 RESUME_HINT = "the finished trials are saved: run the same command to run the rest"
@@ -84,6 +86,18 @@ def run_serial(jobs: Iterable[TrialJob]) -> Iterator[TrialOutput]:
         yield execute(job)
 
 
+def _exit_with_parent(parent: int) -> None:
+    """In a worker: end at once if the run's process dies (SIGKILL leaves no time to stop
+    its workers, which would otherwise finish their trial for nobody and wait forever)."""
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True).start()
+
+
 def run_in_processes(jobs: Iterable[TrialJob], workers: int) -> Iterator[TrialOutput]:
     """Jobs in ``workers`` fresh processes, yielded as they finish (not in trial order).
 
@@ -94,7 +108,7 @@ def run_in_processes(jobs: Iterable[TrialJob], workers: int) -> Iterator[TrialOu
     pool = ProcessPoolExecutor(
         max_workers=workers,
         mp_context=context,
-        initializer=exit_with_parent,
+        initializer=_exit_with_parent,
         initargs=(os.getpid(),),
     )
     queue = iter(jobs)

@@ -76,7 +76,7 @@ class VideoRecorder(TrialObserver):
         # The film process finds this very package, however this process found it.
         package_root = str(Path(actionreasoning.__file__).parents[1])
         paths = [package_root, *filter(None, [os.environ.get("PYTHONPATH")])]
-        command = [sys.executable, "-m", "actionreasoning.eval.film", name, str(os.getpid())]
+        command = [sys.executable, "-m", "actionreasoning.eval.film", name]
         self._film = subprocess.Popen(
             command,
             stdin=subprocess.PIPE,

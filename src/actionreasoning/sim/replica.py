@@ -59,14 +59,6 @@ class ScenePose:
             bricks=np.array([[*position, *quat] for position, quat in bricks]).reshape(-1, 7),
         )
 
-    def same_as(self, other: ScenePose, tolerance: float = 1e-5) -> bool:
-        """True if no joint nor brick coordinate differs by more than ``tolerance``
-        (m or rad): a picture of either is a picture of both."""
-        return bool(
-            np.allclose(self.joints_rad, other.joints_rad, rtol=0.0, atol=tolerance)
-            and np.allclose(self.bricks, other.bricks, rtol=0.0, atol=tolerance)
-        )
-
 
 class Replica:
     """The arm and the bricks of ``looks`` in a client of their own (``client``), posed by
