@@ -17,7 +17,7 @@ from conftest import SMALL_PATTERN, children, cli, eval_lines
 
 from actionreasoning.agents.transcript import AgentCall, CheckRecord, GateRecord
 from actionreasoning.eval.rules import Method
-from actionreasoning.eval.video import FPS, verdict_text
+from actionreasoning.eval.video import FPS, doing_text, verdict_text
 from actionreasoning.sim.camera import FixedCamera, overview, render
 from actionreasoning.sim.replica import Replica, SceneLooks, ScenePose
 from actionreasoning.sim.scene import Scene
@@ -104,15 +104,16 @@ def test_the_film_shows_what_render_shows(scene: Scene) -> None:
         replica.close()
 
 
-def test_a_caption_names_the_gate_and_the_checks_that_failed() -> None:
+def test_a_caption_names_the_agent_the_gate_and_the_checks_that_failed() -> None:
     failed = CheckRecord(
         name="clearance_m", value=0.01, relation=">=", threshold=0.02, passed=False
     )
     passed = CheckRecord(name="reachable", value=1.0, relation=">=", threshold=1.0, passed=True)
     call = AgentCall(
-        call=3, agent="descent", brick=0, target=0, attempt=1, prompt_chars=10, answer={},
+        call=3, agent="descent", brick=0, target=0, attempt=2, prompt_chars=10, answer={},
         gates=[GateRecord(gate="sigma2_descent", passed=False, checks=[passed, failed])],
     )  # fmt: skip
+    assert doing_text(call) == "brick 0: descent (attempt 2)"
     assert verdict_text(call) == "descent: sigma2_descent FAILED (clearance_m)"
     call.gates.append(GateRecord(gate="sigma2_descent", passed=True, checks=[passed]))
     assert verdict_text(call) == "descent: sigma2_descent passed"

@@ -19,6 +19,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from actionreasoning.errors import ActionReasoningError, ConfigError
+from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.rules import Method
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.geometry import quat_yaw
@@ -213,7 +214,7 @@ def eval_command(
     video: Annotated[
         bool,
         typer.Option(
-            help="Film every trial from above, 8 frames per simulated second, to "
+            help=f"Film every trial from above, {RunDir.VIDEO_FPS} frames per simulated second, to "
             "videos/trial_k_OUTCOME.mp4 (OUTCOME: ok or the failure code)."
         ),
     ] = False,
@@ -274,7 +275,6 @@ def demo(
     its own (.actionreasoning-demo), or into an earlier demo's, whose files it replaces.
     """
     from actionreasoning.eval.demo_dir import demo_directory
-    from actionreasoning.eval.layout import RunDir
     from actionreasoning.eval.report.demo import write_demo_pages
     from actionreasoning.reasoners.backend import LLMConfig
 

@@ -5,7 +5,9 @@ Every ``FRAME_S`` (``1 / FPS``) simulated seconds the recorder reads where the a
 and the bricks are (a :class:`ScenePose`, some 50 microseconds) and hands it, with the
 frame's caption, to the film process (``eval/film.py``), which renders and encodes on
 another core while the trial runs on. The video plays in real time. Its caption: simulated
-time, the brick and the stage, and the last gate verdict until the stage ends. Filming only
+time; the agent at work (brick, attempt) or the stage last done; and the last gate verdict,
+which stays until the next (a gate that judges a motion's outcome is decided at no
+simulated time before the next agent answers). Filming only
 reads the simulator, so a filmed trial gives the same results as one without (tests check
 this).
 """
@@ -28,13 +30,13 @@ from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.control.classical import StageEvent
 from actionreasoning.errors import EngineError
 from actionreasoning.eval.film import Frame, Reel
+from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.trial import TrialObserver
 from actionreasoning.sim.camera import overview
 from actionreasoning.sim.replica import SceneLooks, ScenePose
 from actionreasoning.sim.scene import Scene
 
-#: Frames per simulated second; also the playback rate, so videos play in real time.
-FPS = 5
+FPS = RunDir.VIDEO_FPS
 #: Simulated time between two frames.
 FRAME_S = 1.0 / FPS
 WIDTH, HEIGHT = 320, 240
@@ -50,22 +52,23 @@ class VideoRecorder(TrialObserver):
         self._film: subprocess.Popen[bytes] | None = None
         self._feeder: threading.Thread | None = None
         self._path: Path | None = None
-        self._stage = "settling"
+        self._doing = "settling"
         self._verdict = ""
         self.frames = 0
 
     def tick(self, scene: Scene) -> None:
         if self._film is None:
             self._start(Reel(SceneLooks.of(scene), overview(scene), WIDTH, HEIGHT, FPS))
-        caption = (f"{scene.time_s:5.1f} s  {self._stage}", self._verdict)
+        caption = (f"{scene.time_s:5.1f} s  {self._doing}", self._verdict)
         self._queue.put(Frame(ScenePose.of(scene), caption))
         self.frames += 1
 
     def stage(self, scene: Scene, event: StageEvent) -> None:
-        self._stage = "final settle" if event.brick < 0 else f"brick {event.brick}: {event.stage}"
-        self._verdict = ""
+        brick = event.brick
+        self._doing = "final settle" if brick < 0 else f"brick {brick}: {event.stage} done"
 
     def call(self, scene: Scene, call: AgentCall) -> None:
+        self._doing = doing_text(call)
         if call.gates:
             self._verdict = verdict_text(call)
 
@@ -113,6 +116,13 @@ class VideoRecorder(TrialObserver):
             return self._path.read_bytes()
         finally:
             self._path.unlink(missing_ok=True)
+
+
+def doing_text(call: AgentCall) -> str:
+    """The agent at work, on which brick, at which attempt."""
+    brick = "" if call.brick is None else f"brick {call.brick}: "
+    attempt = f" (attempt {call.attempt})" if call.attempt > 1 else ""
+    return f"{brick}{call.agent}{attempt}"
 
 
 def verdict_text(call: AgentCall) -> str:

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from jinja2 import Environment, PackageLoader, select_autoescape
 
+from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.report.collect import Group, load_groups, patterns
 from actionreasoning.eval.report.pictures import stage_grid, trial_gif
 from actionreasoning.eval.report.plots import error_distributions, llm_cost, success_rates
@@ -136,6 +137,7 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
     )
     page = environment.get_template("report.html.j2").render(
         title="actionreasoning report",
+        video_fps=RunDir.VIDEO_FPS,
         runs=[str(d) for d in unique(directories)],
         column_groups=column_groups,
         columns=[f"{title} {'↓' if lower else '↑'}" for _, title, _, _, lower in COLUMNS],

@@ -35,6 +35,6 @@ def write_demo_pages(run: RunDir) -> DemoPages:
         + f"![stages]({snapshots}/{RunDir.STAGE_SHEET})\n\n## Result\n\n"
         + f"![build]({snapshots}/{RunDir.FINAL_BUILD})\n"
         + f"![the build, stage by stage]({animation})\n\n"
-        + f"[The video of the build]({video}) (8 frames per simulated second).\n"
+        + f"[The video of the build]({video}) ({RunDir.VIDEO_FPS} frames per simulated second).\n"
     )
     return DemoPages(markdown=run.demo_page, html=report.html)
