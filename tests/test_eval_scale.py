@@ -119,16 +119,18 @@ def ray_cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
 
 
 @pytest.mark.slow
-def test_trials_on_a_local_ray_cluster_give_the_serial_results_and_recordings(
+def test_trials_on_a_local_ray_cluster_give_the_serial_results_recordings_and_videos(
     pattern: Path, serial: list[str], ray_cluster: str, tmp_path: Path
 ) -> None:
-    args = eval_args(pattern, tmp_path / "run", "--ray", ray_cluster, "--rerun")
+    args = eval_args(pattern, tmp_path / "run", "--ray", ray_cluster, "--rerun", "--video")
     result = cli_process(*args, env=ray_env())
     assert result.returncode == 0, result.stderr
     assert sorted_lines(tmp_path / "run") == serial
-    # The recordings come back from the tasks with their results.
+    # The recordings and videos come back from the tasks with their results.
     recordings = sorted(p.name for p in (tmp_path / "run" / "rerun").glob("*.rrd"))
     assert recordings == ["trial_000.rrd", "trial_001.rrd", "trial_002.rrd"]
+    videos = sorted(p.read_bytes()[4:8] for p in (tmp_path / "run" / "videos").glob("*.mp4"))
+    assert videos == [b"ftyp"] * 3
 
 
 def test_a_ray_address_where_nothing_listens_is_refused_at_once(

@@ -36,6 +36,7 @@ from actionreasoning.sim.camera import overview
 from actionreasoning.sim.replica import SceneLooks, ScenePose
 from actionreasoning.sim.scene import Scene
 
+#: Frames per simulated second, and the playback rate: videos play in real time.
 FPS = RunDir.VIDEO_FPS
 #: Simulated time between two frames.
 FRAME_S = 1.0 / FPS
@@ -54,14 +55,12 @@ class VideoRecorder(TrialObserver):
         self._path: Path | None = None
         self._doing = "settling"
         self._verdict = ""
-        self.frames = 0
 
     def tick(self, scene: Scene) -> None:
         if self._film is None:
             self._start(Reel(SceneLooks.of(scene), overview(scene), WIDTH, HEIGHT, FPS))
         caption = (f"{scene.time_s:5.1f} s  {self._doing}", self._verdict)
         self._queue.put(Frame(ScenePose.of(scene), caption))
-        self.frames += 1
 
     def stage(self, scene: Scene, event: StageEvent) -> None:
         brick = event.brick
