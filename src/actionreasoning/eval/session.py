@@ -379,7 +379,7 @@ class _OutsideAgent:
                 continue
             assert isinstance(command, _Answer)
             try:
-                answer = parse_answer(command.text, request.spec, request.state)
+                answer = parse_answer(command.text, request.spec, request.state, normalise=False)
             except OutputError as error:
                 refused.append(str(error))
                 refusal = Refusal(code=RefusalCode.INVALID_ANSWER, detail=str(error))
