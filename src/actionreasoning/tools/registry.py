@@ -18,7 +18,10 @@ from actionreasoning.tools.placement import HELD_POSE, PLACEMENT_POSE
 from actionreasoning.tools.reach import REACHABILITY
 from actionreasoning.world.geometry import QUAT_NORM_TOLERANCE
 from actionreasoning.world.models import Pose
-from actionreasoning.world.scene_spec import WORKSPACE
+
+#: The farthest a pose asked of a tool may be from the arm's base along any axis: far
+#: beyond its reach (the tools report that), far below the numbers that hang its IK (1e308).
+MAX_COORDINATE_M = 100.0
 
 TOOLS: Mapping[str, Tool] = {
     tool.name: tool
@@ -75,8 +78,8 @@ def call_tool(name: str, arguments: Mapping[str, Any], context: ToolContext) -> 
 
 def check_bounds(value: Any, where: str) -> None:
     """Refuse arguments the arm model cannot take (its inverse kinematics hangs on a huge
-    number and fails on a zero quaternion): every number finite, every pose inside the
-    workspace box with a unit quaternion (within QUAT_NORM_TOLERANCE)."""
+    number and fails on a zero quaternion): every number finite, every pose within
+    MAX_COORDINATE_M of the base with a unit quaternion (within QUAT_NORM_TOLERANCE)."""
     if isinstance(value, BaseModel):
         for field, item in value:
             check_bounds(item, f"{where}.{field}")
@@ -86,11 +89,8 @@ def check_bounds(value: Any, where: str) -> None:
     elif isinstance(value, float) and not math.isfinite(value):
         raise ToolError(f"{where}: {value} is not a finite number")
     if isinstance(value, Pose):
-        if not WORKSPACE.contains(value.position_m):
-            raise ToolError(
-                f"{where}.position_m is outside the workspace box {WORKSPACE.low_m} .. "
-                f"{WORKSPACE.high_m} m"
-            )
+        if max(abs(v) for v in value.position_m) > MAX_COORDINATE_M:
+            raise ToolError(f"{where}.position_m is more than {MAX_COORDINATE_M:g} m away")
         norm = math.sqrt(sum(q * q for q in value.quat_xyzw))
         if abs(norm - 1.0) > QUAT_NORM_TOLERANCE:
             raise ToolError(f"{where}.quat_xyzw has norm {norm:.4g}: give a unit quaternion")
