@@ -4,13 +4,14 @@ The trial runs as ``eval`` runs it (:func:`~actionreasoning.eval.trial.run_trial
 scene, agents, validation, gates and controller) in a thread of its own, with an outside
 agent as its reasoner. When an agent asks, the trial waits; the session's caller reads the
 question (:meth:`TrialSession.turn`), calls the agent's tools and submits an answer as
-text. The answer is parsed and validated as a language model's is (``agents/validation.py``):
-a refused one changes nothing and the agent waits for another; one that lists tool calls
-gets their results back and the agent waits too. A valid decision goes to the gates and the
-controller, and the call returns when the trial asks its next question or ends, with the
-answer's gate verdicts, outcome and feedback. The threads hand the simulator over: while
-one runs, the other waits, so PyBullet never runs in both at once. Closing the session
-ends a trial still running with the failure ``abandoned``; it is measured like any other.
+text. The answer is parsed and checked as a language model's is (``agents/validation.py``;
+its quaternion goes on as given, for the orchestrator to normalise once, as an in-process
+reasoner's does): a refused one changes nothing and the agent waits for another; one that
+lists tool calls gets their results back and the agent waits too. A valid decision goes to
+the gates and the controller, and the call returns when the trial asks its next question or
+ends, with the answer's gate verdicts, outcome and feedback. The threads hand the simulator
+over: while one runs, the other waits, so PyBullet never runs in both at once. Closing the
+session ends a trial still running with the failure ``abandoned``, measured like any other.
 
 The Gymnasium environment (``gym_env``) and the MCP server are doors to this one core.
 """
