@@ -182,6 +182,24 @@ def test_reachability_inside_and_outside_the_band(arm: KinematicArm) -> None:
         ("support_contact", {"brick_id": "zero"}, "support_contact: brick_id:"),
         ("support_contact", {"brick_id": 0, "extra": 1}, "extra"),
         ("__import__('os').system", {}, "unknown tool"),
+        # Numbers the arm model cannot take: its IK hangs on 1e308, fails on a zero quaternion.
+        ("reachability", {"pose": {"position_m": [1e308, 0.0, 0.3]}}, "more than 100 m away"),
+        ("reachability", {"pose": {"position_m": ["NaN", 0.0, 0.3]}}, "nan is not a finite"),
+        (
+            "collision_check",
+            {"pose": {"position_m": [0.5, 0.0, 0.3]}, "start_pose": {"position_m": [0, -101, 0]}},
+            "collision_check.start_pose.position_m is more than 100 m away",
+        ),
+        (
+            "collision_check",
+            {"pose": {"position_m": [0.5, 0.0, 0.3], "quat_xyzw": [0, 0, 0, 0]}},
+            "norm 0: give a unit quaternion",
+        ),
+        (
+            "grasp_options",
+            {"brick_id": 0, "target_index": 0, "descent_opening_m": float("inf")},
+            "descent_opening_m",
+        ),
     ],
 )
 def test_bad_calls_are_typed_errors(

@@ -61,6 +61,10 @@ class FailureCode(StrEnum):
         "the model server sent something that is not a chat completion",
     )
     LLM_BAD_REQUEST = "llm_bad_request", "the model server refused the request"
+    ABANDONED = (
+        "abandoned",
+        "the outside agent (Gym environment, MCP client) closed the trial before it ended",
+    )
     MISPLACED = "misplaced", "the build finished but a brick is outside the success limits"
     NOT_AT_REST = "not_at_rest", "the build finished but a brick was still moving"
 

@@ -12,12 +12,10 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from actionreasoning.world.geometry import QuatXYZW, Vec3
+from actionreasoning.world.geometry import QUAT_NORM_TOLERANCE, QuatXYZW, Vec3
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M
 from actionreasoning.world.stages import Stage
 
-#: How far from 1 a quaternion's norm may be and still be normalised rather than refused.
-QUAT_NORM_TOLERANCE = 1e-3
 #: The longest a single move may be asked to take.
 MAX_MOVE_S = 30.0
 

@@ -33,21 +33,33 @@ class OutputError(ActionReasoningError):
 
 
 def parse_answer(
-    text: str, spec: AgentSpec, state: WorldState, workspace: WorkspaceBox = WORKSPACE
+    text: str,
+    spec: AgentSpec,
+    state: WorldState,
+    workspace: WorkspaceBox = WORKSPACE,
+    normalise: bool = True,
 ) -> AgentAnswer:
-    """The answer in ``text`` as ``spec``'s output model, checked and normalised."""
+    """The answer in ``text`` as ``spec``'s output model, checked and normalised (see
+    :func:`check_answer` for ``normalise``)."""
     data = _json_object(text)
     try:
         answer = spec.output_model.model_validate(data)
     except ValidationError as error:
         raise OutputError(_describe(error)) from None
-    return check_answer(answer, spec, state, workspace)
+    return check_answer(answer, spec, state, workspace, normalise)
 
 
 def check_answer(
-    answer: AgentAnswer, spec: AgentSpec, state: WorldState, workspace: WorkspaceBox
+    answer: AgentAnswer,
+    spec: AgentSpec,
+    state: WorldState,
+    workspace: WorkspaceBox,
+    normalise: bool = True,
 ) -> AgentAnswer:
-    """Physical bounds, known ids and whitelisted tools; returns it with unit quaternions."""
+    """Physical bounds, known ids and whitelisted tools; returns it with unit quaternions,
+    or without ``normalise`` with the quaternion as given (checked to be unit within
+    tolerance; the orchestrator normalises every waypoint it executes), so that an answer
+    from outside reaches it exactly as the same answer from an in-process reasoner."""
     update: dict[str, Any] = {}
     waypoint = getattr(answer, "waypoint", None)
     if isinstance(waypoint, WaypointProposal):
@@ -57,9 +69,11 @@ def check_answer(
                 f"box {_short(workspace.low_m)} .. {_short(workspace.high_m)} m"
             )
         try:
-            update["waypoint"] = unit_waypoint(waypoint)
+            unit = unit_waypoint(waypoint)
         except ValueError as error:
             raise OutputError(f"waypoint.quat_xyzw: {error} (give a unit quaternion)") from None
+        if normalise:
+            update["waypoint"] = unit
     brick = getattr(answer, "brick_id", None)
     if brick is not None and brick not in {b.id for b in state.bricks}:
         raise OutputError(f"brick_id {brick} names no brick (ids 0..{len(state.bricks) - 1})")

@@ -11,7 +11,7 @@ from enum import StrEnum
 
 import numpy as np
 
-from actionreasoning.eval.results import BrickResult
+from actionreasoning.eval.results import BrickResult, PlacementMetrics
 from actionreasoning.world.geometry import Vec3
 
 
@@ -37,8 +37,9 @@ class SuccessRule:
     max_speed_mps: float = 0.01
     max_angular_speed_radps: float = 0.05
 
-    def is_placed(self, brick: BrickResult) -> bool:
-        """Whether a brick ended within the offset and rotation limits of its target."""
+    def is_placed(self, brick: BrickResult | PlacementMetrics) -> bool:
+        """Whether a brick (its result or its metrics) is within the offset and rotation
+        limits of its target."""
         return (
             brick.center_offset_cm <= self.max_center_offset_cm
             and brick.rotation_error_deg <= self.max_rotation_error_deg

@@ -10,6 +10,7 @@ import numpy as np
 
 from actionreasoning.agents.calls import BuildResult, CallHook, failure_of
 from actionreasoning.agents.orchestrator import Orchestrator
+from actionreasoning.agents.reasoner import Reasoner
 from actionreasoning.agents.single_agent import SingleAgent
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.control.classical import StageEvent, run_classical
@@ -59,11 +60,15 @@ class TrialSpec:
 
 class TrialObserver:
     """Watches a trial as it runs, reading only: the scene every ``every_s`` of simulated
-    time (and once before the first step), each finished stage, and each agent call as its
-    record grows (answer, gate verdicts, outcome). Subclasses override what they watch."""
+    time (and once before the first step), once the method is about to start, each
+    finished stage, and each agent call as its record grows (answer, gate verdicts,
+    outcome). Subclasses override what they watch."""
 
     #: Simulated seconds between two ``tick`` calls; None: no ticks.
     every_s: float | None = None
+
+    def start(self, scene: Scene) -> None:
+        """The scene after the spawn settle, before the method's first move."""
 
     def tick(self, scene: Scene) -> None:
         """The scene, every ``every_s`` simulated seconds."""
@@ -129,11 +134,18 @@ class TrialRun:
     transcript: tuple[AgentCall, ...]
 
 
-def run_trial(spec: TrialSpec, observers: Sequence[TrialObserver] = ()) -> TrialRun:
+def run_trial(
+    spec: TrialSpec, observers: Sequence[TrialObserver] = (), reasoner: Reasoner | None = None
+) -> TrialRun:
     """Run one trial start to finish, watched by ``observers``; failures become a
-    ``failure`` record, never a crash."""
+    ``failure`` record, never a crash. ``reasoner`` answers the agents in place of the
+    backend ``spec.config.llm`` names (an outside agent: ``session.py``); results name it."""
+    if reasoner is not None and spec.method is Method.CLASSICAL:
+        raise ConfigError("--method classical asks no reasoner")
     with trial_world(spec, observers) as world:
         scene, seed, controller = world.scene, world.seed, world.controller
+        for observer in observers:
+            observer.start(scene)
 
         def stage(brick: int, name: str) -> None:
             event = StageEvent(brick=brick, stage=name)
@@ -147,14 +159,15 @@ def run_trial(spec: TrialSpec, observers: Sequence[TrialObserver] = ()) -> Trial
         if spec.method is Method.CLASSICAL:
             outcome = _run_classical(controller, world.sensor, spec.goal, stage)
         else:
-            outcome = _run_agents(controller, world.sensor, spec, stage, on_call)
+            outcome = _run_agents(controller, world.sensor, spec, stage, on_call, reasoner)
         try:
             scene.step(scene.ticks_for(FINAL_SETTLE_S))
             scene.check_physics()
         except TrialAborted as error:
             outcome.failure = outcome.failure or failure_of(error, None)
         stage(-1, "final")
-        return TrialRun(_measure(spec, seed, scene, outcome), tuple(outcome.transcript))
+        llm = None if reasoner is None else reasoner.name
+        return TrialRun(_measure(spec, seed, scene, outcome, llm), tuple(outcome.transcript))
 
 
 def _run_classical(
@@ -178,11 +191,14 @@ def _run_agents(
     spec: TrialSpec,
     stage: Callable[[int, str], None],
     on_call: CallHook | None = None,
+    reasoner: Reasoner | None = None,
 ) -> BuildResult:
-    """The six gated agents, or the merged single agent, with the spec's reasoner."""
+    """The six gated agents, or the merged single agent, with ``reasoner`` (default: the
+    spec's)."""
     config, world = spec.config, SimWorld(controller, spec.goal, sensor)
     assert config.llm is not None  # TrialSpec checks it
-    reasoner = make_reasoner(config.llm, controller.scene.deadline)
+    if reasoner is None:
+        reasoner = make_reasoner(config.llm, controller.scene.deadline)
     runner = (
         SingleAgent(world, reasoner, config.tolerances, on_stage=stage, on_call=on_call)
         if spec.method is Method.SINGLE_AGENT
@@ -193,8 +209,13 @@ def _run_agents(
     return runner.build(spec.goal)
 
 
-def _measure(spec: TrialSpec, seed: int, scene: Scene, outcome: BuildResult) -> TrialResult:
+def _measure(
+    spec: TrialSpec, seed: int, scene: Scene, outcome: BuildResult, llm: str | None
+) -> TrialResult:
+    """The trial's result line; ``llm`` names the reasoner if not the spec's backend."""
     config, rule, failure = spec.config, spec.config.success_rule, outcome.failure
+    if llm is None:
+        llm = "none" if config.llm is None or spec.method is Method.CLASSICAL else config.llm.label
     unplaced = iter(sorted(set(range(len(scene.bricks))) - set(outcome.placements.values())))
     bricks = []
     for target in spec.goal.targets:
@@ -242,7 +263,7 @@ def _measure(spec: TrialSpec, seed: int, scene: Scene, outcome: BuildResult) -> 
         trial=spec.trial,
         trial_seed=seed,
         success=failure is None,
-        llm="none" if config.llm is None or spec.method is Method.CLASSICAL else config.llm.label,
+        llm=llm,
         bricks=tuple(bricks),
         bricks_placed=sum(within),
         metrics=PlacementMetrics(

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
 from actionreasoning.errors import ToolError
 from actionreasoning.tools.base import Tool, ToolContext, ToolModel
@@ -15,6 +16,12 @@ from actionreasoning.tools.geometry import ALIGNMENT, SUPPORT
 from actionreasoning.tools.grasp_plan import GRASP_OPTIONS
 from actionreasoning.tools.placement import HELD_POSE, PLACEMENT_POSE
 from actionreasoning.tools.reach import REACHABILITY
+from actionreasoning.world.geometry import QUAT_NORM_TOLERANCE
+from actionreasoning.world.models import Pose
+
+#: The farthest a pose asked of a tool may be from the arm's base along any axis: far
+#: beyond its reach (the tools report that), far below the numbers that hang its IK (1e308).
+MAX_COORDINATE_M = 100.0
 
 TOOLS: Mapping[str, Tool] = {
     tool.name: tool
@@ -32,8 +39,30 @@ TOOLS: Mapping[str, Tool] = {
 }
 
 
+class ToolSchema(BaseModel):
+    """A tool as a language model or an outside agent is shown it: name, what it does, and
+    the JSON schemas of its arguments and of its result."""
+
+    name: str
+    description: str
+    input_schema: dict[str, Any]
+    output_schema: dict[str, Any]
+
+
+def tool_schema(name: str) -> ToolSchema:
+    """The schema of the whitelisted tool ``name``."""
+    tool = TOOLS[name]
+    return ToolSchema(
+        name=tool.name,
+        description=tool.description.strip(),
+        input_schema=tool.input_model.model_json_schema(),
+        output_schema=tool.output_model.model_json_schema(),
+    )
+
+
 def call_tool(name: str, arguments: Mapping[str, Any], context: ToolContext) -> ToolModel:
-    """Run the whitelisted tool ``name`` on ``arguments`` (validated against its input model)."""
+    """Run the whitelisted tool ``name`` on ``arguments`` (validated against its input model,
+    and within the bounds of :func:`check_bounds`)."""
     tool = TOOLS.get(name)
     if tool is None:
         raise ToolError(f"unknown tool {name[:60]!r}; known tools: {', '.join(TOOLS)}")
@@ -43,4 +72,25 @@ def call_tool(name: str, arguments: Mapping[str, Any], context: ToolContext) -> 
         first = error.errors()[0]
         where = ".".join(str(part) for part in first["loc"]) or "arguments"
         raise ToolError(f"{name}: {where}: {first['msg']}") from None
+    check_bounds(parsed, name)
     return tool(context, parsed)
+
+
+def check_bounds(value: Any, where: str) -> None:
+    """Refuse arguments the arm model cannot take (its inverse kinematics hangs on a huge
+    number and fails on a zero quaternion): every number finite, every pose within
+    MAX_COORDINATE_M of the base with a unit quaternion (within QUAT_NORM_TOLERANCE)."""
+    if isinstance(value, BaseModel):
+        for field, item in value:
+            check_bounds(item, f"{where}.{field}")
+    elif isinstance(value, tuple | list):
+        for index, item in enumerate(value):
+            check_bounds(item, f"{where}[{index}]")
+    elif isinstance(value, float) and not math.isfinite(value):
+        raise ToolError(f"{where}: {value} is not a finite number")
+    if isinstance(value, Pose):
+        if max(abs(v) for v in value.position_m) > MAX_COORDINATE_M:
+            raise ToolError(f"{where}.position_m is more than {MAX_COORDINATE_M:g} m away")
+        norm = math.sqrt(sum(q * q for q in value.quat_xyzw))
+        if abs(norm - 1.0) > QUAT_NORM_TOLERANCE:
+            raise ToolError(f"{where}.quat_xyzw has norm {norm:.4g}: give a unit quaternion")

@@ -11,6 +11,9 @@ from scipy.spatial.transform import Rotation
 Vec3 = tuple[float, float, float]
 QuatXYZW = tuple[float, float, float, float]
 
+#: How far from 1 a quaternion's norm may be and still be normalised rather than refused.
+QUAT_NORM_TOLERANCE = 1e-3
+
 #: A gripper pointing straight down: its z axis along world -z (a half turn about x).
 TOP_DOWN = Rotation.from_euler("x", math.pi)
 

@@ -1,0 +1,54 @@
+"""An action's JSON text: one tool call, ``{"tool": NAME, "arguments": {...}}``, or one
+answer, ``{"answer": {...}}`` (the agent's output as an object, or as the text a model
+would write). Anything else is a typed refusal, never an error."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from typing import Any
+
+from actionreasoning.eval.session import Refusal, RefusalCode
+from actionreasoning.gym_env.observation import MAX_ACTION_CHARS
+
+FORMAT = 'an action is {"tool": NAME, "arguments": {...}} or {"answer": {...}}'
+
+
+@dataclass(frozen=True)
+class ToolAction:
+    """Run one of the waiting agent's tools."""
+
+    name: str
+    arguments: Any
+
+
+@dataclass(frozen=True)
+class AnswerAction:
+    """Submit the waiting agent's answer, as JSON text."""
+
+    text: str
+
+
+def parse_action(action: object) -> ToolAction | AnswerAction | Refusal:
+    """What ``action`` asks for, or why it asks for nothing."""
+    if not isinstance(action, str):
+        return _refused(f"the action is JSON text, not {type(action).__name__}")
+    if len(action) > MAX_ACTION_CHARS:
+        return _refused(f"the action is {len(action)} characters, more than {MAX_ACTION_CHARS}")
+    try:
+        data = json.loads(action)
+    except json.JSONDecodeError as error:
+        return _refused(f"not valid JSON ({error.msg} at character {error.pos}); {FORMAT}")
+    except RecursionError:
+        return _refused("the JSON is nested too deeply")
+    if isinstance(data, dict) and data.keys() == {"answer"}:
+        answer = data["answer"]
+        return AnswerAction(answer if isinstance(answer, str) else json.dumps(answer))
+    if isinstance(data, dict) and data.keys() in ({"tool"}, {"tool", "arguments"}):
+        if isinstance(data["tool"], str):
+            return ToolAction(data["tool"], data.get("arguments", {}))
+    return _refused(FORMAT)
+
+
+def _refused(detail: str) -> Refusal:
+    return Refusal(code=RefusalCode.INVALID_ACTION, detail=detail)

@@ -1,0 +1,219 @@
+"""``actionreasoning/BrickStack-v0``: one ``eval`` trial of the six gated agents, with the
+agents' answers coming from the caller of ``step``.
+
+An episode is one trial (:class:`~actionreasoning.eval.session.TrialSession`). A step is
+one action for the agent that waits: a tool call or an answer, as JSON text
+(``actions.py``), validated as a language model's answer is and, if valid, gated and
+executed by the same controller. The observation is the measured state the waiting agent
+is given (``observation.py``); the reward counts bricks placed (``reward.py``).
+
+Seeds: ``reset(seed=s, options={"trial": k})`` is trial k of ``eval --seed s`` under the
+same pattern and conditions (k defaults to 0); ``reset()`` goes on with the next trial of
+the same run seed, so an env seeded once walks through ``eval --seed s``'s trials in order.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium
+import numpy as np
+
+from actionreasoning.agents.transcript import AgentCall
+from actionreasoning.control.classical import StageEvent
+from actionreasoning.errors import ConfigError
+from actionreasoning.eval.session import (
+    Conditions,
+    Refusal,
+    RefusalCode,
+    SessionError,
+    ToolReply,
+    TrialSession,
+)
+from actionreasoning.eval.trial import TrialObserver
+from actionreasoning.gym_env.actions import AnswerAction, ToolAction, parse_action
+from actionreasoning.gym_env.observation import (
+    action_space,
+    observation,
+    observation_space,
+)
+from actionreasoning.gym_env.reward import PlacedCount
+from actionreasoning.records import FailureCode
+from actionreasoning.sim.camera import overview, render
+from actionreasoning.sim.scene import Scene
+from actionreasoning.world.budget import TrialBudget
+from actionreasoning.world.models import WorldState
+
+#: Trial ends that are budgets outside the task (Gymnasium's truncation), not its outcome.
+TRUNCATIONS = frozenset({FailureCode.STEP_BUDGET, FailureCode.TIME_BUDGET})
+#: What the results line calls the agent that answered.
+AGENT_LABEL = "gym"
+
+
+class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
+    """Brick stacking with the six gated agents, answered by the caller: see the module."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 4}  # noqa: RUF012
+
+    def __init__(
+        self,
+        pattern: str = "pyramid",
+        physics: str = "paper",
+        noise: str = "none",
+        render_mode: str | None = None,
+        max_trial_s: float = TrialBudget().max_wall_s,
+    ) -> None:
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ConfigError(f"render_mode {render_mode!r}: use 'rgb_array' or None")
+        self.render_mode = render_mode
+        self.conditions = Conditions.load(
+            pattern, physics, noise, TrialBudget(max_wall_s=max_trial_s)
+        )
+        self.observation_space = observation_space(len(self.conditions.goal.targets))
+        self.action_space = action_space()
+        self.session: TrialSession | None = None
+        self._run_seed: int | None = None
+        self._trial = -1
+        self._state: WorldState | None = None
+        self._placed: PlacedCount | None = None
+        self._potential = 0
+        self._final_frame: _FinalFrame | None = None
+
+    # --- Gymnasium's API ----------------------------------------------------------------
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, Any], dict[str, Any]]:
+        """Start trial ``options["trial"]`` (default: 0 after a seed, else the next) of run
+        seed ``seed`` (default: the last one; the first is drawn from the env's generator)."""
+        super().reset(seed=seed)
+        options = dict(options or {})
+        trial = options.pop("trial", None)
+        if options:
+            raise ConfigError(f"unknown reset options {sorted(options)}: the one option is trial")
+        if seed is not None:
+            self._run_seed = seed
+        elif self._run_seed is None:
+            self._run_seed = int(self.np_random.integers(2**31))
+        if trial is None:
+            trial = 0 if seed is not None else self._trial + 1
+        spec = self.conditions.spec(self._run_seed, trial)
+        self._close_session()
+        self._trial = trial
+        self._placed = PlacedCount(self.conditions.goal, self.conditions.config.success_rule)
+        self._potential = 0
+        observers: list[TrialObserver] = [self._placed]
+        if self.render_mode == "rgb_array":
+            self._final_frame = _FinalFrame()
+            observers.append(self._final_frame)
+        self.session = TrialSession(spec, observers, agent=AGENT_LABEL)
+        request = self.session.request
+        if request is None:
+            raise SessionError(f"trial {trial} ended before an agent asked: {self.session.result}")
+        self._state = request.state
+        return self._observation(), self._info()
+
+    def step(self, action: str) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
+        """Run one tool call or answer for the waiting agent (see the module)."""
+        session = self._session()
+        info: dict[str, Any] = {}
+        parsed = parse_action(action)
+        if isinstance(parsed, Refusal):
+            info["refusal"] = parsed
+        elif session.done:
+            info["refusal"] = Refusal(code=RefusalCode.TRIAL_OVER, detail="call reset()")
+        elif isinstance(parsed, ToolAction):
+            tool = session.call_tool(parsed.name, parsed.arguments)
+            info |= {"refusal": tool.refusal, "tool_results": [tool]}
+        else:
+            assert isinstance(parsed, AnswerAction)
+            reply = session.answer(parsed.text)
+            info |= {"refusal": reply.refusal, "tool_results": reply.tools, "call": reply.call}
+        request = session.request
+        if request is not None:
+            self._state = request.state
+        reward = self._reward()
+        terminated, truncated = self._ends()
+        return self._observation(), reward, terminated, truncated, self._info(**info)
+
+    def render(self) -> np.ndarray | None:  # type: ignore[override]
+        """The overview camera's picture (height x width x 3, uint8) of the scene now, or of
+        the final scene once the trial has ended."""
+        if self.render_mode is None:
+            return None
+        session = self._session()
+        if session.done:
+            assert self._final_frame is not None
+            return self._final_frame.image
+        return session.in_scene(_overview)
+
+    def close(self) -> None:
+        """End the trial in progress (``abandoned``), if any."""
+        self._close_session()
+        super().close()
+
+    # --- helpers ------------------------------------------------------------------------
+    def _session(self) -> TrialSession:
+        if self.session is None:
+            raise gymnasium.error.ResetNeeded("call reset() before step() or render()")
+        return self.session
+
+    def _close_session(self) -> None:
+        if self.session is not None:
+            self.session.close()
+
+    def _observation(self) -> dict[str, Any]:
+        assert self._state is not None and self.session is not None
+        request = self.session.request
+        return observation(self._state, None if request is None else str(request.spec.key))
+
+    def _reward(self) -> float:
+        assert self.session is not None and self._placed is not None
+        result = self.session.result
+        potential = self._placed.count if result is None else result.bricks_placed
+        reward, self._potential = potential - self._potential, potential
+        return float(reward)
+
+    def _ends(self) -> tuple[bool, bool]:
+        """(terminated, truncated) in Gymnasium's sense."""
+        assert self.session is not None
+        result = self.session.result
+        if result is None:
+            return False, False
+        truncated = result.failure is not None and result.failure.reason in TRUNCATIONS
+        return not truncated, truncated
+
+    def _info(
+        self,
+        refusal: Refusal | None = None,
+        tool_results: list[ToolReply] | None = None,
+        call: AgentCall | None = None,
+    ) -> dict[str, Any]:
+        """What the step did, as JSON data, and the question that waits now."""
+        assert self.session is not None
+        request, result = self.session.request, self.session.result
+        return {
+            "agent": None if request is None else str(request.spec.key),
+            "prompt": None if request is None else request.prompt,
+            "tools": [] if request is None else list(request.spec.tools),
+            "refusal": None if refusal is None else refusal.model_dump(mode="json"),
+            "tool_results": [reply.model_dump(mode="json") for reply in tool_results or ()],
+            "call": None if call is None else call.model_dump(mode="json"),
+            "result": None if result is None else result.model_dump(mode="json"),
+            "seed": self._run_seed,
+            "trial": self._trial,
+        }
+
+
+class _FinalFrame(TrialObserver):
+    """The overview picture of the trial's final scene (rendered in the trial's thread)."""
+
+    def __init__(self) -> None:
+        self.image: np.ndarray | None = None
+
+    def stage(self, scene: Scene, event: StageEvent) -> None:
+        if event.brick < 0:
+            self.image = _overview(scene)
+
+
+def _overview(scene: Scene) -> np.ndarray:
+    return render(scene, overview(scene))

@@ -1,0 +1,179 @@
+"""The Gymnasium environment actionreasoning/BrickStack-v0: Gymnasium's own checker, the
+built-in reasoner's answers through it reproduce eval's line, and hostile actions get a
+typed refusal in ``info`` while the arm stays where it is."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+import numpy as np
+import pytest
+from conftest import eval_lines
+from gymnasium.utils.env_checker import check_env
+
+import actionreasoning.gym_env
+from actionreasoning.errors import ConfigError
+from actionreasoning.eval.rules import Method
+from actionreasoning.gym_env.env import BrickStackEnv
+from actionreasoning.reasoners.builtin import BuiltinReasoner
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "gym_builtin.py"
+
+
+def example() -> Any:
+    """examples/gym_builtin.py as a module."""
+    spec = importlib.util.spec_from_file_location("gym_builtin", EXAMPLE)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture
+def env() -> Iterator[BrickStackEnv]:
+    made = gymnasium.make(actionreasoning.gym_env.ENV_ID, pattern="pyramid")
+    yield made.unwrapped
+    made.close()
+
+
+def test_check_env_passes_and_render_is_the_overview_picture() -> None:
+    made = gymnasium.make(actionreasoning.gym_env.ENV_ID, render_mode="rgb_array")
+    try:
+        check_env(made.unwrapped)
+        made.reset(seed=1)
+        image = made.render()
+        assert image.shape == (360, 480, 3) and image.dtype == np.uint8
+        assert len(np.unique(image.reshape(-1, 3), axis=0)) > 10  # a picture, not a blank
+    finally:
+        made.close()
+
+
+def test_reset_seed_and_trial_are_those_of_eval(env: BrickStackEnv) -> None:
+    _, info = env.reset(seed=5)
+    assert (info["seed"], info["trial"], info["agent"]) == (5, 0, "pre_grasp")
+    second, info = env.reset()
+    assert (info["seed"], info["trial"]) == (5, 1)
+    assert info["prompt"].startswith("# Agent 1 of 6")
+    again, info = env.reset(seed=5, options={"trial": 1})
+    assert (info["seed"], info["trial"]) == (5, 1)
+    assert again["state"] == second["state"]
+    assert np.array_equal(again["brick_poses"], second["brick_poses"])
+    bricks = json.loads(again["state"])["bricks"]
+    assert again["brick_poses"][2, :3].tolist() == bricks[2]["pose"]["position_m"]
+    with pytest.raises(ConfigError, match="unknown reset options"):
+        env.reset(options={"trials": 2})
+
+
+def test_the_builtin_reasoners_answers_reproduce_the_eval_line(
+    tmp_path: Path, small_pattern: Path
+) -> None:
+    line = json.loads(eval_lines(tmp_path / "eval", small_pattern, Method.AGENTS))
+    made = gymnasium.make(actionreasoning.gym_env.ENV_ID, pattern=str(small_pattern))
+    try:
+        gym_builtin = example()
+        result, episode_return = gym_builtin.drive(made, seed=3, trial=0)
+    finally:
+        made.close()
+    for field in gym_builtin.METRICS:
+        assert result[field] == line[field], field
+    assert line["success"] and episode_return == line["bricks_placed"] == 3
+    assert (result["llm"], line["llm"]) == ("gym", "builtin")
+
+
+NAN_WAYPOINT = {"position_m": [float("nan"), -0.1, 0.2], "quat_xyzw": [1, 0, 0, 0]}
+FAR_WAYPOINT = {"position_m": [2.5, -0.1, 0.2], "quat_xyzw": [1, 0, 0, 0]}
+
+
+def answer(**fields: object) -> str:
+    return json.dumps({"answer": {"brick_id": 0, "target_index": 0, **fields}})
+
+
+@pytest.mark.parametrize(
+    ("action", "code", "detail"),
+    [
+        ('{"answer": {"brick_id": 0,', "invalid_action", "not valid JSON"),
+        ('{"answer": "{\\"brick_id\\": 0,"}', "invalid_answer", "not valid JSON"),
+        ('{"answer": {}, "tool": "grasp_options"}', "invalid_action", "an action is"),
+        ("[1, 2]", "invalid_action", "an action is"),
+        ('{"tool": "rm -rf /", "arguments": {}}', "unknown_tool", "not in the knowledge base"),
+        ('{"tool": "collision_check", "arguments": {}}', "unknown_tool", "of pre_grasp"),
+        ('{"tool": "grasp_options", "arguments": [1]}', "tool_error", "a JSON object"),
+        (answer(waypoint=NAN_WAYPOINT), "invalid_answer", "finite number"),
+        (answer(waypoint=FAR_WAYPOINT), "invalid_answer", "outside the workspace box"),
+        (
+            answer(tool_calls=[{"name": "reachability", "arguments": {}}]),
+            "invalid_answer",
+            "not one of your tools",
+        ),
+        (
+            '{"tool": "grasp_options", "arguments": '
+            '{"brick_id": 0, "target_index": 0, "descent_opening_m": NaN}}',
+            "tool_error",
+            "descent_opening_m",
+        ),
+    ],
+)
+def test_a_hostile_action_is_refused_and_the_arm_stays(
+    env: BrickStackEnv, action: str, code: str, detail: str
+) -> None:
+    before, _ = env.reset(seed=0)
+    ticks = env.session.in_scene(lambda scene: scene.ticks)
+    observed, reward, terminated, truncated, info = env.step(action)
+    assert info["refusal"]["code"] == code and detail in info["refusal"]["detail"], info
+    assert (reward, terminated, truncated, info["call"]) == (0.0, False, False, None)
+    assert info["agent"] == "pre_grasp" and observed["state"] == before["state"]
+    assert env.session.in_scene(lambda scene: scene.ticks) == ticks
+
+
+def test_hostile_tool_poses_are_refused_without_hanging_the_arm_model(env: BrickStackEnv) -> None:
+    """Through the descent agent's collision check: a huge number hung the IK, a zero
+    quaternion crashed it."""
+    env.reset(seed=0)
+    accepted = BuiltinReasoner().decide(env.session.request).answer
+    _, _, _, _, info = env.step(json.dumps({"answer": accepted.model_dump(mode="json")}))
+    assert info["call"]["outcome"] == "accepted" and info["agent"] == "descent"
+    ticks = env.session.in_scene(lambda scene: scene.ticks)
+    for pose, detail in (
+        ({"position_m": [1e308, 0.0, 0.3]}, "more than 100 m away"),
+        ({"position_m": [0.5, 0.0, 0.3], "quat_xyzw": [0, 0, 0, 0]}, "unit quaternion"),
+        ({"position_m": [0.5, 0.0, 0.3], "quat_xyzw": [1e300, 0, 0, 0]}, "unit quaternion"),
+    ):
+        action = {"tool": "collision_check", "arguments": {"pose": pose}}
+        _, reward, _, _, info = env.step(json.dumps(action))
+        assert info["refusal"]["code"] == "tool_error" and detail in info["refusal"]["detail"]
+        assert reward == 0.0 and info["agent"] == "descent"
+    assert env.session.in_scene(lambda scene: scene.ticks) == ticks
+
+
+def test_an_answer_a_gate_refuses_comes_back_with_its_checks_and_the_arm_stays(
+    env: BrickStackEnv,
+) -> None:
+    observed, _ = env.reset(seed=0)
+    ticks = env.session.in_scene(lambda scene: scene.ticks)
+    other = observed["brick_poses"][1]  # approach brick 0 through the middle of brick 1
+    waypoint = {"position_m": other[:3].tolist(), "quat_xyzw": [1, 0, 0, 0]}
+    _, reward, terminated, _, info = env.step(answer(waypoint=waypoint))
+    call = info["call"]
+    assert info["refusal"] is None and call["outcome"] == "refused" and not terminated
+    gate = call["gates"][0]
+    assert gate["gate"] == "sigma1_pre_grasp" and not gate["passed"] and gate["checks"]
+    assert call["feedback"] and info["agent"] == "pre_grasp" and reward == 0.0
+    assert env.session.turn().feedback == call["feedback"]
+    assert env.session.in_scene(lambda scene: scene.ticks) == ticks
+
+
+def test_step_before_reset_and_after_the_end() -> None:
+    env = BrickStackEnv()
+    with pytest.raises(gymnasium.error.ResetNeeded):
+        env.step('{"answer": {}}')
+    env.reset(seed=0)
+    env.session.close()
+    _, reward, terminated, truncated, info = env.step('{"answer": {}}')
+    assert info["refusal"]["code"] == "trial_over" and (terminated, truncated) == (True, False)
+    assert info["result"]["failure"]["reason"] == "abandoned" and reward == 0.0
+    env.close()
