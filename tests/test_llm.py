@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import cli as in_process
 
 from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.reasoner import AgentRequest
@@ -216,3 +217,36 @@ def test_the_in_process_backend_answers_in_the_agents_schema(gemma_path: Path) -
     assert result.returncode == 0, result.stdout + result.stderr
     assert "json_object_schema" in result.stdout
     assert "valid: {" in result.stdout
+
+
+def test_a_trial_sampled_at_a_temperature_is_replayed_to_the_same_line(
+    llama_server: str, tmp_path: Path
+) -> None:
+    recording = tmp_path / "recording.jsonl"
+    warm = ("--temperature", "1.0", "--llm-seed", "7")
+    result = eval_one_brick(
+        tmp_path / "out", f"openai:{MODEL}", "--base-url", llama_server, *warm,
+        "--record", str(recording),
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    replay = eval_one_brick(tmp_path / "replay", f"replay:{recording}")
+    assert replay.returncode == 0, replay.stderr
+    recorded = (tmp_path / "out" / "results.jsonl").read_text()
+    assert (tmp_path / "replay" / "results.jsonl").read_text() == recorded
+    for run in ("out", "replay"):
+        llm = json.loads((tmp_path / run / "run.json").read_text())["config"]["llm"]
+        assert llm["sampling"] == {"temperature": 1.0, "seed": 7}
+
+
+def test_the_in_process_backend_samples_with_the_seed_and_cap_given(gemma_path: Path) -> None:
+    def check(*options: str) -> tuple[int, str]:
+        result = in_process("llm", "check", "--llm", f"llamacpp:{gemma_path}", *options)
+        shown = [line for line in result.stdout.splitlines() if "latency" not in line]
+        return result.returncode, "\n".join(shown)
+
+    hot = ("--temperature", "1.5", "--max-tokens", "60")
+    first = check(*hot, "--llm-seed", "11")
+    assert first == check(*hot, "--llm-seed", "11")  # the seed is set per request
+    assert first != check(*hot, "--llm-seed", "12")
+    code, shown = check("--max-tokens", "5")
+    assert code == 1 and "5 completion" in shown and "INVALID" in shown  # cut at 5 tokens

@@ -86,8 +86,8 @@ class FaultHandler(BaseHTTPRequestHandler):
     def do_POST(self) -> None:
         body = json.loads(self.rfile.read(int(self.headers["Content-Length"])))
         echo = (
-            f"you sent {self.headers.get('Authorization')} from {self.headers.get('Host')} "
-            f"to {self.path}"
+            f"you sent {self.headers.get('Authorization')} and {self.headers.get('X-Gateway-Key')} "
+            f"from {self.headers.get('Host')} to {self.path}"
         )
         if self.server.fault == "echo_refuse":  # refuses every request, quoting the key
             self._send(400, json.dumps({"error": {"message": echo}}).encode())

@@ -1,6 +1,7 @@
 """An API key never leaves the process: not in results, transcripts, recordings, summaries,
 reports or anything printed, even from a server that echoes it back in answers and errors.
-Nor do the credentials of a base URL: its user name, its password or its query values."""
+Nor do the credentials of a base URL (its user name, its password or its query values) or
+the value of an extra header."""
 
 from __future__ import annotations
 
@@ -11,11 +12,14 @@ import pytest
 from conftest import assert_clean_error, cli
 from test_llm_faults import FaultServer, fault_server, run_eval
 
+from actionreasoning.reasoners.credentials import HEADERS_VARIABLE
+
 __all__ = ["fault_server"]  # the fixture, shared with the fault tests
 
 KEY = "sk-test-3f9a1c7e5b2d4a6f8e0c1b3d5f7a9e2c"
 PASSWORD = "hunter2-base-url-password"
 TOKEN = "tok-5e8b2f0a9c7d4e1b"
+GATEWAY = "gw-2d9f4b7a1c8e3f60"  # a gateway's header, which the echo server echoes too
 #: Where a base URL carries a credential; the server echoes the Authorization header
 #: (HTTP Basic for user info, else the key as Bearer) and the request path with its query.
 #: Each: the URL, the secret in it, and the user info the client sends as HTTP Basic.
@@ -28,7 +32,9 @@ CREDENTIALS = {
 
 @pytest.fixture
 def key(monkeypatch: pytest.MonkeyPatch) -> str:
+    """The API key and a gateway's header in the environment; the key."""
     monkeypatch.setenv("OPENAI_API_KEY", KEY)
+    monkeypatch.setenv(HEADERS_VARIABLE, f'{{"X-Gateway-Key": "{GATEWAY}"}}')
     return KEY
 
 
@@ -71,7 +77,7 @@ def test_a_known_key_appears_in_no_file_and_no_output(
     printed.append("".join(capfd.readouterr()))  # anything written past the commands' streams
     everything = written(tmp_path) + "\n".join(printed)
     assert fault_server.agent_requests or fault_server.fault == "echo_refuse"
-    secrets = [KEY, KEY[-12:], secret, secret[-8:]]
+    secrets = [KEY, KEY[-12:], secret, secret[-8:], GATEWAY, GATEWAY[-8:]]
     if basic:
         secrets.append(base64.b64encode(basic.encode()).decode())
     for text in secrets:

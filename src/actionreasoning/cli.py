@@ -21,6 +21,7 @@ from rich.table import Table
 from actionreasoning.errors import ActionReasoningError, ConfigError
 from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.rules import Method
+from actionreasoning.reasoners.sampling import MAX_COMPLETION_TOKENS, Effort, Sampling
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.geometry import quat_yaw
 from actionreasoning.world.noise import load_noise
@@ -89,6 +90,32 @@ TimeoutOption = Annotated[
 SeedOption = Annotated[
     int, typer.Option(min=0, help="Run seed; trial k uses a seed from (seed, k).")
 ]
+TemperatureOption = Annotated[
+    float, typer.Option(help="Sampling temperature of the model, 0 (greedy) to 2.")
+]
+TopPOption = Annotated[
+    float | None,
+    typer.Option(
+        help="Nucleus sampling: the probability mass of the likeliest tokens sampled from, "
+        "above 0 and at most 1 (default: not sent)."
+    ),
+]
+MaxTokensOption = Annotated[
+    int,
+    typer.Option(
+        help="Tokens a model's answer may take (with --reasoning-effort: its reasoning too)."
+    ),
+]
+LLMSeedOption = Annotated[
+    int, typer.Option(help="Sampling seed sent with every request, for servers that take one.")
+]
+EffortOption = Annotated[
+    Effort | None,
+    typer.Option(
+        help="How hard a reasoning model thinks: the OpenAI API's reasoning_effort (default: "
+        "not sent); for --llm openai:MODEL."
+    ),
+]
 
 
 class Fallback(StrEnum):
@@ -111,8 +138,10 @@ def _fail(error: ActionReasoningError | OSError, where: Path | None = None) -> N
 def _check_options(method: Method, llm: LLMConfig, transcripts: bool) -> None:
     if transcripts and method is Method.CLASSICAL:
         raise ConfigError("--transcripts records agent calls; --method classical makes none")
-    if method is Method.CLASSICAL and llm.spec != "builtin":
-        raise ConfigError("--method classical uses no reasoner; drop --llm")
+    if method is Method.CLASSICAL:
+        given = (["--llm"] if llm.spec != "builtin" else []) + llm.sampling.options()
+        if given:
+            raise ConfigError(f"--method classical uses no reasoner; drop {', '.join(given)}")
 
 
 def _summary_table(summary: RunSummary) -> Table:
@@ -168,6 +197,11 @@ def eval_command(
     llm_retries: Annotated[
         int, typer.Option(min=0, help="Retries on connection errors, 429 and 5xx (backoff).")
     ] = 2,
+    temperature: TemperatureOption = 0.0,
+    top_p: TopPOption = None,
+    max_tokens: MaxTokensOption = MAX_COMPLETION_TOKENS,
+    llm_seed: LLMSeedOption = 0,
+    reasoning_effort: EffortOption = None,
     repairs: Annotated[
         int, typer.Option(min=0, help="Invalid answers sent back to the model per step.")
     ] = 2,
@@ -223,7 +257,8 @@ def eval_command(
 
     Trial k uses a seed from (--seed, k) only, so results are the same serial, with
     --workers or on Ray. Run the same command again to resume a killed run. The API key of
-    an OpenAI-compatible server comes from OPENAI_API_KEY only.
+    an OpenAI-compatible server comes from OPENAI_API_KEY only, extra headers (a JSON
+    object) from ACTIONREASONING_LLM_HEADERS.
     """
     from actionreasoning.reasoners.backend import LLMConfig, ServerOptions
     from actionreasoning.reasoners.llm import LLMLimits
@@ -235,6 +270,7 @@ def eval_command(
             limits=LLMLimits(tool_turns=tool_turns, repairs=repairs),
             fallback=fallback is Fallback.BUILTIN,
             record=record,
+            sampling=Sampling(temperature, top_p, max_tokens, llm_seed, reasoning_effort),
         )
         _check_options(method, config, transcripts)
     except ActionReasoningError as error:
@@ -552,6 +588,11 @@ def llm_check(
     llm: LLMOption,
     base_url: BaseUrlOption = None,
     llm_timeout: TimeoutOption = 60.0,
+    temperature: TemperatureOption = 0.0,
+    top_p: TopPOption = None,
+    max_tokens: MaxTokensOption = MAX_COMPLETION_TOKENS,
+    llm_seed: LLMSeedOption = 0,
+    reasoning_effort: EffortOption = None,
 ) -> None:
     """Connect to a backend, send one schema-constrained request, and report what came back."""
     from actionreasoning.reasoners.backend import LLMConfig, ServerOptions
@@ -559,7 +600,8 @@ def llm_check(
 
     try:
         server = ServerOptions(base_url=base_url, timeout_s=llm_timeout)
-        report = check_backend(LLMConfig(spec=llm, server=server))
+        sampling = Sampling(temperature, top_p, max_tokens, llm_seed, reasoning_effort)
+        report = check_backend(LLMConfig(spec=llm, server=server, sampling=sampling))
     except ActionReasoningError as error:
         _fail(error)
     table = Table(title=f"llm check {escape(report.label)}", show_header=False)

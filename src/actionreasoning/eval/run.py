@@ -72,14 +72,16 @@ class RunConfig:
             return self.config.model_copy(update={"llm": None})
         return self.config
 
-    def manifest(self) -> RunManifest:
-        """What a resumed run must share with this one."""
+    def manifest(self, trials: TrialConfig | None = None) -> RunManifest:
+        """What a resumed run must share with this one; ``trials`` is :meth:`trial_config`
+        as prepared for the run, which settles what the backend records (its headers, a
+        replay's sampling settings)."""
         return RunManifest.sealed(
             method=str(self.method),
             pattern=self.pattern_name,
             pattern_sha256=digest(self.goal.model_dump_json()),
             seed=self.seed,
-            config=self.trial_config(),
+            config=trials or self.trial_config(),
         )
 
 
@@ -114,7 +116,7 @@ def run_eval(config: RunConfig, observer: RunObserver | None = None) -> RunSumma
 
 def _run_locked(config: RunConfig, observer: RunObserver | None) -> RunSummary:
     trials, run = _prepared(config.trial_config()), RunDir(config.out)
-    finished = open_run(config.out, config.manifest())
+    finished = open_run(config.out, config.manifest(trials))
     results = [r for r in finished if r.trial < config.trials]
     resumed = len(results)
     if observer is not None:

@@ -8,7 +8,9 @@ and index (:class:`~actionreasoning.eval.trial.TrialSpec`).
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, field_serializer
+from typing import Annotated
+
+from pydantic import BaseModel, ConfigDict, Field, field_serializer
 
 from actionreasoning.agents.orchestrator import Budgets
 from actionreasoning.control.limits import ControllerLimits
@@ -16,6 +18,7 @@ from actionreasoning.control.safety import SafetyLimits
 from actionreasoning.eval.rules import SuccessRule
 from actionreasoning.reasoners.backend import LLMConfig
 from actionreasoning.reasoners.llm import LLMLimits
+from actionreasoning.reasoners.sampling import RecordedSampling, Sampling
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.noise import LEVELS, NoiseLevel
 from actionreasoning.world.physics import PAPER, PhysicsProfile
@@ -24,14 +27,20 @@ from actionreasoning.world.tolerances import Tolerances
 
 
 class Backend(BaseModel):
-    """What run.json records of a reasoning backend: which one, its turn budgets, and
-    whether the built-in reasoner answers once they are spent."""
+    """What run.json records of a reasoning backend: which one, its turn budgets, whether
+    the built-in reasoner answers once they are spent, its sampling settings and the names
+    of the extra headers it is sent (never their values).
+
+    Sampling settings at their defaults and an empty ``headers`` are left out, so a run at
+    the defaults records (and hashes) what runs recorded before these settings existed."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     spec: str
     limits: LLMLimits
     fallback: bool
+    sampling: RecordedSampling = Sampling()
+    headers: Annotated[tuple[str, ...], Field(exclude_if=lambda names: not names)] = ()
 
 
 class TrialConfig(BaseModel):
@@ -40,8 +49,10 @@ class TrialConfig(BaseModel):
 
     ``llm`` is None for the classical script, which asks no reasoner. Of a backend only
     what defines it is recorded (:class:`Backend`): where its server is and how patiently
-    it is asked, a --record file, and what :func:`~actionreasoning.reasoners.factory.prepare`
-    negotiates are how a run reaches it, and may change on resume.
+    it is asked, a --record file, and the structured-output mode
+    :func:`~actionreasoning.reasoners.factory.prepare` negotiates are how a run reaches it,
+    and may change on resume. run.json records the configuration as prepared: with the
+    names of a server's extra headers, and a replay's sampling settings (the recording's).
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
@@ -61,4 +72,10 @@ class TrialConfig(BaseModel):
     def _backend(self, llm: LLMConfig | None) -> Backend | None:
         if llm is None:
             return None
-        return Backend(spec=llm.spec, limits=llm.limits, fallback=llm.fallback)
+        return Backend(
+            spec=llm.spec,
+            limits=llm.limits,
+            fallback=llm.fallback,
+            sampling=llm.sampling,
+            headers=llm.headers,
+        )

@@ -12,6 +12,7 @@ from pathlib import Path
 from actionreasoning.reasoners.chat import StructuredMode
 from actionreasoning.reasoners.credentials import check_base_url
 from actionreasoning.reasoners.llm import LLMLimits
+from actionreasoning.reasoners.sampling import Sampling
 
 
 @dataclass(frozen=True)
@@ -30,13 +31,16 @@ class ServerOptions:
 
 @dataclass(frozen=True)
 class LLMConfig:
-    """The reasoning backend of a run and its options."""
+    """The reasoning backend of a run and its options. ``headers`` names the extra headers
+    sent to an OpenAI-compatible server (their values stay in the environment)."""
 
     spec: str = "builtin"
     server: ServerOptions = ServerOptions()
     limits: LLMLimits = LLMLimits()
     fallback: bool = False
     record: Path | None = None
+    sampling: Sampling = Sampling()  # a replay's: the recording's, set by prepare()
+    headers: tuple[str, ...] = ()  # set by prepare() for servers
     mode: StructuredMode | None = None  # set by prepare() for servers
     label: str = "builtin"  # what results.jsonl calls the backend (a replay: the recorded one)
 

@@ -2,15 +2,20 @@
 
 A base URL may carry a credential in its user name, its password or its query
 (``http://TOKEN@host/v1``, ``https://host/v1?key=TOKEN``); the API key comes from the
-environment. :func:`check_base_url` refuses what is not an http(s) URL with a host,
-:func:`shown_url` is a URL with those parts replaced, and :class:`Redactor` cuts them and the
-key out of any text: raw, percent-decoded, and as the HTTP Basic credential the client sends
-for a URL's user info.
+environment, and so do extra headers for gateways (:func:`extra_headers`), whose values may
+be credentials too. :func:`check_base_url` refuses what is not an http(s) URL with a host,
+:func:`shown_url` is a URL with those parts replaced, and :class:`Redactor` cuts them, the
+key and the header values out of any text: raw, percent-decoded, and as the HTTP Basic
+credential the client sends for a URL's user info.
 """
 
 from __future__ import annotations
 
 import base64
+import json
+import os
+import re
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from urllib.parse import unquote, unquote_plus, urlsplit, urlunsplit
 
@@ -20,6 +25,12 @@ REDACTED = "[redacted]"
 #: Shorter secrets are not cut out of text: a query value such as ``1`` would cut every
 #: digit 1 out of the model's answers. The shown URL hides them all the same.
 MIN_SECRET_CHARS = 4
+#: A JSON object of extra HTTP headers sent with every request to an OpenAI-compatible server.
+HEADERS_VARIABLE = "ACTIONREASONING_LLM_HEADERS"
+_HEADER_NAME = re.compile(r"[!#$%&'*+.^_`|~0-9A-Za-z-]+")  # an RFC 9110 token
+_HEADER_VALUE = re.compile(r"[\t\x20-\x7e]*")  # visible ASCII, spaces and tabs
+#: Headers the client writes itself, from the request.
+_CLIENT_HEADERS = frozenset({"content-length", "content-type", "host", "transfer-encoding"})
 
 
 def check_base_url(url: str, source: str) -> None:
@@ -45,6 +56,38 @@ def check_base_url(url: str, source: str) -> None:
         )
 
 
+def extra_headers(environ: Mapping[str, str] = os.environ) -> dict[str, str]:
+    """The headers of :data:`HEADERS_VARIABLE`, a JSON object of names to string values
+    (none if it is unset). Messages name the variable and valid header names, never a value."""
+    text = environ.get(HEADERS_VARIABLE)
+    if text is None:
+        return {}
+    example = '{"HTTP-Referer": "https://example.org", "X-Title": "my study"}'
+    try:
+        headers = json.loads(text)
+    except (ValueError, RecursionError):
+        headers = None
+    if not isinstance(headers, dict):
+        raise ConfigError(
+            f"{HEADERS_VARIABLE} is not a JSON object of header names to values, such as {example}"
+        )
+    seen: set[str] = set()
+    for number, (name, value) in enumerate(headers.items(), start=1):
+        if not _HEADER_NAME.fullmatch(name):
+            raise ConfigError(f"{HEADERS_VARIABLE}: header {number} has no valid HTTP name")
+        if name.lower() in _CLIENT_HEADERS:
+            raise ConfigError(f"{HEADERS_VARIABLE}: {name} is written by the client itself")
+        if name.lower() in seen:
+            raise ConfigError(f"{HEADERS_VARIABLE} names {name} twice (names ignore case)")
+        seen.add(name.lower())
+        if not isinstance(value, str) or not _HEADER_VALUE.fullmatch(value):
+            raise ConfigError(
+                f"{HEADERS_VARIABLE}: the value of {name} must be a string of printable ASCII "
+                "characters"
+            )
+    return headers
+
+
 def shown_url(url: str) -> str:
     """``url`` with its user info and every query value replaced by ``[redacted]``."""
     parts = urlsplit(url)
@@ -64,9 +107,10 @@ class Redactor:
     secrets: tuple[str, ...] = ()
 
     @classmethod
-    def of(cls, base_url: str | None, key: str | None) -> Redactor:
-        """The secrets of a base URL (user name, password, query values) and an API key."""
-        found = [key or ""]
+    def of(cls, base_url: str | None, key: str | None, values: Iterable[str] = ()) -> Redactor:
+        """The secrets of a base URL (user name, password, query values), an API key and
+        header ``values``."""
+        found = [key or "", *values]
         parts = urlsplit(base_url or "")
         user, password = parts.username, parts.password
         if user is not None or password is not None:

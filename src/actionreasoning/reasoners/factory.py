@@ -1,8 +1,9 @@
 """From ``--llm SPEC`` and its options to a reasoner: builtin, openai, llamacpp or replay.
 
-:func:`prepare` runs once per run (it checks the spec, negotiates an OpenAI-compatible
-server's structured-output mode and reads a replay's header); :func:`make_reasoner` then
-builds each trial's reasoner from the prepared configuration.
+:func:`prepare` runs once per run (it checks the spec and the options, negotiates an
+OpenAI-compatible server's structured-output mode and names its extra headers, and reads a
+replay's header); :func:`make_reasoner` then builds each trial's reasoner from the prepared
+configuration.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from actionreasoning.reasoners.llamacpp_chat import LlamaCppChat
 from actionreasoning.reasoners.llm import LLMReasoner
 from actionreasoning.reasoners.openai_chat import OpenAIChat
 from actionreasoning.reasoners.recording import RecordingChat, ReplayChat
+from actionreasoning.reasoners.sampling import Sampling
 
 KINDS = ("builtin", "openai", "llamacpp", "replay")
 CHECK_PROMPT = (
@@ -31,7 +33,8 @@ CHECK_PROMPT = (
 
 
 def prepare(config: LLMConfig) -> LLMConfig:
-    """Check the configuration and settle what is fixed per run (mode, label)."""
+    """Check the configuration and settle what is fixed per run (mode, label, headers, and a
+    replay's sampling settings: the recording's)."""
     if config.kind not in KINDS or (config.kind == "builtin") != (config.spec == "builtin"):
         raise ConfigError(
             f"--llm {config.spec!r}: use builtin, openai:MODEL, llamacpp:PATH or replay:FILE"
@@ -41,6 +44,11 @@ def prepare(config: LLMConfig) -> LLMConfig:
             raise ConfigError(
                 "--base-url, --record and --fallback need an --llm other than builtin"
             )
+        if config.sampling.changed():
+            raise ConfigError(
+                f"{', '.join(config.sampling.options())}: the built-in reasoner samples "
+                "nothing; give an --llm other than builtin"
+            )
         return config
     if config.server.base_url and config.kind != "openai":
         raise ConfigError("--base-url is for --llm openai:MODEL")
@@ -48,10 +56,20 @@ def prepare(config: LLMConfig) -> LLMConfig:
         if config.record:
             raise ConfigError("--record cannot record a replay")
         replay = ReplayChat(Path(config.argument))
-        return replace(config, mode=replay.mode, label=replay.label)
+        if config.sampling not in (Sampling(), replay.sampling):
+            raise ConfigError(
+                f"--llm {config.spec} serves answers sampled with {replay.sampling}: "
+                f"drop {', '.join(config.sampling.options())}"
+            )
+        return replace(config, mode=replay.mode, label=replay.label, sampling=replay.sampling)
     if config.kind == "openai":
-        chat = OpenAIChat(config.argument, config.server)
-        return replace(config, mode=chat.negotiate(), label=chat.label)
+        chat = OpenAIChat(config.argument, config.server, sampling=config.sampling)
+        mode = chat.negotiate()
+        return replace(config, mode=mode, label=chat.label, headers=chat.header_names)
+    if config.sampling.reasoning_effort is not None:
+        raise ConfigError(
+            "--reasoning-effort is for --llm openai:MODEL: llama-cpp-python has no such setting"
+        )
     return replace(config, mode=StructuredMode.JSON_OBJECT_SCHEMA, label=config.spec)
 
 
@@ -108,7 +126,8 @@ def make_reasoner(config: LLMConfig, deadline: float | None = None) -> Reasoner:
         return builtin
     backend = _backend(config, deadline)
     if config.record is not None:
-        backend = RecordingChat(backend, config.record, config.mode or StructuredMode.TEXT)
+        mode = config.mode or StructuredMode.TEXT
+        backend = RecordingChat(backend, config.record, mode, config.sampling)
     return LLMReasoner(backend, config.limits, fallback=builtin if config.fallback else None)
 
 
@@ -117,5 +136,5 @@ def _backend(config: LLMConfig, deadline: float | None = None) -> ChatBackend:
         return ReplayChat(Path(config.argument))
     if config.kind == "openai":
         mode = config.mode or StructuredMode.TEXT
-        return OpenAIChat(config.argument, config.server, mode, deadline)
-    return LlamaCppChat(config.argument)
+        return OpenAIChat(config.argument, config.server, mode, deadline, config.sampling)
+    return LlamaCppChat(config.argument, config.sampling)

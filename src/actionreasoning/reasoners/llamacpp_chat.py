@@ -2,6 +2,11 @@
 
 Output is constrained by a grammar built from the agent's JSON schema, so the model can
 only write JSON of the schema's shape; validation still checks the values.
+
+Of the sampling settings, temperature, the token cap and the seed go with every request (the
+seed per request, so an answer depends on its request alone), and top-p when set (else
+llama-cpp-python's 0.95, which greedy decoding at temperature 0 never uses). llama.cpp has no
+reasoning effort: :func:`~actionreasoning.reasoners.factory.prepare` refuses one.
 """
 
 from __future__ import annotations
@@ -14,10 +19,10 @@ from typing import Any
 
 from actionreasoning.errors import ConfigError, LLMError
 from actionreasoning.reasoners.chat import ChatReply, ChatRequest
+from actionreasoning.reasoners.sampling import Sampling
 from actionreasoning.records import FailureCode, LLMUsage
 
 CONTEXT_TOKENS = 8192
-MAX_COMPLETION_TOKENS = 300
 
 
 @cache
@@ -36,7 +41,6 @@ def _load(path: str) -> Any:
             model_path=path,
             n_ctx=CONTEXT_TOKENS,
             n_threads=os.cpu_count() or 1,
-            seed=0,
             verbose=False,
         )
     except ValueError as error:
@@ -50,19 +54,24 @@ def _load(path: str) -> Any:
 class LlamaCppChat:
     """Chat completions from a local GGUF model with grammar-constrained JSON."""
 
-    def __init__(self, path: str) -> None:
+    def __init__(self, path: str, sampling: Sampling = Sampling()) -> None:
         self.label = f"llamacpp:{path}"
         self.model = _load(path)
+        self.sampling = sampling
 
     def complete(self, request: ChatRequest) -> ChatReply:
         """One completion constrained to the request's JSON schema."""
         started = time.perf_counter()
+        sampling = self.sampling
+        top_p = {} if sampling.top_p is None else {"top_p": sampling.top_p}
         try:
             result = self.model.create_chat_completion(
                 messages=list(request.messages),
                 response_format={"type": "json_object", "schema": request.schema},
-                temperature=0.0,
-                max_tokens=MAX_COMPLETION_TOKENS,
+                temperature=sampling.temperature,
+                max_tokens=sampling.max_tokens,
+                seed=sampling.seed,
+                **top_p,
             )
         except ValueError as error:  # e.g. a prompt longer than the context
             raise LLMError(

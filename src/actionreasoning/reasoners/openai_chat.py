@@ -6,12 +6,18 @@ per try, and never past the trial's deadline when one is given. Connection error
 408, 409, 429 and 5xx are retried here, not by the client, with exponential backoff or the
 server's Retry-After, so no wait outlasts the trial either.
 
-The base URL comes from ``--base-url`` or ``OPENAI_BASE_URL``, the key from ``OPENAI_API_KEY``;
-the key is given to the client only and never stored, logged or written anywhere. Whatever
-the server sends back (answers, model names, error messages) has the key and the base URL's
-credentials cut out before anything else sees it, in case a server echoes them, and the base
-URL is shown with its user info and query values hidden
+The base URL comes from ``--base-url`` or ``OPENAI_BASE_URL``, the key from ``OPENAI_API_KEY``
+and extra headers from ``ACTIONREASONING_LLM_HEADERS``; the key and the header values are
+given to the client only and never stored, logged or written anywhere. Whatever the server
+sends back (answers, model names, error messages) has the key, the header values and the base
+URL's credentials cut out before anything else sees it, in case a server echoes them, and the
+base URL is shown with its user info and query values hidden
 (:mod:`~actionreasoning.reasoners.credentials`).
+
+Sampling (:class:`~actionreasoning.reasoners.sampling.Sampling`): temperature, seed and the
+token cap go with every request, ``top_p`` and ``reasoning_effort`` when set. With a reasoning
+effort the cap is sent as ``max_completion_tokens``, the field OpenAI's reasoning models take
+in place of ``max_tokens`` (it counts their reasoning as well).
 
 Structured output: the strictest ``response_format`` the server accepts is chosen once per
 run by :meth:`OpenAIChat.negotiate`. A server refuses a format with 400 or 422, or, as
@@ -39,12 +45,16 @@ from actionreasoning.reasoners.chat import (
     StructuredMode,
     response_format,
 )
-from actionreasoning.reasoners.credentials import Redactor, check_base_url, shown_url
+from actionreasoning.reasoners.credentials import (
+    Redactor,
+    check_base_url,
+    extra_headers,
+    shown_url,
+)
 from actionreasoning.reasoners.deadline import Watchdog
+from actionreasoning.reasoners.sampling import Sampling
 from actionreasoning.records import FailureCode, LLMUsage
 
-#: Answers are a waypoint and a sentence or two; a runaway generation is cut here.
-MAX_COMPLETION_TOKENS = 300
 _PROBE_SCHEMA = {
     "type": "object",
     "properties": {"ok": {"type": "boolean"}},
@@ -74,6 +84,7 @@ class OpenAIChat:
         options: ServerOptions = ServerOptions(),
         mode: StructuredMode = StructuredMode.JSON_SCHEMA,
         deadline: float | None = None,
+        sampling: Sampling = Sampling(),
     ) -> None:
         if not model:
             raise ConfigError("--llm openai:MODEL needs a model name after 'openai:'")
@@ -81,13 +92,16 @@ class OpenAIChat:
         self.label = f"openai:{model}"
         self.mode = mode
         self.options = options
+        self.sampling = sampling
         self.deadline = math.inf if deadline is None else deadline
         base_url = options.base_url
         if base_url is None and "OPENAI_BASE_URL" in os.environ:
             base_url = os.environ["OPENAI_BASE_URL"]
             check_base_url(base_url, "OPENAI_BASE_URL")
         key = os.environ.get("OPENAI_API_KEY")
-        self.redact = Redactor.of(base_url, key)
+        headers = extra_headers()
+        self.header_names = tuple(sorted(headers))
+        self.redact = Redactor.of(base_url, key, headers.values())
         self._watchdog = Watchdog()
         http_client = openai.DefaultHttpxClient(event_hooks={"request": [self._watchdog.hook]})
         weakref.finalize(self, http_client.close)
@@ -98,6 +112,7 @@ class OpenAIChat:
             default_query=dict(parse_qsl(url.query, keep_blank_values=True)),
             # A local server takes any key; the client insists on one.
             api_key=key or "no-key",
+            default_headers=headers,
             max_retries=0,  # retried by _create, within the deadlines
             http_client=http_client,
         )
@@ -111,7 +126,7 @@ class OpenAIChat:
             completion = self._create(
                 list(request.messages),
                 response_format(self.mode, request.schema_name, request.schema),
-                MAX_COMPLETION_TOKENS,
+                self.sampling.max_tokens,
             )
         except _FormatRefused as refused:
             raise LLMError(
@@ -136,7 +151,9 @@ class OpenAIChat:
     def _create(self, messages: list[Any], fmt: dict[str, Any], max_tokens: int) -> ChatCompletion:
         """The raw completion, with retries; a refused request raises _FormatRefused, any
         other failure an LLMError."""
-        extra = {"response_format": fmt} if fmt else {}
+        fields = sampling_fields(self.sampling, max_tokens)
+        if fmt:
+            fields["response_format"] = fmt
         retries = 0
         while True:
             seconds = min(self.options.timeout_s, self.deadline - time.monotonic())
@@ -147,11 +164,8 @@ class OpenAIChat:
                     completion = self.client.chat.completions.create(
                         model=self.model,
                         messages=messages,
-                        temperature=0.0,
-                        seed=0,
-                        max_tokens=max_tokens,
                         timeout=seconds,
-                        **extra,
+                        **fields,
                     )
             except (openai.APIConnectionError, openai.APIStatusError) as error:
                 failure = self._failure(error, retries)
@@ -233,6 +247,18 @@ class OpenAIChat:
         raise LLMError(
             FailureCode.LLM_BAD_REQUEST, f"{self.where} refused every request: {refusals}"
         )
+
+
+def sampling_fields(sampling: Sampling, max_tokens: int) -> dict[str, Any]:
+    """The request fields of ``sampling``, with ``max_tokens`` as the token cap."""
+    cap = "max_completion_tokens" if sampling.reasoning_effort else "max_tokens"
+    fields: dict[str, Any] = {"temperature": sampling.temperature, "seed": sampling.seed}
+    fields[cap] = max_tokens
+    if sampling.top_p is not None:
+        fields["top_p"] = sampling.top_p
+    if sampling.reasoning_effort is not None:
+        fields["reasoning_effort"] = str(sampling.reasoning_effort)
+    return fields
 
 
 def _retry_after(header: str, default: float) -> float:

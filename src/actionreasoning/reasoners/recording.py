@@ -1,10 +1,12 @@
 """Record and replay: every exchange with a model server, stored to serve again offline.
 
-A recording is JSON lines: a header ``{"kind": "header", "llm": ..., "mode": ...}`` and one
+A recording is JSON lines: a header ``{"kind": "header", "llm": ..., "mode": ...}`` (with
+``"sampling": {...}``, the settings that differ from the defaults, if any) and one
 ``{"kind": "exchange", "key": ..., "request": ..., "content": ..., "usage": ...}`` per
 completion, where ``key`` is a hash of the request. Replay serves each key's answers in
 the order they were recorded, with their recorded usage, so a replayed trial writes the
-same results line as the recorded one; a request that is not in the file is an error.
+same results line as the recorded one, however the answers were sampled; a request that is
+not in the file is an error.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from pydantic import BaseModel, ValidationError
 
 from actionreasoning.errors import ConfigError
 from actionreasoning.reasoners.chat import ChatBackend, ChatReply, ChatRequest, StructuredMode
+from actionreasoning.reasoners.sampling import RecordedSampling, Sampling
 from actionreasoning.records import LLMUsage
 from actionreasoning.world.config_files import read_user_file
 
@@ -28,11 +31,13 @@ class ReplayMismatchError(ConfigError):
 
 
 class Header(BaseModel):
-    """The first line of a recording: which backend, in which structured-output mode."""
+    """The first line of a recording: which backend, in which structured-output mode, with
+    which sampling settings."""
 
     kind: Literal["header"]
     llm: str
     mode: StructuredMode
+    sampling: RecordedSampling = Sampling()
 
 
 class Exchange(BaseModel):
@@ -58,7 +63,13 @@ def request_key(request: ChatRequest) -> str:
 class RecordingChat:
     """Passes requests to a backend and appends every exchange to a recording file."""
 
-    def __init__(self, backend: ChatBackend, path: Path, mode: StructuredMode) -> None:
+    def __init__(
+        self,
+        backend: ChatBackend,
+        path: Path,
+        mode: StructuredMode,
+        sampling: Sampling = Sampling(),
+    ) -> None:
         self.backend = backend
         self.label = backend.label
         self.path = path
@@ -68,9 +79,14 @@ class RecordingChat:
                 raise ConfigError(
                     f"--record {path} holds a recording of {header.llm}, not {backend.label}"
                 )
+            if header.sampling != sampling:
+                raise ConfigError(
+                    f"--record {path} holds answers sampled with {header.sampling}, not "
+                    f"{sampling}: record into another file"
+                )
         else:
             path.parent.mkdir(parents=True, exist_ok=True)
-            self._append(Header(kind="header", llm=backend.label, mode=mode))
+            self._append(Header(kind="header", llm=backend.label, mode=mode, sampling=sampling))
 
     def complete(self, request: ChatRequest) -> ChatReply:
         """The backend's reply, recorded."""
@@ -99,6 +115,7 @@ class ReplayChat:
         self.path = path
         self.label = header.llm
         self.mode = header.mode
+        self.sampling = header.sampling
         self._answers: dict[str, deque[ChatReply]] = defaultdict(deque)
         for exchange in exchanges:
             reply = ChatReply(content=exchange.content, usage=exchange.usage)
