@@ -160,8 +160,8 @@ class Door:
         except ActionReasoningError as error:
             return Reply.refusal(RefusalCode.INVALID_ACTION, f"start_trial: {error}")
         previous = self._end()
-        self._trial = start.model_dump(exclude={"max_trial_s"}) | {"pattern": spec.pattern_name}
         self._session = TrialSession(spec, agent=AGENT_LABEL)
+        self._trial = start.model_dump(exclude={"max_trial_s"}) | {"pattern": spec.pattern_name}
         reply = self._state()
         return Reply.of(reply.data | {"previous_result": previous})
 
