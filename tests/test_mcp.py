@@ -20,7 +20,7 @@ import anyio
 import anyio.from_thread
 import anyio.to_thread
 import pytest
-from conftest import SMALL_PATTERN, eval_lines
+from conftest import SMALL_PATTERN, assert_clean_error, eval_lines
 from mcp import ClientSession
 from mcp.client.stdio import StdioServerParameters, stdio_client
 
@@ -33,7 +33,7 @@ from actionreasoning.tools.base import ToolModel
 from actionreasoning.tools.registry import TOOLS, tool_schema
 
 COMMAND = [sys.executable, "-m", "actionreasoning", "mcp"]
-#: The server runs the package under test (this process's PYTHONPATH, if any).
+#: The SDK starts the server in a bare environment: give it the package under test.
 ENV = {"PYTHONPATH": os.environ["PYTHONPATH"]} if "PYTHONPATH" in os.environ else None
 SERVER = StdioServerParameters(command=COMMAND[0], args=COMMAND[1:], env=ENV)
 DOOR_TOOLS = ["start_trial", "read_state", "submit_answer", "finish_trial"]
@@ -283,7 +283,6 @@ def test_stdout_holds_only_protocol_messages_whatever_comes_in() -> None:
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
-        env=os.environ | (ENV or {}),
     )
     received: list[dict[str, Any]] = []
     try:
@@ -312,3 +311,15 @@ def test_stdout_holds_only_protocol_messages_whatever_comes_in() -> None:
     assert nan["isError"] and nan["structuredContent"]["refusal"]["code"] == "tool_error"
     assert by_id[5]["result"]["structuredContent"]["result"]["failure"]["reason"] == "abandoned"
     assert server.stderr is not None and "Traceback" not in server.stderr.read()
+
+
+def test_without_the_sdk_the_command_says_which_extra_in_one_line() -> None:
+    without = "import sys; sys.modules['mcp'] = None\nfrom actionreasoning.cli import app\n"
+    code = without + "app(['mcp'], prog_name='actionreasoning')"
+    done = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert_clean_error(done, "MCP SDK", "actionreasoning[mcp]")

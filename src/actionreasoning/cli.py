@@ -550,7 +550,7 @@ def mcp_command() -> None:
     An MCP client (Claude Code, Claude Desktop, inspect_ai, your own) starts this command
     and talks to it on stdin and stdout: start a trial, read the waiting agent's state,
     call its measurement tools, submit its answers (validated and gated as an LLM's are)
-    and finish with the results line. Needs the extra: pip install 'actionreasoning[mcp]'.
+    and finish with the results line. Needs the MCP SDK, the package's extra `mcp`.
     """
     try:
         from actionreasoning.mcp_server import serve

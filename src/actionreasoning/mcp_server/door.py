@@ -96,10 +96,12 @@ class Reply:
 
     @classmethod
     def of(cls, data: Mapping[str, Any], refused: bool = False) -> Reply:
+        """``data`` (models in it too) as JSON data."""
         return cls(json.loads(to_json(data)), refused)
 
     @classmethod
     def refusal(cls, code: RefusalCode, detail: str) -> Reply:
+        """A typed refusal: nothing was done."""
         return cls.of({"refusal": Refusal(code=code, detail=detail)}, refused=True)
 
 
@@ -160,18 +162,13 @@ class Door:
         except ActionReasoningError as error:
             return Reply.refusal(RefusalCode.INVALID_ACTION, f"start_trial: {error}")
         previous = self._end()
-        self._session = TrialSession(spec, agent=AGENT_LABEL)
+        session = self._session = TrialSession(spec, agent=AGENT_LABEL)
         self._trial = start.model_dump(exclude={"max_trial_s"}) | {"pattern": spec.pattern_name}
-        reply = self._state()
-        return Reply.of(reply.data | {"previous_result": previous})
+        return Reply.of(self._view(session) | {"previous_result": previous})
 
     def _state(self) -> Reply:
         session = self._session
-        if session is None:
-            return _no_trial()
-        return Reply.of(
-            {"trial": self._trial, "turn": session.turn(), "result": self._line(session)}
-        )
+        return _no_trial() if session is None else Reply.of(self._view(session))
 
     def _measure(self, name: str, arguments: dict[str, Any]) -> Reply:
         if self._session is None:
@@ -210,6 +207,10 @@ class Door:
             return None
         session.close()
         return self._line(session)
+
+    def _view(self, session: TrialSession) -> dict[str, Any]:
+        """What read_state shows: the trial, the waiting agent's turn, the results line."""
+        return {"trial": self._trial, "turn": session.turn(), "result": self._line(session)}
 
     def _line(self, session: TrialSession) -> TrialResult | None:
         """The trial's results line once it has ended, stamped with the code that wrote it
