@@ -579,6 +579,25 @@ def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
+@app.command("mcp")
+def mcp_command() -> None:
+    """Serve trials to an outside agent over the Model Context Protocol (stdio).
+
+    An MCP client (Claude Code, Claude Desktop, inspect_ai, your own) starts this command
+    and talks to it on stdin and stdout: start a trial, read the waiting agent's state,
+    call its measurement tools, submit its answers (validated and gated as an LLM's are)
+    and finish with the results line. Needs the MCP SDK, the package's extra `mcp`.
+    """
+    try:
+        from actionreasoning.mcp_server import serve
+    except ImportError as error:
+        _fail(ConfigError(str(error)))
+    try:
+        serve()
+    except KeyboardInterrupt:
+        pass
+
+
 llm_app = typer.Typer(help="Language-model backends.", no_args_is_help=True)
 app.add_typer(llm_app, name="llm")
 

@@ -64,6 +64,7 @@ class RefusalCode(StrEnum):
     UNKNOWN_TOOL = "unknown_tool"  # not one of the waiting agent's tools
     TOOL_ERROR = "tool_error"  # the tool refused its arguments
     TRIAL_OVER = "trial_over"  # no agent waits: the trial has ended
+    NO_TRIAL = "no_trial"  # no trial was started (a door's: the MCP server's before start)
 
 
 class Refusal(BaseModel):

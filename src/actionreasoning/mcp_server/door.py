@@ -1,0 +1,242 @@
+"""One connection's door to a trial: the MCP server's tools as calls on a
+:class:`~actionreasoning.eval.session.TrialSession`, with no protocol in them.
+
+A connection holds at most one trial. ``start_trial`` starts one (ending one still running
+as ``abandoned``); ``read_state`` shows the waiting agent's turn; each measurement tool runs
+through the session, so only the waiting agent's own tools run, within the registry's
+bounds; ``submit_answer`` hands the session an answer as text, to be validated, gated and
+executed as a language model's is; ``finish_trial`` ends the trial and gives its results
+line. Whatever a call asks, it comes back as JSON data: a refusal, ``{"refusal": {code,
+detail}}``, is data too, never an exception.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic_core import to_json
+
+from actionreasoning.agents.spec import single_agent_spec
+from actionreasoning.errors import ActionReasoningError
+from actionreasoning.eval.provenance import current_provenance, stamp
+from actionreasoning.eval.results import TrialResult
+from actionreasoning.eval.session import Conditions, Refusal, RefusalCode, TrialSession
+from actionreasoning.tools.registry import tool_schema
+from actionreasoning.world.budget import TrialBudget
+
+#: What the results line calls the agent that answered.
+AGENT_LABEL = "mcp"
+#: The measurement tools: the six agents' knowledge bases together, in pipeline order.
+MEASUREMENT_TOOLS: tuple[str, ...] = single_agent_spec().tools
+
+
+class _Arguments(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
+
+
+class StartTrial(_Arguments):
+    """Start trial ``trial`` of ``eval --seed seed`` (the same bricks) under the conditions
+    named as on the command line. A trial still running on this connection is abandoned."""
+
+    pattern: str = Field("pyramid", description="'pyramid', 'grid' or a pattern file's path.")
+    physics: str = Field("paper", description="'paper', 'precise' or a profile file's path.")
+    noise: str = Field("none", description="'none', 'low', 'medium', 'high' or a noise file.")
+    seed: int = Field(0, ge=0, description="The run seed, as eval's --seed.")
+    trial: int = Field(0, ge=0, description="The trial's index in that run.")
+    max_trial_s: float = Field(
+        TrialBudget().max_wall_s, gt=0, description="Wall-clock seconds the trial may take."
+    )
+
+
+class ReadState(_Arguments):
+    """The waiting agent's turn: its prompt (role, measured state, memory, thresholds,
+    tools, answer format), the measured state as JSON, its tools with their schemas, the
+    schema of its answer and the feedback on its last refused answer; once the trial has
+    ended, its results line."""
+
+
+class SubmitAnswer(_Arguments):
+    """Submit the waiting agent's answer. It is validated as a language model's answer is
+    (schema, finite numbers, workspace, unit quaternions, ids, tools): a refused one moves
+    nothing. An answer with tool_calls gets their results back. A decision is checked by
+    the agent's gate before the arm moves: the verdict comes back with every check, the
+    outcome and the feedback, once the next agent waits or the trial has ended."""
+
+    answer: dict[str, Any] | str = Field(
+        description="The answer: the object the agent's answer_schema asks for, or its JSON text."
+    )
+
+
+class FinishTrial(_Arguments):
+    """End the trial (abandoned if an agent still waits) and return its results line:
+    success, bricks placed, per-brick and mean placement metrics, failure, steps."""
+
+
+@dataclass(frozen=True)
+class ToolEntry:
+    """A tool as the server lists it."""
+
+    name: str
+    description: str
+    input_schema: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class Reply:
+    """What a call gives back: JSON data (non-finite numbers as null, as in results.jsonl),
+    and whether the call was refused."""
+
+    data: dict[str, Any]
+    refused: bool
+
+    @classmethod
+    def of(cls, data: Mapping[str, Any], refused: bool = False) -> Reply:
+        """``data`` (models in it too) as JSON data."""
+        return cls(json.loads(to_json(data)), refused)
+
+    @classmethod
+    def refusal(cls, code: RefusalCode, detail: str) -> Reply:
+        """A typed refusal: nothing was done."""
+        return cls.of({"refusal": Refusal(code=code, detail=detail)}, refused=True)
+
+
+class Door:
+    """One connection's trial and the tools that reach it; calls are served one at a time."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._session: TrialSession | None = None
+        self._trial: dict[str, Any] = {}
+        self._provenance = current_provenance()
+        self._calls: dict[str, tuple[type[_Arguments], Callable[[Any], Reply]]] = {
+            "start_trial": (StartTrial, self._start),
+            "read_state": (ReadState, lambda _: self._state()),
+            "submit_answer": (SubmitAnswer, self._answer),
+            "finish_trial": (FinishTrial, lambda _: self._finish()),
+        }
+
+    def tools(self) -> list[ToolEntry]:
+        """The door's own tools, then the measurement tools with their input schemas."""
+        own = [
+            ToolEntry(name, _description(model), model.model_json_schema())
+            for name, (model, _) in self._calls.items()
+        ]
+        measure = []
+        for name in MEASUREMENT_TOOLS:
+            schema = tool_schema(name)
+            description = f"{schema.description} {_MEASUREMENT_NOTE}"
+            measure.append(ToolEntry(name, description, schema.input_schema))
+        return own + measure
+
+    def call(self, name: str, arguments: Mapping[str, Any] | None) -> Reply:
+        """Run tool ``name`` on ``arguments``; a typed refusal for anything it cannot do."""
+        with self._lock:
+            if name in MEASUREMENT_TOOLS:
+                return self._measure(name, dict(arguments or {}))
+            if name not in self._calls:
+                detail = f"no tool {name[:64]!r}; the tools are {', '.join(self._names())}"
+                return Reply.refusal(RefusalCode.UNKNOWN_TOOL, detail)
+            model, run = self._calls[name]
+            try:
+                parsed = model.model_validate(dict(arguments or {}))
+            except ValidationError as error:
+                return Reply.refusal(RefusalCode.INVALID_ACTION, f"{name}: {_first(error)}")
+            return run(parsed)
+
+    def close(self) -> None:
+        """End the trial still running, if any (``abandoned``)."""
+        with self._lock:
+            self._end()
+
+    # --- the tools --------------------------------------------------------------------------
+    def _start(self, start: StartTrial) -> Reply:
+        try:
+            budget = TrialBudget(max_wall_s=start.max_trial_s)
+            conditions = Conditions.load(start.pattern, start.physics, start.noise, budget)
+            spec = conditions.spec(start.seed, start.trial)
+        except ActionReasoningError as error:
+            return Reply.refusal(RefusalCode.INVALID_ACTION, f"start_trial: {error}")
+        previous = self._end()
+        session = self._session = TrialSession(spec, agent=AGENT_LABEL)
+        self._trial = start.model_dump(exclude={"max_trial_s"}) | {"pattern": spec.pattern_name}
+        return Reply.of(self._view(session) | {"previous_result": previous})
+
+    def _state(self) -> Reply:
+        session = self._session
+        return _no_trial() if session is None else Reply.of(self._view(session))
+
+    def _measure(self, name: str, arguments: dict[str, Any]) -> Reply:
+        if self._session is None:
+            return _no_trial()
+        reply = self._session.call_tool(name, arguments)
+        return Reply.of(reply.model_dump(exclude_none=True), refused=reply.refusal is not None)
+
+    def _answer(self, submit: SubmitAnswer) -> Reply:
+        session = self._session
+        if session is None:
+            return _no_trial()
+        answer = submit.answer
+        reply = session.answer(answer if isinstance(answer, str) else json.dumps(answer))
+        if reply.refusal is not None:
+            return Reply.of({"refusal": reply.refusal}, refused=True)
+        turn = session.turn()
+        return Reply.of(
+            {
+                "tools": reply.tools,
+                "call": reply.call,
+                "agent": None if turn is None else turn.agent,
+                "result": self._line(session),
+            }
+        )
+
+    def _finish(self) -> Reply:
+        if self._session is None:
+            return _no_trial()
+        return Reply.of({"result": self._end()})
+
+    # --- helpers ----------------------------------------------------------------------------
+    def _end(self) -> TrialResult | None:
+        """Close the trial (if any) and forget it; its results line."""
+        session, self._session, self._trial = self._session, None, {}
+        if session is None:
+            return None
+        session.close()
+        return self._line(session)
+
+    def _view(self, session: TrialSession) -> dict[str, Any]:
+        """What read_state shows: the trial, the waiting agent's turn, the results line."""
+        return {"trial": self._trial, "turn": session.turn(), "result": self._line(session)}
+
+    def _line(self, session: TrialSession) -> TrialResult | None:
+        """The trial's results line once it has ended, stamped with the code that wrote it
+        as eval stamps it."""
+        result = session.result
+        return None if result is None else stamp(result, self._provenance)
+
+    def _names(self) -> list[str]:
+        return [*self._calls, *MEASUREMENT_TOOLS]
+
+
+_MEASUREMENT_NOTE = (
+    "Runs on the measured world for the waiting agent; only that agent's own tools run "
+    "(read_state lists them with their result schemas)."
+)
+
+
+def _description(model: type[BaseModel]) -> str:
+    return " ".join((model.__doc__ or "").split())
+
+
+def _first(error: ValidationError) -> str:
+    item = error.errors()[0]
+    where = ".".join(str(part) for part in item["loc"]) or "arguments"
+    return f"{where}: {item['msg']}"
+
+
+def _no_trial() -> Reply:
+    return Reply.refusal(RefusalCode.NO_TRIAL, "no trial on this connection: call start_trial")

@@ -1,0 +1,80 @@
+"""The door's tools over the Model Context Protocol (the official SDK's low-level server,
+stdio transport).
+
+The SDK serves the protocol on the process's stdout and, while it serves, points file
+descriptor 1 at stderr, so nothing the simulator or a library prints can reach the wire.
+Every call runs in a worker thread (a trial's answer moves the arm for seconds) and comes
+back as a tool result: its JSON as text and as structured content, ``isError`` set when it
+was refused. A refusal is never a protocol error.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import anyio
+import anyio.to_thread
+import mcp_types as types
+from mcp.server import Server, ServerRequestContext
+from mcp.server.stdio import stdio_server
+
+from actionreasoning import __version__
+from actionreasoning.mcp_server.door import Door
+
+INSTRUCTIONS = """\
+Build a brick pattern with a robot arm by answering its six gated agents (pre_grasp,
+descent, grasp, lift, placement, release), one request at a time. start_trial starts a trial
+(pattern, physics, noise, seed, trial). read_state shows the waiting agent: its prompt (role,
+measured state, memory, thresholds, tools, answer format), the state as JSON, its tools and
+its answer schema. Call that agent's measurement tools, then submit_answer with its answer.
+Every answer is validated and checked by the agent's gate before the arm moves; a refused
+one comes back with a typed refusal or the gate's feedback, and the arm stays where it was.
+When a reply's result is set the trial has ended; finish_trial returns its results line and
+closes it. One trial per connection: start_trial again abandons the one running."""
+
+
+def build(door: Door) -> Server[Any]:
+    """A server whose tools are ``door``'s."""
+    tools = [
+        types.Tool(name=entry.name, description=entry.description, input_schema=entry.input_schema)
+        for entry in door.tools()
+    ]
+
+    async def list_tools(
+        ctx: ServerRequestContext[Any], params: types.PaginatedRequestParams | None
+    ) -> types.ListToolsResult:
+        return types.ListToolsResult(tools=tools)
+
+    async def call_tool(
+        ctx: ServerRequestContext[Any], params: types.CallToolRequestParams
+    ) -> types.CallToolResult:
+        reply = await anyio.to_thread.run_sync(door.call, params.name, params.arguments)
+        return types.CallToolResult(
+            content=[types.TextContent(text=json.dumps(reply.data))],
+            structured_content=reply.data,
+            is_error=reply.refused,
+        )
+
+    return Server(
+        "actionreasoning",
+        version=__version__,
+        instructions=INSTRUCTIONS,
+        on_list_tools=list_tools,
+        on_call_tool=call_tool,
+    )
+
+
+def serve() -> None:
+    """Serve one connection over stdio until the client closes it; end its trial then."""
+    anyio.run(_serve)
+
+
+async def _serve() -> None:
+    door = Door()
+    try:
+        async with stdio_server() as (read_stream, write_stream):
+            server = build(door)
+            await server.run(read_stream, write_stream, server.create_initialization_options())
+    finally:
+        door.close()

@@ -1,0 +1,325 @@
+"""The MCP server `actionreasoning mcp`, driven as a real subprocess by the SDK's own client
+over stdio: its tools, a one-brick build with the built-in reasoner's answers that gives
+eval's line, a gate's refusal that leaves the arm where it was, hostile calls refused as
+typed tool results, and nothing but protocol messages on stdout."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import math
+import os
+import subprocess
+import sys
+from collections.abc import Awaitable, Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import anyio
+import anyio.from_thread
+import anyio.to_thread
+import pytest
+from conftest import SMALL_PATTERN, assert_clean_error, eval_lines
+from mcp import ClientSession
+from mcp.client.stdio import StdioServerParameters, stdio_client
+
+from actionreasoning.agents.spec import single_agent_spec
+from actionreasoning.errors import ToolError
+from actionreasoning.eval.rules import Method
+from actionreasoning.eval.session import Conditions, TrialSession
+from actionreasoning.reasoners.builtin import BuiltinReasoner
+from actionreasoning.tools.base import ToolModel
+from actionreasoning.tools.registry import TOOLS, tool_schema
+
+COMMAND = [sys.executable, "-m", "actionreasoning", "mcp"]
+#: The SDK starts the server in a bare environment: give it the package under test.
+ENV = {"PYTHONPATH": os.environ["PYTHONPATH"]} if "PYTHONPATH" in os.environ else None
+SERVER = StdioServerParameters(command=COMMAND[0], args=COMMAND[1:], env=ENV)
+DOOR_TOOLS = ["start_trial", "read_state", "submit_answer", "finish_trial"]
+ONE_BRICK = {**SMALL_PATTERN, "name": "one", "bricks": SMALL_PATTERN["bricks"][:1]}
+
+
+async def call(client: ClientSession, tool: str, **arguments: Any) -> tuple[dict[str, Any], bool]:
+    """Call ``tool``: the result's structured content and whether it is an error."""
+    result = await client.call_tool(tool, arguments)
+    data = result.structured_content
+    assert json.loads(result.content[0].text) == data  # the same JSON as text
+    return data, result.is_error
+
+
+def run(scenario: Callable[[ClientSession], Awaitable[None]], tmp_path: Path) -> None:
+    """Run ``scenario`` with a client of a fresh server, whose stderr holds no traceback."""
+    log = tmp_path / "server.err"
+    with log.open("w") as errlog:
+
+        async def main() -> None:
+            async with (
+                stdio_client(SERVER, errlog=errlog) as (read, write),
+                ClientSession(read, write) as client,
+            ):
+                init = await client.initialize()
+                assert init.instructions and "submit_answer" in init.instructions
+                await scenario(client)
+
+        anyio.run(main)
+    text = log.read_text()
+    assert "Traceback" not in text, text
+
+
+@pytest.fixture
+def one_brick(tmp_path: Path) -> Path:
+    path = tmp_path / "one.json"
+    path.write_text(json.dumps(ONE_BRICK))
+    return path
+
+
+def test_the_tools_are_listed_with_their_schemas(tmp_path: Path) -> None:
+    tools: list[Any] = []
+
+    async def scenario(client: ClientSession) -> None:
+        tools.extend((await client.list_tools()).tools)
+
+    run(scenario, tmp_path)
+    measurement = list(single_agent_spec().tools)
+    assert [tool.name for tool in tools] == DOOR_TOOLS + measurement
+    assert len(measurement) == 6 and set(measurement) < set(TOOLS)
+    for tool in tools:
+        assert tool.description and tool.input_schema["type"] == "object", tool.name
+        if tool.name in measurement:
+            assert tool.input_schema == tool_schema(tool.name).input_schema
+    start = next(tool for tool in tools if tool.name == "start_trial")
+    assert set(start.input_schema["properties"]) == {
+        "pattern", "physics", "noise", "seed", "trial", "max_trial_s",
+    }  # fmt: skip
+
+
+def test_the_builtin_reasoners_answers_build_a_brick_and_give_evals_line(
+    tmp_path: Path, one_brick: Path
+) -> None:
+    """Each answer is the built-in reasoner's, computed in this process on a twin of the
+    trial (the same spec) whose tool calls go to the server; the twin is answered alike."""
+    line = json.loads(eval_lines(tmp_path / "eval", one_brick, Method.AGENTS))
+    twin = TrialSession(Conditions.load(str(one_brick)).spec(seed=3, trial=0))
+    agents: list[str] = []
+    tool_calls: list[str] = []
+
+    async def scenario(client: ClientSession) -> None:
+        data, refused = await call(client, "start_trial", pattern=str(one_brick), seed=3)
+        assert not refused and data["previous_result"] is None
+        assert data["trial"] == {
+            "pattern": str(one_brick), "physics": "paper", "noise": "none", "seed": 3, "trial": 0,
+        }  # fmt: skip
+
+        def call_tool(name: str, arguments: Mapping[str, Any]) -> ToolModel:
+            tool_calls.append(name)
+            data, refused = anyio.from_thread.run(
+                functools.partial(call, client, name, **arguments)
+            )
+            if refused:
+                raise ToolError(data["refusal"]["detail"])
+            return TOOLS[name].output_model.model_validate(data["result"])
+
+        while True:
+            state, _ = await call(client, "read_state")
+            if state["result"] is not None:
+                break
+            request = twin.request
+            turn = state["turn"]
+            assert (turn["agent"], turn["prompt"]) == (str(request.spec.key), request.prompt)
+            assert [tool["name"] for tool in turn["tools"]] == list(request.spec.tools)
+            asked = dataclasses.replace(request, call_tool=call_tool)
+            reply = await anyio.to_thread.run_sync(BuiltinReasoner().decide, asked)
+            answer = reply.answer.model_dump(mode="json")
+            judged, refused = await call(client, "submit_answer", answer=answer)
+            assert not refused and judged["call"]["outcome"] == "accepted", judged
+            twin.answer(json.dumps(answer))
+            agents.append(judged["call"]["agent"])
+        finished, refused = await call(client, "finish_trial")
+        assert not refused and finished["result"] == state["result"]
+        again, refused = await call(client, "read_state")
+        assert refused and again["refusal"]["code"] == "no_trial"
+        lines.append(finished["result"])
+
+    lines: list[dict[str, Any]] = []
+    try:
+        run(scenario, tmp_path)
+    finally:
+        twin.close()
+    assert agents == ["pre_grasp", "descent", "grasp", "lift", "placement", "placement", "release"]
+    assert tool_calls == ["grasp_options", "placement_pose", "placement_pose"]
+    result = lines[0]
+    assert result["success"] and result["bricks_placed"] == 1 and result["llm"] == "mcp"
+    assert {**result, "llm": "builtin"} == line  # the whole line, but who answered
+
+
+def answer_at(state: dict[str, Any], brick: int, **fields: Any) -> dict[str, Any]:
+    """A pre-grasp answer for brick 0 and target 0 with its waypoint at brick ``brick``'s
+    centre, and ``fields``."""
+    centre = state["bricks"][brick]["pose"]["position_m"]
+    waypoint = {"position_m": centre, "quat_xyzw": [1, 0, 0, 0]}
+    return {"brick_id": 0, "target_index": 0, "waypoint": waypoint} | fields
+
+
+def test_an_answer_a_gate_refuses_comes_back_with_its_feedback_and_the_arm_stays(
+    tmp_path: Path,
+) -> None:
+    async def scenario(client: ClientSession) -> None:
+        before, _ = await call(client, "start_trial", pattern="pyramid", seed=0)
+        state = before["turn"]["state"]
+        # Approach brick 0 through the middle of brick 1: valid, and refused by sigma_1.
+        judged, refused = await call(client, "submit_answer", answer=answer_at(state, brick=1))
+        call_record = judged["call"]
+        assert not refused and judged["agent"] == "pre_grasp" and judged["result"] is None
+        assert call_record["outcome"] == "refused" and call_record["feedback"]
+        gate = call_record["gates"][0]
+        assert gate["gate"] == "sigma1_pre_grasp" and not gate["passed"] and gate["checks"]
+        after, _ = await call(client, "read_state")
+        assert after["turn"]["feedback"] == call_record["feedback"]
+        assert after["turn"]["state"] == state  # nothing moved: the same measured state
+
+    run(scenario, tmp_path)
+
+
+NAN_WAYPOINT = '{"brick_id": 0, "target_index": 0, "waypoint": {"position_m": [NaN, 0, 0.2]}}'
+
+
+def test_hostile_calls_get_typed_refusals_and_nothing_moves(tmp_path: Path) -> None:
+    async def scenario(client: ClientSession) -> None:
+        for tool in ("read_state", "submit_answer", "grasp_options", "finish_trial"):
+            arguments = {"answer": {}} if tool == "submit_answer" else {}
+            data, refused = await call(client, tool, **arguments)
+            assert refused and data["refusal"]["code"] == "no_trial", tool
+        for arguments, detail in (
+            ({"seed": -1}, "seed: Input should be greater than or equal to 0"),
+            ({"seed": "3"}, "seed: Input should be a valid integer"),
+            ({"seed": 1.5}, "seed: Input should be a valid integer"),
+            ({"pattern": "nowhere.json"}, "nowhere.json"),
+            ({"physics": "moon"}, "moon"),
+            ({"max_trial_s": math.inf}, "max_trial_s"),
+            ({"trials": 2}, "trials: Extra inputs are not permitted"),
+        ):
+            data, refused = await call(client, "start_trial", **arguments)
+            assert refused and data["refusal"]["code"] == "invalid_action", arguments
+            assert detail in data["refusal"]["detail"], data
+        start, _ = await call(client, "start_trial", pattern="pyramid", seed=0)
+        state = start["turn"]["state"]
+        far = {"position_m": [2.5, -0.1, 0.2], "quat_xyzw": [1, 0, 0, 0]}
+        for tool, arguments, code, detail in (
+            ("rm -rf /", {}, "unknown_tool", "no tool 'rm -rf /'"),
+            ("slip_estimate", {"brick_id": 0}, "unknown_tool", "no tool 'slip_estimate'"),
+            ("collision_check", {"pose": far}, "unknown_tool", "of pre_grasp"),
+            ("grasp_options", {"brick_id": 99, "target_index": 0}, "tool_error", "99"),
+            (
+                "grasp_options",
+                {"brick_id": 0, "target_index": 0, "descent_opening_m": math.nan},
+                "tool_error",
+                "descent_opening_m",
+            ),
+            ("submit_answer", {"answer": '{"brick_id": 0,'}, "invalid_answer", "not valid JSON"),
+            ("submit_answer", {"answer": NAN_WAYPOINT}, "invalid_answer", "finite number"),
+            ("submit_answer", {"answer": 42}, "invalid_action", "answer"),
+            ("submit_answer", {}, "invalid_action", "answer: Field required"),
+            (
+                "submit_answer",
+                {"answer": answer_at(state, brick=0) | {"waypoint": far}},
+                "invalid_answer",
+                "outside the workspace box",
+            ),
+            (
+                "submit_answer",
+                {"answer": {"tool_calls": [{"name": "reachability", "arguments": {}}]}},
+                "invalid_answer",
+                "not one of your tools",
+            ),
+        ):
+            data, refused = await call(client, tool, **arguments)
+            assert refused and data["refusal"]["code"] == code, (tool, arguments, data)
+            assert detail in data["refusal"]["detail"], data
+        now, _ = await call(client, "read_state")
+        assert now["turn"]["agent"] == "pre_grasp" and now["turn"]["state"] == state
+        assert now["result"] is None
+        # A second start abandons the first trial and says so.
+        again, refused = await call(client, "start_trial", pattern="pyramid", seed=0, trial=1)
+        previous = again["previous_result"]
+        assert not refused and previous["failure"]["reason"] == "abandoned"
+        assert previous["llm"] == "mcp" and (previous["seed"], previous["trial"]) == (0, 0)
+        assert again["trial"]["trial"] == 1 and again["turn"]["agent"] == "pre_grasp"
+        finished, _ = await call(client, "finish_trial")
+        assert finished["result"]["failure"]["reason"] == "abandoned"
+
+    run(scenario, tmp_path)
+
+
+def test_stdout_holds_only_protocol_messages_whatever_comes_in() -> None:
+    """Raw stdio, line by line: a line that is not JSON, a NaN in a tool's arguments and
+    arguments that are no object get answers (or are dropped) and the server goes on; a
+    trial runs and prints nothing on the wire; stdin's end stops the server cleanly."""
+    initialize = {
+        "protocolVersion": "2025-06-18",
+        "capabilities": {},
+        "clientInfo": {"name": "raw", "version": "0"},
+    }
+
+    def request(id_: int, method: str, **params: Any) -> str:
+        return json.dumps({"jsonrpc": "2.0", "id": id_, "method": method, "params": params})
+
+    def tool(id_: int, name: str, arguments: Any) -> str:
+        return request(id_, "tools/call", name=name, arguments=arguments)
+
+    nan_args = '{"brick_id": 0, "target_index": 0, "descent_opening_m": NaN}'
+    sent = [
+        (request(1, "initialize", **initialize), None),
+        ('{"jsonrpc": "2.0", "method": "notifications/initialized"}', None),
+        ("this is not JSON {", None),
+        (tool(2, "start_trial", {"seed": 0}), "result"),
+        (tool(3, "grasp_options", {}).replace("{}", nan_args), "result"),
+        (tool(4, "grasp_options", [1]), "error"),
+        (tool(5, "finish_trial", {}), "result"),
+    ]
+    server = subprocess.Popen(
+        COMMAND,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    received: list[dict[str, Any]] = []
+    try:
+        assert server.stdin is not None and server.stdout is not None
+        for line, _ in sent:
+            server.stdin.write(line + "\n")
+            server.stdin.flush()
+            wanted = json.loads(line).get("id") if line.startswith("{") else None
+            while wanted is not None:
+                message = json.loads(server.stdout.readline())  # each line is JSON-RPC
+                assert message["jsonrpc"] == "2.0", message
+                received.append(message)
+                if message.get("id") == wanted:
+                    break
+        server.stdin.close()
+        assert server.wait(timeout=60) == 0
+        assert server.stdout.read() == ""
+    finally:
+        if server.poll() is None:
+            server.kill()
+    by_id = {message.get("id"): message for message in received}
+    for line, outcome in sent:
+        if outcome is not None:
+            assert outcome in by_id[json.loads(line)["id"]], by_id
+    nan = by_id[3]["result"]
+    assert nan["isError"] and nan["structuredContent"]["refusal"]["code"] == "tool_error"
+    assert by_id[5]["result"]["structuredContent"]["result"]["failure"]["reason"] == "abandoned"
+    assert server.stderr is not None and "Traceback" not in server.stderr.read()
+
+
+def test_without_the_sdk_the_command_says_which_extra_in_one_line() -> None:
+    without = "import sys; sys.modules['mcp'] = None\nfrom actionreasoning.cli import app\n"
+    code = without + "app(['mcp'], prog_name='actionreasoning')"
+    done = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert_clean_error(done, "MCP SDK", "actionreasoning[mcp]")
