@@ -197,6 +197,19 @@ def children(pid: int) -> set[int]:
     return found
 
 
+def assert_processes_end(pids: set[int], what: str, within_s: float = 15.0) -> None:
+    """Wait until every process of ``pids`` has ended; fail naming ``what`` if one outlives
+    ``within_s``. A reaped zombie has no /proc entry; an orphan is reaped by init once it
+    exits."""
+    deadline = time.monotonic() + within_s
+    while alive := {pid for pid in pids if Path(f"/proc/{pid}").exists()}:
+        zombies = {pid for pid in alive if " Z " in Path(f"/proc/{pid}/stat").read_text()}
+        if alive == zombies:
+            return
+        assert time.monotonic() < deadline, f"{what} {alive} outlived their run"
+        time.sleep(0.1)
+
+
 def free_port() -> int:
     """A TCP port on loopback that nothing listens on now."""
     with socket.socket() as probe:

@@ -14,7 +14,15 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from conftest import SMALL_PATTERN, assert_clean_error, children, cli, cli_process, free_port
+from conftest import (
+    SMALL_PATTERN,
+    assert_clean_error,
+    assert_processes_end,
+    children,
+    cli,
+    cli_process,
+    free_port,
+)
 
 TRIALS = "3"
 
@@ -207,11 +215,4 @@ def test_workers_end_when_their_run_is_killed(pattern: Path, tmp_path: Path) -> 
     time.sleep(2.0)  # into their first trials
     process.kill()
     process.wait()
-    deadline = time.monotonic() + 15
-    while alive := {w for w in workers if Path(f"/proc/{w}").exists()}:
-        # A reaped zombie has no /proc entry; an orphan is reaped by init once it exits.
-        zombies = {w for w in alive if " Z " in Path(f"/proc/{w}/stat").read_text()}
-        if alive == zombies:
-            break
-        assert time.monotonic() < deadline, f"workers {alive} outlived their run"
-        time.sleep(0.1)
+    assert_processes_end(workers, "workers")

@@ -13,7 +13,7 @@ from pathlib import Path
 import imageio.v3 as iio
 import numpy as np
 import pytest
-from conftest import SMALL_PATTERN, children, cli, eval_lines
+from conftest import SMALL_PATTERN, assert_processes_end, children, cli, eval_lines
 
 from actionreasoning.agents.transcript import AgentCall, CheckRecord, GateRecord
 from actionreasoning.eval.rules import Method
@@ -159,13 +159,7 @@ def test_the_film_process_ends_when_its_run_is_killed(tmp_path: Path, one_brick:
         time.sleep(0.05)
     process.kill()
     process.wait()
-    deadline = time.monotonic() + 15
-    while films := {f for f in films if Path(f"/proc/{f}").exists()}:
-        zombies = {f for f in films if " Z " in Path(f"/proc/{f}/stat").read_text()}
-        if films == zombies:
-            break
-        assert time.monotonic() < deadline, f"film process {films} outlived its run"
-        time.sleep(0.1)
+    assert_processes_end(films, "film processes")
     assert list(temp.iterdir()) == []  # it took its unfinished MP4 with it
 
 
