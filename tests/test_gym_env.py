@@ -131,22 +131,27 @@ def test_a_hostile_action_is_refused_and_the_arm_stays(
 
 
 def test_hostile_tool_poses_are_refused_without_hanging_the_arm_model(env: BrickStackEnv) -> None:
-    """Through the descent agent's collision check: a huge number hung the IK, a zero
-    quaternion crashed it."""
+    """Through the descent agent's collision check and the gates' reachability, which any
+    agent may run: a huge number hung the IK, a zero quaternion crashed it."""
     env.reset(seed=0)
     accepted = BuiltinReasoner().decide(env.session.request).answer
     _, _, _, _, info = env.step(json.dumps({"answer": accepted.model_dump(mode="json")}))
     assert info["call"]["outcome"] == "accepted" and info["agent"] == "descent"
     ticks = env.session.in_scene(lambda scene: scene.ticks)
-    for pose, detail in (
-        ({"position_m": [1e308, 0.0, 0.3]}, "more than 100 m away"),
-        ({"position_m": [0.5, 0.0, 0.3], "quat_xyzw": [0, 0, 0, 0]}, "unit quaternion"),
-        ({"position_m": [0.5, 0.0, 0.3], "quat_xyzw": [1e300, 0, 0, 0]}, "unit quaternion"),
-    ):
-        action = {"tool": "collision_check", "arguments": {"pose": pose}}
-        _, reward, _, _, info = env.step(json.dumps(action))
-        assert info["refusal"]["code"] == "tool_error" and detail in info["refusal"]["detail"]
-        assert reward == 0.0 and info["agent"] == "descent"
+    for tool in ("collision_check", "reachability"):
+        for pose, detail in (
+            ({"position_m": [1e308, 0.0, 0.3]}, "more than 100 m away"),
+            ({"position_m": [0.5, 0.0, 0.3], "quat_xyzw": [0, 0, 0, 0]}, "unit quaternion"),
+            ({"position_m": [0.5, 0.0, 0.3], "quat_xyzw": [1e300, 0, 0, 0]}, "unit quaternion"),
+        ):
+            action = {"tool": tool, "arguments": {"pose": pose}}
+            _, reward, _, _, info = env.step(json.dumps(action))
+            assert info["refusal"]["code"] == "tool_error" and detail in info["refusal"]["detail"]
+            assert reward == 0.0 and info["agent"] == "descent"
+    slip = {"tool": "slip_estimate", "arguments": {"brick_id": accepted.brick_id}}
+    _, _, _, _, info = env.step(json.dumps(slip))
+    assert info["refusal"] is None and info["agent"] == "descent"
+    assert info["tool_results"][0]["result"]["brick_id"] == accepted.brick_id
     assert env.session.in_scene(lambda scene: scene.ticks) == ticks
 
 

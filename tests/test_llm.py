@@ -192,6 +192,7 @@ def test_a_tool_call_goes_to_the_world_and_its_result_back_to_the_model(
             memory=memory,
             tolerances=Tolerances(),
             call_tool=run_tool,
+            measure=run_tool,  # never called by a language model's reasoner: ran says so
         )
         try:
             reasoner.decide(request)

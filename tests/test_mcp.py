@@ -1,7 +1,8 @@
 """The MCP server `actionreasoning mcp`, driven as a real subprocess by the SDK's own client
-over stdio: its tools, a one-brick build with the built-in reasoner's answers that gives
-eval's line, a gate's refusal that leaves the arm where it was, hostile calls refused as
-typed tool results, and nothing but protocol messages on stdout."""
+over stdio: its tools, the gates' measurements for the waiting agent, a one-brick build with
+the built-in reasoner's answers that gives eval's line, a gate's refusal that leaves the arm
+where it was, hostile calls refused as typed tool results, and nothing but protocol messages
+on stdout."""
 
 from __future__ import annotations
 
@@ -30,7 +31,7 @@ from actionreasoning.eval.rules import Method
 from actionreasoning.eval.session import Conditions, TrialSession
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.tools.base import ToolModel
-from actionreasoning.tools.registry import TOOLS, tool_schema
+from actionreasoning.tools.registry import GATE_MEASUREMENTS, TOOLS, tool_schema
 
 COMMAND = [sys.executable, "-m", "actionreasoning", "mcp"]
 #: The SDK starts the server in a bare environment: give it the package under test.
@@ -81,13 +82,15 @@ def test_the_tools_are_listed_with_their_schemas(tmp_path: Path) -> None:
         tools.extend((await client.list_tools()).tools)
 
     run(scenario, tmp_path)
-    measurement = list(single_agent_spec().tools)
-    assert [tool.name for tool in tools] == DOOR_TOOLS + measurement
-    assert len(measurement) == 6 and set(measurement) < set(TOOLS)
+    knowledge = list(single_agent_spec().tools)
+    registry = knowledge + list(GATE_MEASUREMENTS)
+    assert [tool.name for tool in tools] == DOOR_TOOLS + registry
+    assert len(knowledge) == 6 and sorted(registry) == sorted(TOOLS)  # all nine, once each
     for tool in tools:
         assert tool.description and tool.input_schema["type"] == "object", tool.name
-        if tool.name in measurement:
+        if tool.name in registry:
             assert tool.input_schema == tool_schema(tool.name).input_schema
+            assert tool.description.startswith(tool_schema(tool.name).description)
     start = next(tool for tool in tools if tool.name == "start_trial")
     assert set(start.input_schema["properties"]) == {
         "pattern", "physics", "noise", "seed", "trial", "max_trial_s",
@@ -161,6 +164,38 @@ def answer_at(state: dict[str, Any], brick: int, **fields: Any) -> dict[str, Any
     return {"brick_id": 0, "target_index": 0, "waypoint": waypoint} | fields
 
 
+def test_the_gates_measurements_answer_any_waiting_agent_and_are_logged_with_its_call(
+    tmp_path: Path,
+) -> None:
+    async def scenario(client: ClientSession) -> None:
+        start, _ = await call(client, "start_trial", pattern="pyramid", seed=0)
+        turn = start["turn"]
+        assert [tool["name"] for tool in turn["measurements"]] == list(GATE_MEASUREMENTS)
+        state = turn["state"]
+        pose = state["robot"]["ee_pose"]
+        results = {}
+        for name, arguments in (
+            ("reachability", {"pose": pose}),
+            ("slip_estimate", {"brick_id": 0}),
+            ("alignment_errors", {"brick_id": 0, "target_index": 0}),
+        ):
+            data, refused = await call(client, name, **arguments)
+            assert not refused and data["tool"] == name, data
+            results[name] = TOOLS[name].output_model.model_validate(data["result"])
+        assert results["reachability"].reachable  # where the arm is
+        target = state["goal"]["targets"][0]["pose"]["position_m"]
+        planar = math.dist(state["bricks"][0]["pose"]["position_m"][:2], target[:2])
+        assert results["alignment_errors"].e_xy_norm_m == pytest.approx(planar)
+        # The answer's record holds every tool the outside agent ran for it.
+        judged, _ = await call(client, "submit_answer", answer=answer_at(state, brick=1))
+        assert [tool["name"] for tool in judged["call"]["tool_calls"]] == list(results)
+        assert judged["call"]["tool_calls"][0]["result"] == results["reachability"].model_dump(
+            mode="json"
+        )
+
+    run(scenario, tmp_path)
+
+
 def test_an_answer_a_gate_refuses_comes_back_with_its_feedback_and_the_arm_stays(
     tmp_path: Path,
 ) -> None:
@@ -207,7 +242,20 @@ def test_hostile_calls_get_typed_refusals_and_nothing_moves(tmp_path: Path) -> N
         far = {"position_m": [2.5, -0.1, 0.2], "quat_xyzw": [1, 0, 0, 0]}
         for tool, arguments, code, detail in (
             ("rm -rf /", {}, "unknown_tool", "no tool 'rm -rf /'"),
-            ("slip_estimate", {"brick_id": 0}, "unknown_tool", "no tool 'slip_estimate'"),
+            ("slip_estimate", {"brick_id": 99}, "tool_error", "no brick with id 99"),
+            ("slip_estimate", {"brick_id": -1}, "tool_error", "brick_id"),
+            ("slip_estimate", {"brick_id": 0, "force": 1}, "tool_error", "Extra inputs"),
+            ("alignment_errors", {"brick_id": 0}, "tool_error", "target_index: Field required"),
+            ("alignment_errors", {"brick_id": 0, "target_index": 99}, "tool_error", "no target 99"),
+            ("reachability", {"pose": far | {"position_m": [1e300, 0, 0]}}, "tool_error", "100 m"),
+            ("reachability", {"pose": far | {"quat_xyzw": [0, 0, 0, 0]}}, "tool_error", "unit"),
+            (
+                "reachability",
+                {"pose": far | {"position_m": [math.nan, 0, 0]}},
+                "tool_error",
+                "pose",
+            ),
+            ("reachability", {"pose": "here"}, "tool_error", "pose"),
             ("collision_check", {"pose": far}, "unknown_tool", "of pre_grasp"),
             ("grasp_options", {"brick_id": 99, "target_index": 0}, "tool_error", "99"),
             (

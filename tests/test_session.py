@@ -4,6 +4,7 @@ the simulator over, and never leaves its thread blocked."""
 from __future__ import annotations
 
 import json
+import math
 import threading
 
 import pytest
@@ -14,7 +15,11 @@ from actionreasoning.eval.session import Conditions, SessionError, TrialSession
 from actionreasoning.eval.trial import TrialObserver
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.sim.scene import Scene
+from actionreasoning.tools.contact import SlipEstimate
+from actionreasoning.tools.geometry import AlignmentErrors
 from actionreasoning.tools.grasp_plan import GraspOptions
+from actionreasoning.tools.reach import ReachReport
+from actionreasoning.tools.registry import GATE_MEASUREMENTS
 
 SPEC = Conditions.load("pyramid").spec(seed=0, trial=0)
 
@@ -36,6 +41,50 @@ def test_the_waiting_agents_turn_and_its_tools() -> None:
         )
         assert reply.refusal is None
         assert GraspOptions.model_validate(reply.result).options
+
+
+def test_the_gates_measurements_run_for_the_waiting_agent_and_are_logged_with_its_call() -> None:
+    with TrialSession(SPEC) as session:
+        turn = session.turn()
+        assert [tool.name for tool in turn.measurements] == list(GATE_MEASUREMENTS)
+        state = turn.state
+        brick, target, tool = state.brick(0).pose, state.goal.targets[0].pose, state.robot.ee_pose
+        pose = tool.model_dump(mode="json")
+        reach = session.measure("reachability", {"pose": pose})
+        assert reach.refusal is None and ReachReport.model_validate(reach.result).reachable
+        errors = AlignmentErrors.model_validate(
+            session.measure("alignment_errors", {"brick_id": 0, "target_index": 0}).result
+        )
+        planar = math.dist(brick.position_m[:2], target.position_m[:2])
+        assert errors.e_xy_norm_m == pytest.approx(planar)
+        slip = SlipEstimate.model_validate(session.measure("slip_estimate", {"brick_id": 0}).result)
+        lever = math.dist(brick.position_m, tool.position_m)
+        assert math.hypot(*slip.offset_in_gripper_m) == pytest.approx(lever)
+        # The request's runner is the session's too; refusals are typed and run nothing.
+        assert session.request.measure(
+            "reachability", {"pose": pose}
+        ) == ReachReport.model_validate(reach.result)
+        refused = session.measure("grasp_options", {"brick_id": 0, "target_index": 0}).refusal
+        assert refused.code == "unknown_tool" and "gates' measurements" in refused.detail
+        far = {"position_m": [1e3, 0, 0.2], "quat_xyzw": [1, 0, 0, 0]}
+        for name, arguments, detail in (
+            ("reachability", {"pose": far}, "more than 100 m away"),
+            ("reachability", {"pose": {**pose, "quat_xyzw": [0, 0, 0, 0]}}, "unit quaternion"),
+            ("alignment_errors", {"brick_id": 0, "target_index": 99}, "99"),
+            ("slip_estimate", {"brick_id": 0, "extra": 1}, "Extra inputs"),
+        ):
+            refused = session.measure(name, arguments).refusal
+            assert refused.code == "tool_error" and detail in refused.detail, (name, refused)
+        assert session.measure("slip_estimate", [0]).refusal.code == "tool_error"  # type: ignore[arg-type]
+        assert session.turn().agent == "pre_grasp" and session.turn().state == state
+        run = session.close()
+    assert run is not None
+    first = run.transcript[0]
+    assert [record.name for record in first.tool_calls] == [
+        "reachability", "alignment_errors", "slip_estimate", "reachability", "grasp_options",
+        "reachability", "reachability", "alignment_errors", "slip_estimate",
+    ]  # fmt: skip
+    assert first.tool_calls[0].result == reach.result and first.tool_calls[4].error
 
 
 def test_an_answer_with_tool_calls_runs_them_and_the_agent_still_waits() -> None:
@@ -69,6 +118,9 @@ def test_a_request_answers_through_the_session_and_goes_stale_once_answered() ->
         assert session.turn().agent == "descent"
         with pytest.raises(SessionError, match="answered"):
             request.call_tool("grasp_options", {"brick_id": 0, "target_index": 0})
+        with pytest.raises(SessionError, match="answered"):
+            request.measure("slip_estimate", {"brick_id": 0})
+        assert session.request.measure("slip_estimate", {"brick_id": 0}).brick_id == 0
         with pytest.raises(ToolError, match="not in the knowledge base"):
             session.request.call_tool("grasp_options", {"brick_id": 0, "target_index": 0})
 

@@ -7,8 +7,9 @@ the transcript of the :class:`BuildResult`.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any, TypeVar
 
 from actionreasoning.agents.gates import GateVerdict
@@ -29,7 +30,7 @@ from actionreasoning.errors import (
 )
 from actionreasoning.records import Failure, FailureCode, LLMUsage
 from actionreasoning.tools.base import In, Out, Tool, ToolContext, ToolModel
-from actionreasoning.tools.registry import call_tool
+from actionreasoning.tools.registry import GATE_MEASUREMENTS, call_tool
 from actionreasoning.world.models import Progress, WorldState
 from actionreasoning.world.tolerances import Tolerances
 
@@ -110,6 +111,7 @@ class AgentCaller:
         view = StateView.of(state, memory, spec.scope, spec.robot_extras)
         prompt = render_prompt(spec, view, memory, self.tol)
         tool_calls: list[ToolRecord] = []
+        knowledge, gates = f"the knowledge base of {spec.key}", "the gates' measurements"
         call = AgentCall(
             call=len(self.result.transcript),
             agent=spec.key,
@@ -129,7 +131,8 @@ class AgentCaller:
                     state=state,
                     memory=memory,
                     tolerances=self.tol,
-                    call_tool=lambda name, args: _run_tool(spec, context, name, args, tool_calls),
+                    call_tool=partial(_run_tool, spec.tools, knowledge, context, tool_calls),
+                    measure=partial(_run_tool, GATE_MEASUREMENTS, gates, context, tool_calls),
                 )
             )
         except LLMError as error:
@@ -171,18 +174,20 @@ class AgentCaller:
 
 
 def _run_tool(
-    spec: AgentSpec,
+    allowed: Collection[str],
+    among: str,
     context: ToolContext,
+    log: list[ToolRecord],
     name: str,
     arguments: Mapping[str, Any],
-    log: list[ToolRecord],
 ) -> ToolModel:
-    """Run a tool of the agent's knowledge base for the reasoner, and log it."""
+    """Run a tool for the reasoner if it is one of the ``allowed`` (``among`` names them),
+    and log it."""
     record = ToolRecord(name=name[:64], arguments=dict(arguments))
     log.append(record)
     try:
-        if name not in spec.tools:
-            raise ToolError(f"tool {name[:60]!r} is not in the knowledge base of {spec.key}")
+        if name not in allowed:
+            raise ToolError(f"tool {name[:60]!r} is not in {among}")
         result = call_tool(name, arguments, context)
     except ToolError as error:
         record.error = str(error)

@@ -24,8 +24,11 @@ class AgentRequest:
 
     ``view``, ``memory`` and ``tolerances`` are what the prompt shows; ``call_tool`` runs a
     whitelisted tool of the agent's knowledge base on the current world, the only way a
-    reasoner learns more than the prompt says. ``state`` is the whole measured state, for
-    validating an answer's ids (a reasoner does not read it).
+    reasoner learns more than the prompt says. ``measure`` runs one of the gates'
+    measurements (``GATE_MEASUREMENTS``) on that world, for an agent answered from outside
+    (the in-process reasoners never call it); both log the call in the transcript.
+    ``state`` is the whole measured state, for validating an answer's ids (a reasoner does
+    not read it).
     """
 
     spec: AgentSpec
@@ -35,6 +38,7 @@ class AgentRequest:
     memory: TaskMemory
     tolerances: Tolerances
     call_tool: ToolRunner
+    measure: ToolRunner
 
 
 @dataclass(frozen=True)

@@ -3,9 +3,10 @@
 The trial runs as ``eval`` runs it (:func:`~actionreasoning.eval.trial.run_trial`: the same
 scene, agents, validation, gates and controller) in a thread of its own, with an outside
 agent as its reasoner. When an agent asks, the trial waits; the session's caller reads the
-question (:meth:`TrialSession.turn`), calls the agent's tools and submits an answer as
-text. The answer is parsed and checked as a language model's is (``agents/validation.py``;
-its quaternion goes on as given, for the orchestrator to normalise once, as an in-process
+question (:meth:`TrialSession.turn`), calls the agent's tools (and, whichever agent waits,
+the gates' measurements: :meth:`TrialSession.measure`) and submits an answer as text. The
+answer is parsed and checked as a language model's is (``agents/validation.py``; its
+quaternion goes on as given, for the orchestrator to normalise once, as an in-process
 reasoner's does): a refused one changes nothing and the agent waits for another; one that
 lists tool calls gets their results back and the agent waits too. A valid decision goes to
 the gates and the controller, and the call returns when the trial asks its next question or
@@ -30,7 +31,7 @@ from typing import Any, TypeVar
 
 from pydantic import BaseModel, Field
 
-from actionreasoning.agents.reasoner import AgentReply, AgentRequest
+from actionreasoning.agents.reasoner import AgentReply, AgentRequest, ToolRunner
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.agents.validation import OutputError, parse_answer
 from actionreasoning.errors import ActionReasoningError, ConfigError, LLMError, ToolError
@@ -41,7 +42,7 @@ from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.records import FailureCode
 from actionreasoning.sim.scene import Scene
 from actionreasoning.tools.base import ToolModel
-from actionreasoning.tools.registry import ToolSchema, tool_schema
+from actionreasoning.tools.registry import GATE_MEASUREMENTS, ToolSchema, tool_schema
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.models import GoalPattern, WorldState
 from actionreasoning.world.noise import load_noise
@@ -61,7 +62,7 @@ class RefusalCode(StrEnum):
 
     INVALID_ACTION = "invalid_action"  # neither a tool call nor an answer (a door's format)
     INVALID_ANSWER = "invalid_answer"  # not JSON, not the agent's schema, or out of bounds
-    UNKNOWN_TOOL = "unknown_tool"  # not one of the waiting agent's tools
+    UNKNOWN_TOOL = "unknown_tool"  # neither the waiting agent's tool nor a gate measurement
     TOOL_ERROR = "tool_error"  # the tool refused its arguments
     TRIAL_OVER = "trial_over"  # no agent waits: the trial has ended
     NO_TRIAL = "no_trial"  # no trial was started (a door's: the MCP server's before start)
@@ -93,13 +94,15 @@ class AnswerReply(BaseModel):
 
 
 class Turn(BaseModel):
-    """What the waiting agent is asked: its prompt, the measured state S_t, its tools with
-    their schemas, the schema of its answer, and the feedback on its last refused answer."""
+    """What the waiting agent is asked: its prompt, the measured state S_t, its tools and
+    the gates' measurements it may run too, with their schemas, the schema of its answer,
+    and the feedback on its last refused answer."""
 
     agent: str
     prompt: str
     state: WorldState
     tools: list[ToolSchema]
+    measurements: list[ToolSchema]
     answer_schema: dict[str, Any]
     feedback: str
 
@@ -197,21 +200,25 @@ class TrialSession:
     @property
     def request(self) -> AgentRequest | None:
         """The waiting agent's request (None once the trial has ended). Its ``call_tool``
-        runs a tool in the trial, as the agent's tool call, and raises ToolError on a
-        refusal: a :class:`~actionreasoning.agents.reasoner.Reasoner` can answer it."""
+        and ``measure`` run a tool in the trial, as the agent's tool call, and raise
+        ToolError on a refusal: a :class:`~actionreasoning.agents.reasoner.Reasoner` can
+        answer it."""
         request = self._request
         if request is None:
             return None
 
-        def call_tool(name: str, arguments: Mapping[str, Any]) -> ToolModel:
-            if self._request is not request:
-                raise SessionError("this request was answered: read session.request again")
-            outcome = self._send(_ToolCall(name, dict(arguments)))
-            if isinstance(outcome, ToolError):
-                raise ToolError(str(outcome))
-            return outcome
+        def runner(measure: bool) -> ToolRunner:
+            def run(name: str, arguments: Mapping[str, Any]) -> ToolModel:
+                if self._request is not request:
+                    raise SessionError("this request was answered: read session.request again")
+                outcome = self._send(_ToolCall(name, dict(arguments), measure))
+                if isinstance(outcome, ToolError):
+                    raise ToolError(str(outcome))
+                return outcome
 
-        return replace(request, call_tool=call_tool)
+            return run
+
+        return replace(request, call_tool=runner(False), measure=runner(True))
 
     def turn(self) -> Turn | None:
         """The waiting agent's question as data (None once the trial has ended)."""
@@ -223,20 +230,20 @@ class TrialSession:
             prompt=request.prompt,
             state=request.state,
             tools=[tool_schema(name) for name in request.spec.tools],
+            measurements=[tool_schema(name) for name in GATE_MEASUREMENTS],
             answer_schema=request.spec.output_model.model_json_schema(),
             feedback=request.memory.last_feedback,
         )
 
     def call_tool(self, name: str, arguments: Mapping[str, Any]) -> ToolReply:
         """Run one of the waiting agent's tools; its result, or a typed refusal."""
-        if not isinstance(name, str) or not _is_object(arguments):
-            detail = "a tool call is a tool name and a JSON object of arguments"
-            refusal = Refusal(code=RefusalCode.TOOL_ERROR, detail=detail)
-            return ToolReply(tool=str(name)[:64], refusal=refusal)
-        if self._request is None:
-            return ToolReply(tool=name[:64], refusal=_over())
-        known = name in self._request.spec.tools
-        return _tool_reply(name, self._send(_ToolCall(name, dict(arguments))), known)
+        return self._tool(name, arguments, measure=False)
+
+    def measure(self, name: str, arguments: Mapping[str, Any]) -> ToolReply:
+        """Run one of the gates' measurements (``GATE_MEASUREMENTS``) on the waiting agent's
+        measured world, whichever agent waits, logged in its call as its tool calls are;
+        its result, or a typed refusal."""
+        return self._tool(name, arguments, measure=True)
 
     def answer(self, text: str) -> AnswerReply:
         """Submit the waiting agent's answer (JSON text, as a language model writes it).
@@ -273,6 +280,16 @@ class TrialSession:
             self._send(_CLOSE)
         return self._run
 
+    def _tool(self, name: str, arguments: Mapping[str, Any], measure: bool) -> ToolReply:
+        if not isinstance(name, str) or not _is_object(arguments):
+            detail = "a tool call is a tool name and a JSON object of arguments"
+            refusal = Refusal(code=RefusalCode.TOOL_ERROR, detail=detail)
+            return ToolReply(tool=str(name)[:64], refusal=refusal)
+        if self._request is None:
+            return ToolReply(tool=name[:64], refusal=_over())
+        known = name in (GATE_MEASUREMENTS if measure else self._request.spec.tools)
+        return _tool_reply(name, self._send(_ToolCall(name, dict(arguments), measure)), known)
+
     def _send(self, command: object) -> Any:
         """Hand ``command`` to the waiting trial and wait for it to hand back: the command's
         value, or None when the trial moved on to its next request or ended."""
@@ -304,6 +321,7 @@ _CLOSE = object()
 class _ToolCall:
     name: str
     arguments: dict[str, Any]
+    measure: bool = False
 
 
 @dataclass(frozen=True)
@@ -377,7 +395,8 @@ class _OutsideAgent:
                 continue
             if isinstance(command, _ToolCall):
                 turns += 1
-                self.outbox.put(_Replied(_run_tool(request, command.name, command.arguments)))
+                run = request.measure if command.measure else request.call_tool
+                self.outbox.put(_Replied(_run_tool(run, command.name, command.arguments)))
                 continue
             assert isinstance(command, _Answer)
             try:
@@ -390,7 +409,9 @@ class _OutsideAgent:
             if answer.tool_calls:
                 turns += 1
                 tools = [
-                    _tool_reply(call.name, _run_tool(request, call.name, call.arguments), True)
+                    _tool_reply(
+                        call.name, _run_tool(request.call_tool, call.name, call.arguments), True
+                    )
                     for call in answer.tool_calls
                 ]
                 self.outbox.put(_Replied(AnswerReply(tools=tools)))
@@ -420,10 +441,10 @@ def _run(
     outbox.put(_Ended(run))
 
 
-def _run_tool(request: AgentRequest, name: str, arguments: Mapping[str, Any]) -> Any:
+def _run_tool(run: ToolRunner, name: str, arguments: Mapping[str, Any]) -> Any:
     """The tool's result, or the ToolError it was refused with (in the trial's thread)."""
     try:
-        return request.call_tool(name, arguments)
+        return run(name, arguments)
     except ToolError as error:
         return error
 

@@ -16,7 +16,7 @@ FORMAT = 'an action is {"tool": NAME, "arguments": {...}} or {"answer": {...}}'
 
 @dataclass(frozen=True)
 class ToolAction:
-    """Run one of the waiting agent's tools."""
+    """Run one of the waiting agent's tools, or one of the gates' measurements."""
 
     name: str
     arguments: Any

@@ -2,10 +2,11 @@
 agents' answers coming from the caller of ``step``.
 
 An episode is one trial (:class:`~actionreasoning.eval.session.TrialSession`). A step is
-one action for the agent that waits: a tool call or an answer, as JSON text
-(``actions.py``), validated as a language model's answer is and, if valid, gated and
-executed by the same controller. The observation is the measured state the waiting agent
-is given (``observation.py``); the reward counts bricks placed (``reward.py``).
+one action for the agent that waits: a tool call (one of its tools, or one of the gates'
+measurements) or an answer, as JSON text (``actions.py``), validated as a language model's
+answer is and, if valid, gated and executed by the same controller. The observation is the
+measured state the waiting agent is given (``observation.py``); the reward counts bricks
+placed (``reward.py``).
 
 Seeds: ``reset(seed=s, options={"trial": k})`` is trial k of ``eval --seed s`` under the
 same pattern and conditions (k defaults to 0); ``reset()`` goes on with the next trial of
@@ -41,6 +42,7 @@ from actionreasoning.gym_env.reward import PlacedCount
 from actionreasoning.records import FailureCode
 from actionreasoning.sim.camera import overview, render
 from actionreasoning.sim.scene import Scene
+from actionreasoning.tools.registry import GATE_MEASUREMENTS
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.models import WorldState
 
@@ -122,7 +124,8 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
         elif session.done:
             info["refusal"] = Refusal(code=RefusalCode.TRIAL_OVER, detail="call reset()")
         elif isinstance(parsed, ToolAction):
-            tool = session.call_tool(parsed.name, parsed.arguments)
+            run = session.measure if parsed.name in GATE_MEASUREMENTS else session.call_tool
+            tool = run(parsed.name, parsed.arguments)
             info |= {"refusal": tool.refusal, "tool_results": [tool]}
         else:
             assert isinstance(parsed, AnswerAction)

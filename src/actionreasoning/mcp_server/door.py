@@ -2,9 +2,10 @@
 :class:`~actionreasoning.eval.session.TrialSession`, with no protocol in them.
 
 A connection holds at most one trial. ``start_trial`` starts one (ending one still running
-as ``abandoned``); ``read_state`` shows the waiting agent's turn; each measurement tool runs
-through the session, so only the waiting agent's own tools run, within the registry's
-bounds; ``submit_answer`` hands the session an answer as text, to be validated, gated and
+as ``abandoned``); ``read_state`` shows the waiting agent's turn; each registry tool runs
+through the session, within the registry's bounds: a tool of the agents' knowledge bases
+only for the agent whose tool it is, a gate's measurement for whichever agent waits;
+``submit_answer`` hands the session an answer as text, to be validated, gated and
 executed as a language model's is; ``finish_trial`` ends the trial and gives its results
 line. Whatever a call asks, it comes back as JSON data: a refusal, ``{"refusal": {code,
 detail}}``, is data too, never an exception.
@@ -26,13 +27,15 @@ from actionreasoning.errors import ActionReasoningError
 from actionreasoning.eval.provenance import current_provenance, stamp
 from actionreasoning.eval.results import TrialResult
 from actionreasoning.eval.session import Conditions, Refusal, RefusalCode, TrialSession
-from actionreasoning.tools.registry import tool_schema
+from actionreasoning.tools.registry import GATE_MEASUREMENTS, tool_schema
 from actionreasoning.world.budget import TrialBudget
 
 #: What the results line calls the agent that answered.
 AGENT_LABEL = "mcp"
-#: The measurement tools: the six agents' knowledge bases together, in pipeline order.
-MEASUREMENT_TOOLS: tuple[str, ...] = single_agent_spec().tools
+#: The tools of the six agents' knowledge bases together, in pipeline order.
+KNOWLEDGE_TOOLS: tuple[str, ...] = single_agent_spec().tools
+#: Every registry tool the door serves: the knowledge bases', then the gates' measurements.
+REGISTRY_TOOLS: tuple[str, ...] = KNOWLEDGE_TOOLS + GATE_MEASUREMENTS
 
 
 class _Arguments(BaseModel):
@@ -121,23 +124,23 @@ class Door:
         }
 
     def tools(self) -> list[ToolEntry]:
-        """The door's own tools, then the measurement tools with their input schemas."""
+        """The door's own tools, then the registry's with their input schemas."""
         own = [
             ToolEntry(name, _description(model), model.model_json_schema())
             for name, (model, _) in self._calls.items()
         ]
-        measure = []
-        for name in MEASUREMENT_TOOLS:
+        registry = []
+        for name in REGISTRY_TOOLS:
             schema = tool_schema(name)
-            description = f"{schema.description} {_MEASUREMENT_NOTE}"
-            measure.append(ToolEntry(name, description, schema.input_schema))
-        return own + measure
+            note = _GATE_NOTE if name in GATE_MEASUREMENTS else _KNOWLEDGE_NOTE
+            registry.append(ToolEntry(name, f"{schema.description} {note}", schema.input_schema))
+        return own + registry
 
     def call(self, name: str, arguments: Mapping[str, Any] | None) -> Reply:
         """Run tool ``name`` on ``arguments``; a typed refusal for anything it cannot do."""
         with self._lock:
-            if name in MEASUREMENT_TOOLS:
-                return self._measure(name, dict(arguments or {}))
+            if name in REGISTRY_TOOLS:
+                return self._tool(name, dict(arguments or {}))
             if name not in self._calls:
                 detail = f"no tool {name[:64]!r}; the tools are {', '.join(self._names())}"
                 return Reply.refusal(RefusalCode.UNKNOWN_TOOL, detail)
@@ -170,10 +173,12 @@ class Door:
         session = self._session
         return _no_trial() if session is None else Reply.of(self._view(session))
 
-    def _measure(self, name: str, arguments: dict[str, Any]) -> Reply:
-        if self._session is None:
+    def _tool(self, name: str, arguments: dict[str, Any]) -> Reply:
+        session = self._session
+        if session is None:
             return _no_trial()
-        reply = self._session.call_tool(name, arguments)
+        run = session.measure if name in GATE_MEASUREMENTS else session.call_tool
+        reply = run(name, arguments)
         return Reply.of(reply.model_dump(exclude_none=True), refused=reply.refusal is not None)
 
     def _answer(self, submit: SubmitAnswer) -> Reply:
@@ -219,12 +224,16 @@ class Door:
         return None if result is None else stamp(result, self._provenance)
 
     def _names(self) -> list[str]:
-        return [*self._calls, *MEASUREMENT_TOOLS]
+        return [*self._calls, *REGISTRY_TOOLS]
 
 
-_MEASUREMENT_NOTE = (
+_KNOWLEDGE_NOTE = (
     "Runs on the measured world for the waiting agent; only that agent's own tools run "
     "(read_state lists them with their result schemas)."
+)
+_GATE_NOTE = (
+    "A gate's measurement: runs on the measured world for whichever agent waits, and is "
+    "logged with its call (read_state lists the measurements with their result schemas)."
 )
 
 

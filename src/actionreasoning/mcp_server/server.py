@@ -27,7 +27,8 @@ Build a brick pattern with a robot arm by answering its six gated agents (pre_gr
 descent, grasp, lift, placement, release), one request at a time. start_trial starts a trial
 (pattern, physics, noise, seed, trial). read_state shows the waiting agent: its prompt (role,
 measured state, memory, thresholds, tools, answer format), the state as JSON, its tools and
-its answer schema. Call that agent's measurement tools, then submit_answer with its answer.
+its answer schema. Call that agent's tools and, for any agent, the gates' measurements
+(slip_estimate, alignment_errors, reachability), then submit_answer with its answer.
 Every answer is validated and checked by the agent's gate before the arm moves; a refused
 one comes back with a typed refusal or the gate's feedback, and the arm stays where it was.
 When a reply's result is set the trial has ended; finish_trial returns its results line and

@@ -38,6 +38,11 @@ TOOLS: Mapping[str, Tool] = {
     )
 }
 
+#: The gates' measurements, in no agent's knowledge base. An agent answered from outside
+#: (MCP, Gymnasium) may run them whichever it is: they only read the measured world, and
+#: every gate verdict reports the values they give.
+GATE_MEASUREMENTS: tuple[str, ...] = (SLIP.name, ALIGNMENT.name, REACHABILITY.name)
+
 
 class ToolSchema(BaseModel):
     """A tool as a language model or an outside agent is shown it: name, what it does, and
