@@ -2,9 +2,9 @@
 processes, or tasks on a Ray cluster.
 
 A job carries everything its trial needs and returns everything it produced (result,
-transcript, pictures, video, Rerun recording), so only the process that owns the output directory
-writes files:
-the same code serves a worker on this machine and a Ray task on another.
+transcript, pictures, video, Rerun recording), so only the process that owns the output
+directory writes files: the same code serves a worker on this machine and a Ray task on
+another.
 """
 
 from __future__ import annotations

@@ -245,6 +245,12 @@ class TrialSession:
         its result, or a typed refusal."""
         return self._tool(name, arguments, measure=True)
 
+    def use_tool(self, name: str, arguments: Mapping[str, Any]) -> ToolReply:
+        """Run a tool by its name, as a door offers them all: a gate's measurement with
+        :meth:`measure`, any other with :meth:`call_tool`."""
+        run = self.measure if name in GATE_MEASUREMENTS else self.call_tool
+        return run(name, arguments)
+
     def answer(self, text: str) -> AnswerReply:
         """Submit the waiting agent's answer (JSON text, as a language model writes it).
 

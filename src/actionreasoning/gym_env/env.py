@@ -42,7 +42,6 @@ from actionreasoning.gym_env.reward import PlacedCount
 from actionreasoning.records import FailureCode
 from actionreasoning.sim.camera import overview, render
 from actionreasoning.sim.scene import Scene
-from actionreasoning.tools.registry import GATE_MEASUREMENTS
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.models import WorldState
 
@@ -124,8 +123,7 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
         elif session.done:
             info["refusal"] = Refusal(code=RefusalCode.TRIAL_OVER, detail="call reset()")
         elif isinstance(parsed, ToolAction):
-            run = session.measure if parsed.name in GATE_MEASUREMENTS else session.call_tool
-            tool = run(parsed.name, parsed.arguments)
+            tool = session.use_tool(parsed.name, parsed.arguments)
             info |= {"refusal": tool.refusal, "tool_results": [tool]}
         else:
             assert isinstance(parsed, AnswerAction)

@@ -177,8 +177,7 @@ class Door:
         session = self._session
         if session is None:
             return _no_trial()
-        run = session.measure if name in GATE_MEASUREMENTS else session.call_tool
-        reply = run(name, arguments)
+        reply = session.use_tool(name, arguments)
         return Reply.of(reply.model_dump(exclude_none=True), refused=reply.refusal is not None)
 
     def _answer(self, submit: SubmitAnswer) -> Reply:
