@@ -11,6 +11,7 @@ reasoning effort: :func:`~actionreasoning.reasoners.factory.prepare` refuses one
 
 from __future__ import annotations
 
+import atexit
 import os
 import time
 from functools import cache
@@ -45,6 +46,10 @@ def _load(path: str) -> Any:
         )
     except ValueError as error:
         raise ConfigError(f"--llm llamacpp:{path}: cannot load the model ({error})") from None
+    # Freed before the interpreter tears its modules down: a model the cache still holds
+    # then would be freed by Llama.__del__ with llama_cpp's functions already gone
+    # ("Exception ignored ... 'NoneType' object is not callable"). Closing twice is harmless.
+    atexit.register(model.close)
     architecture = model.metadata.get("general.architecture", "")
     if "tokenizer.chat_template" not in model.metadata and architecture.startswith("gemma"):
         model.chat_format = "gemma"  # a Gemma GGUF without its template: use Gemma's turns
