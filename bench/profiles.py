@@ -32,7 +32,8 @@ from actionreasoning.control.waypoint import GripperCommand, Waypoint
 from actionreasoning.eval.rules import Method
 from actionreasoning.eval.trial import TrialSpec, run_trial, trial_world
 from actionreasoning.eval.trial_config import TrialConfig
-from actionreasoning.reasoners.builtin import CARRY_SPEED_MPS, LIFT_SPEEDS_MPS
+from actionreasoning.reasoners.builtin import CARRY_SPEED_MPS
+from actionreasoning.world.tolerances import SAFE_LIFT_MPS
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.geometry import quat_yaw, top_down_quat
 from actionreasoning.world.models import Pose
@@ -57,7 +58,7 @@ class Speeds:
 
 
 FULL = Speeds("full speed", lambda _: None, lambda _: None)
-AGENTS = Speeds("agents", lambda m: m / LIFT_SPEEDS_MPS[0], lambda m: m / CARRY_SPEED_MPS)
+AGENTS = Speeds("agents", lambda m: m / SAFE_LIFT_MPS, lambda m: m / CARRY_SPEED_MPS)
 
 
 def in_hand(scene: Scene) -> tuple[np.ndarray, Rotation]:

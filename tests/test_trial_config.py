@@ -19,7 +19,8 @@ from actionreasoning.cli import app
 from actionreasoning.control.safety import SafetyLimits
 from actionreasoning.errors import ConfigError
 from actionreasoning.eval.provenance import SCHEMA_VERSION, Provenance, git_revision
-from actionreasoning.eval.rules import Method, SuccessRule
+from actionreasoning.eval.rules import Method
+from actionreasoning.world.success import SuccessRule
 from actionreasoning.eval.run import RunConfig, run_eval
 from actionreasoning.eval.run_dir import config_digest
 from actionreasoning.eval.trial import TrialSpec, run_trial

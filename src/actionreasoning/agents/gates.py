@@ -9,12 +9,14 @@ every failed check with its value and threshold, for the agent's next attempt.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
+from actionreasoning.agents.feedback import FailedCheck, Measured, Refusal
 from actionreasoning.tools.collision import CollisionReport
 from actionreasoning.tools.contact import ContactForces, SlipEstimate
 from actionreasoning.tools.geometry import AlignmentErrors
-from actionreasoning.world.tolerances import Tolerances
+from actionreasoning.tools.placement import PlacementPose
+from actionreasoning.world.tolerances import NOISE_SIGMAS, Tolerances
 
 
 @dataclass(frozen=True)
@@ -41,24 +43,42 @@ class Check:
 
 @dataclass(frozen=True)
 class GateVerdict:
-    """The acceptance flag sigma_i with what was measured."""
+    """The acceptance flag sigma_i with what was measured: each check, and the signed errors
+    (world frame) the next answer can correct by."""
 
     gate: str
     checks: tuple[Check, ...]
+    measured: Measured = Measured()
+    note: str = ""
 
     @property
     def passed(self) -> bool:
         return all(check.passed for check in self.checks)
 
-    @property
-    def measured(self) -> dict[str, float]:
-        return {check.name: check.value for check in self.checks}
+    def refusal(self, agent: str) -> Refusal:
+        """The refusal of ``agent``'s answer: the failed checks and the measurements."""
+        failed = tuple(
+            FailedCheck(
+                name=c.name,
+                value=c.value,
+                relation="<=" if c.at_most else ">=",
+                threshold=c.threshold,
+            )
+            for c in self.checks
+            if not c.passed
+        )
+        return Refusal(
+            agent=agent, gate=self.gate, failed=failed, measured=self.measured, note=self.note
+        )
 
     @property
     def feedback(self) -> str:
-        """Empty when passed; else every failed check, for the agent to correct."""
-        failed = [check.describe() for check in self.checks if not check.passed]
-        return f"{self.gate} failed: " + "; ".join(failed) if failed else ""
+        """Empty when passed; else every failed check and what was measured."""
+        return "" if self.passed else self.refusal("").text()
+
+    def noted(self, note: str) -> GateVerdict:
+        """This verdict with ``note`` saying what happened."""
+        return replace(self, note=note)
 
 
 def _path_checks(
@@ -71,97 +91,177 @@ def _path_checks(
     )
 
 
+def _path_measured(*reports: CollisionReport) -> Measured:
+    """The least clearance of ``reports`` and what came closest there."""
+    worst = min(reports, key=lambda r: r.clearance_m if r.reachable else -math.inf)
+    return Measured(clearance_m=worst.clearance_m, closest=worst.closest)
+
+
 def sigma1_pre_grasp(path: CollisionReport, tol: Tolerances) -> GateVerdict:
     """Path to the approach pose collision-free with clearance c >= c_min."""
-    return GateVerdict("sigma1_pre_grasp", _path_checks(path, tol.c_min_m))
+    return GateVerdict(
+        "sigma1_pre_grasp", _path_checks(path, tol.c_min_m), measured=_path_measured(path)
+    )
 
 
 def sigma2_descent(
     opening_m: float,
     brick_width_m: float,
     pads: ContactForces,
-    brick_shift_m: float,
+    brick_shift_m: tuple[float, float],
     tol: Tolerances,
 ) -> GateVerdict:
     """Opening w >= w_brick + delta, no pad pressing on the brick, and the brick where it was
     before the descent (a pad that came down on its top and shoved it aside may touch
     nothing at the end). The shift compares two measurements, so under noise it is allowed
-    eps_xy plus what the noise of two positions can show."""
+    eps_xy plus what the noise of two positions can show. The correction is the brick's
+    shift: where the grasp must move to."""
+    dx, dy = brick_shift_m
     return GateVerdict(
         "sigma2_descent",
         (
             Check("opening_m", opening_m, brick_width_m + tol.delta_m, at_most=False),
             Check("sidewall_force_n", max(pads.normal_n), tol.sidewall_contact_n, at_most=True),
-            Check("brick_shift_m", brick_shift_m, tol.eps_xy_m + tol.overlap_m, at_most=True),
+            Check("brick_shift_m", math.hypot(dx, dy), tol.eps_xy_m + tol.overlap_m, at_most=True),
         ),
+        measured=Measured(e_x_m=dx, e_y_m=dy, pad_forces_n=pads.normal_n),
     )
 
 
 def _held(pads: ContactForces, tol: Tolerances) -> Check:
-    """Both pads press with at least f_min = safety factor x m g / (2 mu)."""
-    f_min = tol.grip_safety_factor * pads.required_normal_n
-    return Check("normal_force_n", min(pads.normal_n), f_min, at_most=False)
+    """Both pads press with at least f_min (``Tolerances.f_min_n``)."""
+    required = tol.f_min_n(pads.required_normal_n)
+    return Check("normal_force_n", min(pads.normal_n), required, at_most=False)
+
+
+def _friction_margin(pads: ContactForces, tol: Tolerances) -> Check:
+    """The grasp's friction left with the least friction the brick may have, friction_factor
+    x mu x (sum of normal forces) - (sum of friction forces), at least minus what the
+    force noise can show (NOISE_SIGMAS standard deviations of that difference)."""
+    grip = tol.friction_factor * pads.friction_coefficient * sum(pads.normal_n)
+    load = sum(pads.tangential_n)
+    noise = NOISE_SIGMAS * tol.force_noise * math.hypot(grip, load)
+    return Check("friction_margin_n", grip - load, -noise, at_most=False)
 
 
 def sigma3_grasp(
-    pads: ContactForces, position_error_m: float, orientation_error_deg: float, tol: Tolerances
+    pads: ContactForces,
+    offset_m: tuple[float, float],
+    yaw_error_deg: float,
+    tol: Tolerances,
 ) -> GateVerdict:
-    """Normal force f_n >= f_min on both pads (f_min from the brick's mass and mu), and grasp
-    pose error <= eps_g."""
+    """Normal force f_n >= f_min on both pads, and grasp pose error <= eps_g: ``offset_m`` is
+    the brick's centre minus the tool's (world x, y), ``yaw_error_deg`` the brick's yaw
+    minus the tool's, modulo a half turn (the pads grip a brick turned 180 deg the same)."""
     return GateVerdict(
         "sigma3_grasp",
         (
             _held(pads, tol),
-            Check("pose_error_m", position_error_m, tol.eps_g_m, at_most=True),
-            Check("pose_error_deg", orientation_error_deg, tol.eps_g_deg, at_most=True),
+            Check("pose_error_m", math.hypot(*offset_m), tol.eps_g_m, at_most=True),
+            Check("pose_error_deg", abs(yaw_error_deg), tol.eps_g_deg, at_most=True),
+        ),
+        measured=Measured(
+            e_x_m=offset_m[0],
+            e_y_m=offset_m[1],
+            e_theta_deg=yaw_error_deg,
+            pad_forces_n=pads.normal_n,
         ),
     )
 
 
-def sigma4_lift(slip: SlipEstimate, pads: ContactForces, tol: Tolerances) -> GateVerdict:
+def sigma4_lift(
+    slip: SlipEstimate,
+    pads: ContactForces,
+    set_down: PlacementPose,
+    move_speed_mps: float,
+    tol: Tolerances,
+) -> GateVerdict:
     """Held through the move: f_n >= f_min on both pads, brick speed relative to the gripper
-    <= v_th, and the grasp's friction f_t <= mu f_n. How far the brick crept in the hand is
-    not judged here: placement measures the brick in the hand again before setting it down.
-    """
+    <= v_th, and the grasp's friction f_t <= mu f_n (with the least mu the brick may have);
+    and a brick that rolled in the hand can still be set down level: rolled at most
+    eps_roll, and ``set_down``, its slot pose as it sits in the hand now with the tool
+    tilted by the roll, reachable with a clear way over the slot and down. How far it
+    crept in the hand is not judged here: placement measures it again."""
     return GateVerdict(
         "sigma4_lift",
         (
             _held(pads, tol),
             Check("relative_speed_mps", slip.relative_speed_mps, tol.v_th_mps, at_most=True),
-            Check("friction_margin_n", pads.friction_margin_n, 0.0, at_most=False),
-            Check("tilt_in_hand_deg", slip.tilt_in_hand_deg, tol.eps_tilt_deg, at_most=True),
+            _friction_margin(pads, tol),
+            Check("tilt_in_hand_deg", slip.tilt_in_hand_deg, tol.eps_roll_deg, at_most=True),
+            Check("set_down_reachable", float(set_down.reachable), 1.0, at_most=False),
+            Check("set_down_clearance_m", set_down.way_clearance_m, -tol.overlap_m, False),
+        ),
+        measured=Measured(
+            tilt_deg=slip.tilt_in_hand_deg,
+            pad_forces_n=pads.normal_n,
+            slip_speed_mps=slip.relative_speed_mps,
+            move_speed_mps=move_speed_mps,
+            clearance_m=set_down.way_clearance_m,
+            closest=set_down.closest,
         ),
     )
 
 
 def sigma5_placement(alignment: AlignmentErrors, tol: Tolerances) -> GateVerdict:
-    """d_perp <= eps_perp, |e_xy| <= eps_xy and |e_theta| <= eps_theta."""
+    """d_perp <= eps_perp, |e_xy| <= eps_xy, |e_theta| <= eps_theta and the brick's tilt
+    <= eps_tilt; and, never widened, the success rule itself on the measured pose (centre
+    offset and rotation). The correction is the target minus the brick: shift and turn the
+    next slot by it."""
     return GateVerdict(
         "sigma5_placement",
         (
-            Check("d_perp_m", abs(alignment.d_perp_m), tol.eps_perp_m, at_most=True),
-            Check("e_xy_m", alignment.e_xy_norm_m, tol.eps_xy_m, at_most=True),
-            Check("e_theta_deg", abs(alignment.e_theta_deg), tol.eps_theta_deg, at_most=True),
+            *_seat_checks(alignment, tol),
+            Check("offset_m", alignment.offset_m, tol.max_offset_m, at_most=True),
+            Check("rotation_deg", alignment.rotation_deg, tol.max_rotation_deg, at_most=True),
+        ),
+        measured=Measured(
+            e_x_m=alignment.e_xy_m[0],
+            e_y_m=alignment.e_xy_m[1],
+            e_theta_deg=alignment.e_theta_deg,
+            d_perp_m=alignment.d_perp_m,
+            tilt_deg=alignment.tilt_deg,
         ),
     )
 
 
+def _seat_checks(alignment: AlignmentErrors, tol: Tolerances) -> tuple[Check, ...]:
+    return (
+        Check("d_perp_m", abs(alignment.d_perp_m), tol.eps_perp_m, at_most=True),
+        Check("e_xy_m", alignment.e_xy_norm_m, tol.eps_xy_m, at_most=True),
+        Check("e_theta_deg", abs(alignment.e_theta_deg), tol.eps_theta_deg, at_most=True),
+        Check("tilt_deg", alignment.tilt_deg, tol.eps_tilt_deg, at_most=True),
+    )
+
+
 def lift_plan(
-    sideways_m: float,
+    sideways_m: tuple[float, float],
     turn_deg: float,
+    speed_mps: float,
     path: CollisionReport,
     bottom_clearance_m: float,
     tol: Tolerances,
 ) -> GateVerdict:
-    """Before a lift moves: straight up (no shift or turn beyond eps_g), collision-free from
-    1 cm up, and ending with the held brick's bottom c_min above every other brick's top."""
+    """Before a lift moves: straight up (no shift or turn beyond eps_g), no faster than
+    v_lift (a faster lift rolls the brick as it breaks away from its support),
+    collision-free from 1 cm up, and ending with the held brick's bottom c_min above every
+    other brick's top. ``sideways_m`` is the lift's end minus the tool's position (x, y);
+    the correction is its opposite."""
     return GateVerdict(
         "lift_plan",
         (
-            Check("sideways_m", sideways_m, tol.eps_g_m, at_most=True),
+            Check("sideways_m", math.hypot(*sideways_m), tol.eps_g_m, at_most=True),
             Check("turn_deg", turn_deg, tol.eps_g_deg, at_most=True),
+            Check("speed_mps", speed_mps, tol.v_lift_mps, at_most=True),
             *_path_checks(path, 0.0 - tol.overlap_m),
             Check("bottom_clearance_m", bottom_clearance_m, tol.c_min_m, at_most=False),
+        ),
+        measured=Measured(
+            e_x_m=-sideways_m[0],
+            e_y_m=-sideways_m[1],
+            move_speed_mps=speed_mps,
+            clearance_m=path.clearance_m,
+            closest=path.closest,
         ),
     )
 
@@ -177,4 +277,5 @@ def sigma6_return(
             *_path_checks(retreat, -tol.overlap_m, prefix="retreat_"),
             *_path_checks(onward, -tol.overlap_m, prefix="return_"),
         ),
+        measured=_path_measured(retreat, onward),
     )

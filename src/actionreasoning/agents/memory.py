@@ -7,6 +7,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from actionreasoning.agents.feedback import Refusal
 from actionreasoning.world.geometry import round_floats
 from actionreasoning.world.stages import Stage
 
@@ -66,6 +67,11 @@ class TaskMemory(BaseModel):
     step: Stage | Literal["start", "done"] = Stage.PRE_GRASP
     retries: dict[str, int] = Field(default_factory=dict, description="Attempts used per agent.")
     last_feedback: str = Field("", description="Why the last attempt was refused, if it was.")
+    refusals: tuple[Refusal, ...] = Field(
+        (),
+        description="Every refusal since the current target's brick was first chosen, oldest "
+        "first, with what its gate measured: correct the next answer by them.",
+    )
     regrasps: int = Field(
         0, description="Times the current target's brick was put down to be grasped again."
     )

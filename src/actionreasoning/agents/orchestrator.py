@@ -1,22 +1,26 @@
 """The gated orchestrator: six agents per brick, each output verified and gated.
 
 Per brick: Ag1 pre-grasp -> Ag2 descent & opening -> Ag3 grasp -> Ag4 safe lift ->
-Ag5 placement -> Ag6 release & return. An answer is first verified (complete, known ids,
-a target whose support is built, a reachable collision-free path); only then does the
-world move, and the gate sigma_i judges what was measured afterwards. A failed check goes
-back to the same agent as feedback, within a retry budget. sigma_4 = 0 puts the brick back
-where it was grasped; Ag5 asking for a re-grasp sets it aside on free ground near by; either
-way the cycle starts again at Ag1. sigma_5 = 0 in contact raises the brick by delta_h and
-asks Ag5 again. A spent budget ends the trial with a typed failure.
+Ag5 placement -> Ag6 release & return. An answer is first validated (schema, workspace,
+unit quaternion, known ids) and verified before the world moves (its ``*_plan`` checks: a
+choice that can be built, a pose where the stage needs it, a clear and reachable path); the
+gate sigma_i then judges what was measured afterwards. A refusal goes back to the same agent
+as feedback (:class:`Refusal`: the failed checks with the measured errors, signed, in the
+world frame), within a retry budget. sigma_4 = 0 puts the brick back where it was grasped;
+Ag5 asking for a re-grasp sets it aside on free ground near by; either way the cycle starts
+again at Ag1. sigma_5 = 0 in contact raises the brick by delta_h and asks Ag5 again. A spent
+budget ends the trial with a typed failure.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import partial
 from typing import TypeVar
+
+from scipy.spatial.transform import Rotation
 
 from actionreasoning.agents import gates
 from actionreasoning.agents.calls import (
@@ -29,8 +33,11 @@ from actionreasoning.agents.calls import (
     TrialStopped,
     failure_of,
 )
+from actionreasoning.agents.feedback import Measured, Refusal
+from actionreasoning.agents.gates import Check, GateVerdict
 from actionreasoning.agents.memory import EarlierAnswer, PlacedBrick, PlacementPhase, TaskMemory
 from actionreasoning.agents.outputs import (
+    AgentAnswer,
     DescentAnswer,
     GraspAnswer,
     LiftAnswer,
@@ -44,18 +51,24 @@ from actionreasoning.agents.put_down import PutDown
 from actionreasoning.agents.reasoner import Reasoner
 from actionreasoning.agents.spec import agent_specs
 from actionreasoning.agents.transcript import Outcome
+from actionreasoning.agents.validation import OutputError, check_answer
 from actionreasoning.agents.view import target_supports
 from actionreasoning.agents.world import World
 from actionreasoning.errors import UnreachableError
 from actionreasoning.records import FailureCode
 from actionreasoning.tools.collision import COLLISION, CollisionQuery, CollisionReport
 from actionreasoning.tools.contact import FINGER_CONTACTS, SLIP
-from actionreasoning.tools.geometry import ALIGNMENT, AlignmentQuery, BrickQuery
-from actionreasoning.tools.placement import SEAT_CLEARANCE_M
-from actionreasoning.world.geometry import quat_yaw, rotation_deg
-from actionreasoning.world.models import GoalPattern, Pose, Progress, WorldState
+from actionreasoning.tools.geometry import ALIGNMENT, AlignmentQuery, BrickQuery, alignment_of
+from actionreasoning.tools.placement import (
+    PLACEMENT_POSE,
+    SEAT_CLEARANCE_M,
+    PlacementQuery,
+    carried_pose,
+)
+from actionreasoning.world.geometry import quat_yaw, rotation_deg, wrap_angle
+from actionreasoning.world.models import BrickState, GoalPattern, Pose, Progress, WorldState
 from actionreasoning.world.motion import Motion
-from actionreasoning.world.scene_spec import GRIPPER_GAP_M, RETREAT_M
+from actionreasoning.world.scene_spec import GRIPPER_GAP_M, RETREAT_M, WORKSPACE
 from actionreasoning.world.stages import Stage
 from actionreasoning.world.tolerances import Tolerances
 
@@ -64,10 +77,9 @@ T = TypeVar("T")
 #: The lift's path is checked from this far above the grasp: below it the brick still
 #: touches its support.
 LIFT_CHECK_FROM_M = 0.01
-#: Where the carry ends: this far above the slot, so that the brick is measured in the
-#: hand again just before the set-down (it may have crept or rolled on the way), with room
-#: below for the ends of a brick rolled up to eps_tilt.
-HOVER_M = 0.08
+#: How long a brick still moving in the hand after the lift is held still before sigma_4
+#: judges it: a swing of a brick hanging from a pad dies out within about half a second.
+SETTLE_S = 0.5
 
 
 @dataclass(frozen=True)
@@ -80,22 +92,30 @@ class Budgets:
 
 
 class _Refused(Exception):
-    """An answer refused by verification or a gate; the message is the agent's feedback.
+    """An answer refused by validation, verification or a gate, with what was measured.
 
     ``reason`` is the failure code the trial ends with if the agent's budget runs out.
     """
 
-    def __init__(self, feedback: str, reason: FailureCode = FailureCode.INVALID_OUTPUT) -> None:
-        super().__init__(feedback)
+    def __init__(self, refusal: Refusal, reason: FailureCode = FailureCode.INVALID_OUTPUT) -> None:
+        super().__init__(refusal.text())
+        self.refusal = refusal
         self.reason = reason
 
 
 class _Regrasp(Exception):
-    """sigma_4 = 0: the brick was put back; start again at Ag1 with this feedback."""
+    """The brick was put down to be grasped again: start again at Ag1 with this refusal."""
+
+    def __init__(self, refusal: Refusal) -> None:
+        super().__init__(refusal.text())
+        self.refusal = refusal
 
 
 class Orchestrator:
-    """Runs the six agents over a goal, brick by brick, against a :class:`World`."""
+    """Runs the six agents over a goal, brick by brick, against a :class:`World`.
+
+    ``tolerances`` are the design thresholds; a build runs under them as widened for the
+    world's sensing noise and narrowed for the goal's joints (:class:`Tolerances`)."""
 
     def __init__(
         self,
@@ -108,6 +128,7 @@ class Orchestrator:
     ) -> None:
         self.world = world
         self.reasoner = reasoner
+        self.design = tolerances
         self.tol = tolerances.under(world.sensing)
         self.budgets = budgets
         self.on_stage = on_stage
@@ -120,6 +141,7 @@ class Orchestrator:
     # --- the pipeline -------------------------------------------------------------------
     def build(self, goal: GoalPattern) -> BuildResult:
         """Build every target of ``goal``; failures end up in ``result.failure``."""
+        self.tol = self.calls.tol = self.design.for_goal(goal).under(self.world.sensing)
         supports = target_supports(goal)
         try:
             while len(self.memory.placed) < len(goal.targets):
@@ -129,27 +151,16 @@ class Orchestrator:
         return self.result
 
     def _place_one(self, supports: Mapping[int, tuple[int, ...]]) -> None:
-        feedback = ""
         for regrasps in range(self.budgets.regrasps + 1):
             self.memory = self.memory.model_copy(
-                update={
-                    "retries": {},
-                    "last_feedback": feedback,
-                    "regrasps": regrasps,
-                    "this_brick": (),
-                    "phase": None,
-                }
+                update={"retries": {}, "regrasps": regrasps, "this_brick": (), "phase": None}
             )
             self._check_bricks_left()
             brick, target = self._stage(
                 Stage.PRE_GRASP, PreGraspAnswer, partial(self._pre_grasp, supports=supports)
             )
-            grasp_pose = self._stage(
-                Stage.DESCENT, DescentAnswer, partial(self._descent, brick=brick)
-            )
-            self._stage(
-                Stage.GRASP, GraspAnswer, partial(self._grasp, brick=brick, pose=grasp_pose)
-            )
+            self._stage(Stage.DESCENT, DescentAnswer, partial(self._descent, brick=brick))
+            grasp_pose = self._stage(Stage.GRASP, GraspAnswer, partial(self._grasp, brick=brick))
             try:
                 lifted = self._stage(
                     Stage.LIFT, LiftAnswer, partial(self._lift, brick=brick, grasp=grasp_pose)
@@ -157,13 +168,19 @@ class Orchestrator:
                 self._placement(brick, target, grasp_pose, lifted)
                 break
             except _Regrasp as regrasp:
-                feedback = str(regrasp)
+                self._note(regrasp.refusal)
         else:
             raise TrialStopped(FailureCode.GRASP_SLIP, self.memory.step, "re-grasp budget spent")
         self._stage(Stage.RELEASE, ReleaseAnswer, partial(self._release, brick=brick))
         placed = (*self.memory.placed, PlacedBrick(brick_id=brick, target_index=target))
         self.memory = self.memory.model_copy(
-            update={"placed": placed, "current_brick": None, "current_target": None}
+            update={
+                "placed": placed,
+                "current_brick": None,
+                "current_target": None,
+                "last_feedback": "",
+                "refusals": (),
+            }
         )
         self.result.placements[target] = brick
 
@@ -195,17 +212,21 @@ class Orchestrator:
         for attempt in range(1, self.budgets.attempts_per_agent + 1):
             answer, state = self.calls.ask(self.specs[key], self.memory, attempt, answers)
             try:
+                self._validate(key, answer, state)
                 outcome = act(answer, state)
             except _Refused as refusal:
                 reason = refusal.reason
-                self._remember(key, attempt, str(refusal))
+                self._remember(key, attempt, refusal.refusal)
                 continue
             except UnreachableError as error:
                 reason = FailureCode.UNREACHABLE
-                self._remember(key, attempt, f"unreachable: {error}")
+                verdict = GateVerdict(
+                    "controller", (Check("reachable", 0.0, 1.0, at_most=False),)
+                ).noted(f"unreachable: {error}")
+                self._remember(key, attempt, self.calls.judge(verdict).refusal(key))
                 continue
             except _Regrasp as regrasp:
-                self.calls.conclude(Outcome.REGRASP, str(regrasp))
+                self.calls.conclude(Outcome.REGRASP, regrasp.refusal.text())
                 raise
             self.calls.conclude(Outcome.ACCEPTED)
             earlier = (*self.memory.this_brick, EarlierAnswer.of(key, answer))
@@ -221,124 +242,225 @@ class Orchestrator:
             f"{self.budgets.attempts_per_agent} answers refused; last: {self.memory.last_feedback}",
         )
 
-    def _remember(self, key: Stage, attempt: int, feedback: str) -> None:
-        self.calls.conclude(Outcome.REFUSED, feedback)
-        retries = {**self.memory.retries, key: attempt}
-        self.memory = self.memory.model_copy(update={"retries": retries, "last_feedback": feedback})
+    def _remember(self, key: Stage, attempt: int, refusal: Refusal) -> None:
+        self.calls.conclude(Outcome.REFUSED, refusal.text())
+        self.memory = self.memory.model_copy(
+            update={"retries": {**self.memory.retries, key: attempt}}
+        )
+        self._note(refusal)
 
-    def _gate(self, verdict: gates.GateVerdict, reason: FailureCode) -> None:
-        """Record a verdict and refuse the answer (failure code ``reason``) if it failed."""
+    def _note(self, refusal: Refusal) -> None:
+        """Keep ``refusal`` in memory: the next answers read it."""
+        self.memory = self.memory.model_copy(
+            update={
+                "last_feedback": refusal.text(),
+                "refusals": (*self.memory.refusals, refusal),
+            }
+        )
+
+    def _validate(self, key: Stage, answer: AgentAnswer, state: WorldState) -> None:
+        """Refuse an answer that is not valid data (as an LLM's answer is checked): a waypoint
+        outside the workspace, a quaternion that is not unit, an unknown id or tool."""
+        try:
+            check_answer(answer, self.specs[key], state, WORKSPACE, normalise=False)
+        except OutputError as error:
+            self._gate(_failed(f"{key}_answer", "valid_answer", str(error)), key)
+
+    def _require(self, key: Stage, answer: AgentAnswer, fields: Sequence[str]) -> None:
+        """Refuse an answer that leaves a decision field of its stage empty."""
+        missing = [name for name in fields if getattr(answer, name) is None]
+        if missing:
+            note = f"the answer needs {', '.join(fields)}; missing: {', '.join(missing)}"
+            self._gate(_failed(f"{key}_plan", "answer_complete", note), key)
+
+    def _gate(
+        self, verdict: GateVerdict, key: Stage, reason: FailureCode = FailureCode.INVALID_OUTPUT
+    ) -> None:
+        """Record a verdict and refuse the answer of ``key`` (failure code ``reason``) if it
+        failed."""
         if not self.calls.judge(verdict).passed:
-            raise _Refused(verdict.feedback, reason)
+            raise _Refused(verdict.refusal(key), reason)
 
     # --- the agents' acts ---------------------------------------------------------------
     def _pre_grasp(
         self, answer: PreGraspAnswer, state: WorldState, supports: Mapping[int, tuple[int, ...]]
     ) -> tuple[int, int]:
-        if answer.brick_id is None or answer.target_index is None or answer.waypoint is None:
-            raise _Refused("the answer needs brick_id, target_index and waypoint")
-        built = {p.target_index for p in self.memory.placed}
-        used = {p.brick_id for p in self.memory.placed}
-        target, brick = answer.target_index, answer.brick_id
-        if target >= len(state.goal.targets) or target in built:
-            raise _Refused(
-                f"target {target} does not exist or is already built", FailureCode.INVALID_CHOICE
-            )
-        missing = [t for t in supports[target] if t not in built]
-        if missing:
-            raise _Refused(
-                f"target {target} rests on targets {missing}, not built yet",
-                FailureCode.INVALID_CHOICE,
-            )
-        if brick in used or brick not in {b.id for b in state.bricks}:
-            raise _Refused(
-                f"brick {brick} does not exist or is already placed", FailureCode.INVALID_CHOICE
-            )
-        if not state.brick(brick).pickable:
-            raise _Refused(
-                f"brick {brick} is {state.brick(brick).status}, neither in the pick area nor "
-                "lying on the ground",
-                FailureCode.INVALID_CHOICE,
-            )
-        waypoint = _checked(answer.waypoint, path="joint")
-        path = self._clearance(state, waypoint, ignore=brick)
-        self._gate(gates.sigma1_pre_grasp(path, self.tol), FailureCode.COLLISION)
+        key = Stage.PRE_GRASP
+        self._require(key, answer, ("brick_id", "target_index", "waypoint"))
+        assert answer.brick_id is not None and answer.target_index is not None
+        assert answer.waypoint is not None
+        self._gate(
+            self._choice(answer.brick_id, answer.target_index, state, supports),
+            key,
+            FailureCode.INVALID_CHOICE,
+        )
+        brick = state.brick(answer.brick_id)
+        waypoint = _checked(key, answer.waypoint, path="joint")
+        self._gate(self._over_brick(f"{key}_plan", brick, waypoint, height=False), key)
+        path = self._clearance(state, waypoint, ignore=brick.id)
+        self._gate(gates.sigma1_pre_grasp(path, self.tol), key, FailureCode.COLLISION)
         self.memory = self.memory.model_copy(
-            update={"current_brick": brick, "current_target": target}
+            update={"current_brick": brick.id, "current_target": answer.target_index}
         )
         self.world.move(waypoint)
-        return brick, target
+        return brick.id, answer.target_index
 
-    def _descent(self, answer: DescentAnswer, state: WorldState, brick: int) -> WaypointProposal:
-        if answer.gripper_opening_m is None or answer.waypoint is None:
-            raise _Refused("the answer needs gripper_opening_m and waypoint")
-        waypoint = _checked(answer.waypoint, path="linear")
-        width = state.brick(brick).size_m[1]
-        if answer.gripper_opening_m < width + self.tol.delta_m:
-            raise _Refused(
-                f"opening {answer.gripper_opening_m:.3f} m < brick width {width:.3f} + delta"
-            )
-        path = self._clearance(
-            state,
-            waypoint,
-            start=state.robot.ee_pose,
-            opening=answer.gripper_opening_m,
-            ignore=brick,
+    def _choice(
+        self, brick: int, target: int, state: WorldState, supports: Mapping[int, tuple[int, ...]]
+    ) -> GateVerdict:
+        """The target can be built now and the brick is free (Ag1's choice)."""
+        built = {p.target_index for p in self.memory.placed}
+        used = {p.brick_id for p in self.memory.placed}
+        missing = [t for t in supports[target] if t not in built]
+        free = brick not in used and state.brick(brick).pickable
+        notes = []
+        if target in built:
+            notes.append(f"target {target} is already built")
+        if missing:
+            notes.append(f"target {target} rests on targets {missing}, not built yet")
+        if not free:
+            status = "placed" if brick in used else state.brick(brick).status
+            notes.append(f"brick {brick} is {status}, neither in the pick area nor on the ground")
+        return GateVerdict(
+            f"{Stage.PRE_GRASP}_choice",
+            (
+                Check("target_buildable", float(target not in built and not missing), 1.0, False),
+                Check("brick_free", float(free), 1.0, at_most=False),
+            ),
+        ).noted("; ".join(notes))
+
+    def _over_brick(
+        self, gate: str, brick: BrickState, waypoint: WaypointProposal, height: bool
+    ) -> GateVerdict:
+        """The tool pose ``waypoint`` over ``brick``'s centre (at it, with ``height``),
+        pointing down with the pads across its width, within the grasp tolerance eps_g."""
+        bx, by, bz = brick.pose.position_m
+        x, y, z = waypoint.position_m
+        yaw_error = _half_turn_deg(quat_yaw(brick.pose.quat_xyzw) - quat_yaw(waypoint.quat_xyzw))
+        offset = (bx - x, by - y, bz - z if height else 0.0)
+        return GateVerdict(
+            gate,
+            (
+                Check("grasp_offset_m", math.hypot(*offset), self.tol.eps_g_m, at_most=True),
+                Check("grasp_yaw_deg", abs(yaw_error), self.tol.eps_g_deg, at_most=True),
+                Check("pointing_down_deg", _tilt_from_down(waypoint), self.tol.eps_g_deg, True),
+            ),
+            measured=Measured(e_x_m=offset[0], e_y_m=offset[1], e_theta_deg=yaw_error),
         )
-        if not self.tol.clear(path.clearance_m, path.reachable):
-            raise _Refused(
-                f"descent path collides: {path.closest} ({path.clearance_m:.3f} m)",
-                FailureCode.COLLISION,
-            )
+
+    def _descent(self, answer: DescentAnswer, state: WorldState, brick: int) -> None:
+        key = Stage.DESCENT
+        self._require(key, answer, ("gripper_opening_m", "waypoint"))
+        assert answer.gripper_opening_m is not None and answer.waypoint is not None
+        waypoint = _checked(key, answer.waypoint, path="linear")
+        held = state.brick(brick)
+        tool = state.robot.ee_pose
+        plan = self._over_brick(f"{key}_plan", held, waypoint, height=True)
+        path = self._clearance(
+            state, waypoint, start=tool, opening=answer.gripper_opening_m, ignore=brick
+        )
+        width = held.size_m[1]
+        self._gate(
+            GateVerdict(
+                plan.gate,
+                (
+                    Check("opening_m", answer.gripper_opening_m, width + self.tol.delta_m, False),
+                    Check(
+                        "turn_deg",
+                        rotation_deg(tool.quat_xyzw, waypoint.quat_xyzw),
+                        self.tol.eps_g_deg,
+                        at_most=True,
+                    ),
+                    *plan.checks,
+                    *_clear(path, self.tol, "way_"),
+                ),
+                measured=plan.measured.model_copy(
+                    update={"clearance_m": path.clearance_m, "closest": path.closest}
+                ),
+            ),
+            key,
+            FailureCode.COLLISION
+            if not self.tol.clear(path.clearance_m)
+            else FailureCode.INVALID_OUTPUT,
+        )
         self.world.grip(answer.gripper_opening_m)
         self.world.move(waypoint)
         after = self.world.observe(Progress(current_brick=brick, step=Stage.DESCENT))
         pads = self.calls.measure(after, FINGER_CONTACTS, BrickQuery(brick_id=brick))
-        shift = math.dist(
-            after.brick(brick).pose.position_m[:2], state.brick(brick).pose.position_m[:2]
-        )
+        bx, by, _ = after.brick(brick).pose.position_m
+        shift = (bx - held.pose.position_m[0], by - held.pose.position_m[1])
         sigma2 = gates.sigma2_descent(after.robot.gripper_width_m, width, pads, shift, self.tol)
-        self._gate(sigma2, FailureCode.DESCENT_BLOCKED)
-        return waypoint
+        if not self.calls.judge(sigma2).passed:
+            # Back up the way it came, so that the next descent starts above the brick again.
+            self.world.move(
+                WaypointProposal(
+                    position_m=tool.position_m, quat_xyzw=tool.quat_xyzw, path="linear"
+                )
+            )
+            raise _Refused(sigma2.refusal(key), FailureCode.DESCENT_BLOCKED)
 
-    def _grasp(
-        self, answer: GraspAnswer, state: WorldState, brick: int, pose: WaypointProposal
-    ) -> None:
+    def _grasp(self, answer: GraspAnswer, state: WorldState, brick: int) -> WaypointProposal:
+        """Close on the brick (at the answer's corrected pose, if any); returns where."""
+        key = Stage.GRASP
         if not answer.close:
-            raise _Refused("the gripper is at the grasp pose: answer close = true")
+            note = "the gripper is at the grasp pose: answer close = true"
+            self._gate(_failed(f"{key}_plan", "close", note), key)
+        tool = state.robot.ee_pose
+        at = WaypointProposal(position_m=tool.position_m, quat_xyzw=tool.quat_xyzw, path="linear")
+        if answer.waypoint is not None:
+            at = _checked(key, answer.waypoint, path="linear")
+            plan = self._over_brick(f"{key}_plan", state.brick(brick), at, height=True)
+            path = self._clearance(state, at, start=tool, ignore=brick)
+            self._gate(
+                GateVerdict(
+                    plan.gate, (*plan.checks, *_clear(path, self.tol, "way_")), plan.measured
+                ),
+                key,
+            )
+            self.world.move(at)
         self.world.grip(None)
         after = self.world.observe(Progress(current_brick=brick, step=Stage.GRASP))
         pads = self.calls.measure(after, FINGER_CONTACTS, BrickQuery(brick_id=brick))
         slip = self.calls.measure(after, SLIP, BrickQuery(brick_id=brick))
-        offset = math.hypot(*slip.offset_in_gripper_m)
-        turn = math.degrees(
-            abs(
-                _wrap_half_turn(
-                    quat_yaw(after.robot.ee_pose.quat_xyzw)
-                    - quat_yaw(after.brick(brick).pose.quat_xyzw)
-                )
-            )
+        grip = Rotation.from_quat(after.robot.ee_pose.quat_xyzw)
+        dx, dy, _ = grip.apply(slip.offset_in_gripper_m)
+        turn = _half_turn_deg(
+            quat_yaw(after.brick(brick).pose.quat_xyzw) - quat_yaw(after.robot.ee_pose.quat_xyzw)
         )
-        verdict = self.calls.judge(gates.sigma3_grasp(pads, offset, turn, self.tol))
+        verdict = self.calls.judge(gates.sigma3_grasp(pads, (dx, dy), turn, self.tol))
         if not verdict.passed:
             self.world.grip(GRIPPER_GAP_M[1])
-            raise _Refused(verdict.feedback, FailureCode.GRASP_FAILED)
+            raise _Refused(verdict.refusal(key), FailureCode.GRASP_FAILED)
+        return at
 
     def _lift(
         self, answer: LiftAnswer, state: WorldState, brick: int, grasp: WaypointProposal
     ) -> WaypointProposal:
-        if answer.waypoint is None:
-            raise _Refused("the answer needs a waypoint")
-        waypoint = _checked(answer.waypoint, path="linear")
-        self._gate(self._lift_plan(state, brick, waypoint), FailureCode.COLLISION)
+        key = Stage.LIFT
+        self._require(key, answer, ("waypoint",))
+        assert answer.waypoint is not None
+        waypoint = _checked(key, answer.waypoint, path="linear")
+        self._gate(self._lift_plan(state, brick, waypoint), key, FailureCode.COLLISION)
         self.world.move(waypoint)
         after = self.world.observe(Progress(current_brick=brick, step=Stage.LIFT))
         slip = self.calls.measure(after, SLIP, BrickQuery(brick_id=brick))
+        if slip.relative_speed_mps > self.tol.v_th_mps:
+            # Still swinging from the move's end: judge the brick once it is at rest in the
+            # hand, so that v_th measures creep, not the swing.
+            self.world.move(waypoint.model_copy(update={"duration_s": SETTLE_S}))
+            after = self.world.observe(Progress(current_brick=brick, step=Stage.LIFT))
+            slip = self.calls.measure(after, SLIP, BrickQuery(brick_id=brick))
         pads = self.calls.measure(after, FINGER_CONTACTS, BrickQuery(brick_id=brick))
-        verdict = self.calls.judge(gates.sigma4_lift(slip, pads, self.tol))
+        set_down = self.calls.measure(
+            after,
+            PLACEMENT_POSE,
+            PlacementQuery(brick_id=brick, target_index=self.memory.current_target or 0),
+        )
+        speed = _speed(state.robot.ee_pose, waypoint)
+        verdict = self.calls.judge(gates.sigma4_lift(slip, pads, set_down, speed, self.tol))
         if not verdict.passed:
-            self._put_back(brick, grasp, waypoint)
-            raise _Regrasp(verdict.feedback)
+            self._set_aside(brick, grasp, waypoint)
+            raise _Regrasp(verdict.refusal(key))
         return waypoint
 
     def _lift_plan(
@@ -353,27 +475,26 @@ class Orchestrator:
         others = [b.pose.position_m[2] + b.size_m[2] / 2 for b in state.bricks if b.id != brick]
         bottom = held.pose.position_m[2] - held.size_m[2] / 2 + rise
         return gates.lift_plan(
-            sideways_m=math.hypot(lift.position_m[0] - x, lift.position_m[1] - y),
+            sideways_m=(lift.position_m[0] - x, lift.position_m[1] - y),
             turn_deg=rotation_deg(tool.quat_xyzw, lift.quat_xyzw),
+            speed_mps=_speed(tool, lift),
             path=self._clearance(state, lift, start=start),
             bottom_clearance_m=bottom - max(others, default=0.0),
             tol=self.tol,
         )
 
-    def _put_back(self, brick: int, spot: WaypointProposal, lifted: WaypointProposal) -> None:
-        """Put the held brick back flat on ``spot``, where it was grasped (sigma_4 = 0)."""
-        self.put_down.put_back(self._observer(brick), brick, _as_pose(spot), lifted.position_m[2])
-
     def _set_aside(self, brick: int, grasp: WaypointProposal, lifted: WaypointProposal) -> None:
-        """Put the held brick down on the free ground nearest the tool (Ag5 asked for a
-        re-grasp): a loose brick swings further on every move, so it is not carried back.
-        Where no free ground near by is within reach, it goes back where it was grasped."""
+        """Put the held brick down on the free ground nearest the tool, where it can be
+        grasped again (sigma_4 = 0, or Ag5 asked for a re-grasp): a loose brick swings
+        further on every move, so it is not carried far. Where no free ground near by is
+        within reach, it goes back where it was grasped."""
         state = self.world.observe(Progress(current_brick=brick, step=self.memory.step))
         built = {p.target_index for p in self.memory.placed}
         height = lifted.position_m[2]
         spot = None
         if state.brick(brick).status == "grasped":
-            spot = self.put_down.free_spot(state, brick, built, _as_pose(grasp), height)
+            target = self.memory.current_target or 0
+            spot = self.put_down.free_spot(state, brick, target, built, height)
         self.put_down.put_back(self._observer(brick), brick, spot or _as_pose(grasp), height)
 
     def _observer(self, brick: int) -> Callable[[], WorldState]:
@@ -389,37 +510,34 @@ class Orchestrator:
         the cycle starts again at Ag1 (a brick that rolled in the hand is grasped level).
         """
         back = partial(self._set_aside, brick, grasp, lifted)
+        place = partial(self._carry_over_slot, brick=brick, target=target, back=back)
         self._placement_phase(PlacementPhase.CARRY)
-        self._stage(
-            Stage.PLACEMENT,
-            PlacementAnswer,
-            partial(self._carry_over_slot, brick=brick, back=back),
-            label=Stage.TRANSFER,
-        )
+        self._stage(Stage.PLACEMENT, PlacementAnswer, place, label=Stage.TRANSFER)
         self._placement_phase(PlacementPhase.SET_DOWN)
+        place = partial(self._set_down, brick=brick, target=target, back=back)
         failed = ""  # the last sigma_5 verdict's failed checks: the failure's detail
         for _ in range(self.budgets.placement_attempts):
-            slot, motion = self._stage(
-                Stage.PLACEMENT, PlacementAnswer, partial(self._set_down, brick=brick, back=back)
-            )
+            slot, motion = self._stage(Stage.PLACEMENT, PlacementAnswer, place)
             state = self.world.observe(Progress(current_brick=brick, step=Stage.PLACEMENT))
             errors = self.calls.measure(
                 state, ALIGNMENT, AlignmentQuery(brick_id=brick, target_index=target)
             )
-            verdict = self.calls.judge(gates.sigma5_placement(errors, self.tol))
-            if verdict.passed:
+            verdict = gates.sigma5_placement(errors, self.tol).noted(
+                _touch_down(motion, state, slot)
+            )
+            if self.calls.judge(verdict).passed:
                 self._placement_phase(None)
                 return
-            failed = verdict.feedback
-            feedback = f"{failed}; {_touch_down(motion, state, slot)}"
-            self.calls.conclude(Outcome.RAISED, feedback)
+            refusal = verdict.refusal(Stage.PLACEMENT)
+            failed = refusal.text()
+            self.calls.conclude(Outcome.RAISED, failed)
             # Misaligned in contact: raise by delta_h and ask Ag5 again.
             x, y, z = state.robot.ee_pose.position_m
             up = WaypointProposal(
                 position_m=(x, y, z + self.tol.delta_h_m), quat_xyzw=slot.quat_xyzw, path="linear"
             )
             self.world.move(up)
-            self.memory = self.memory.model_copy(update={"last_feedback": feedback})
+            self._note(refusal)
         raise TrialStopped(FailureCode.PLACEMENT_MISALIGNED, Stage.PLACEMENT, failed)
 
     def _placement_phase(self, phase: PlacementPhase | None) -> None:
@@ -427,77 +545,105 @@ class Orchestrator:
         self.memory = self.memory.model_copy(update={"phase": phase})
 
     def _carry_over_slot(
-        self, answer: PlacementAnswer, state: WorldState, brick: int, back: Callable[[], None]
+        self,
+        answer: PlacementAnswer,
+        state: WorldState,
+        brick: int,
+        target: int,
+        back: Callable[[], None],
     ) -> None:
-        """Carry the brick over the proposed slot, once the way there and down is clear, and
-        lower it to HOVER_M above the slot."""
-        self._regrasp_if_asked(answer, state, brick, back)
-        slot = self._slot(answer)
+        """Carry the brick over the proposed slot, at the height it was carried at, once the
+        slot would set it within the success rule and the way there and down is clear."""
+        slot = self._slot(answer, state, brick, back)
         above = _above(slot, state)
-        transfer = self._clearance(state, above)
-        self._check_descent(state, slot, start=above, path=transfer)
+        self._check_slot(state, brick, target, slot, above, transfer=self._clearance(state, above))
         self.world.move(above)
-        x, y, z = slot.position_m
-        if above.position_m[2] > z + HOVER_M:
-            self.world.move(
-                WaypointProposal(
-                    position_m=(x, y, z + HOVER_M), quat_xyzw=slot.quat_xyzw, path="linear"
-                )
-            )
-
-    def _regrasp_if_asked(
-        self, answer: PlacementAnswer, state: WorldState, brick: int, back: Callable[[], None]
-    ) -> None:
-        """Ag5 asked for a re-grasp: put the brick back and start again at Ag1."""
-        if not answer.regrasp:
-            return
-        tilt = self.calls.measure(state, SLIP, BrickQuery(brick_id=brick)).tilt_in_hand_deg
-        back()
-        raise _Regrasp(
-            f"placement asked for a re-grasp; the brick had rolled {tilt:.1f} deg in the hand"
-        )
 
     def _set_down(
-        self, answer: PlacementAnswer, state: WorldState, brick: int, back: Callable[[], None]
+        self,
+        answer: PlacementAnswer,
+        state: WorldState,
+        brick: int,
+        target: int,
+        back: Callable[[], None],
     ) -> tuple[WaypointProposal, Motion]:
         """Set the brick down on the (re-measured) slot: over it, then straight down onto it.
         Returns the slot and what the way down did."""
-        self._regrasp_if_asked(answer, state, brick, back)
-        slot = self._slot(answer)
+        slot = self._slot(answer, state, brick, back)
         above = _above(slot, state, path="linear")
         shift = self._clearance(state, above, start=state.robot.ee_pose)
-        self._check_descent(state, slot, start=above, path=shift)
+        self._check_slot(state, brick, target, slot, above, transfer=shift)
         self.world.move(above)
         # Onto the slot itself, pressed flat by the position controller; the guard stops the
         # move early if the brick meets its support above the slot.
         down = self.world.move(slot.model_copy(update={"path": "linear"}), stop_on_contact=brick)
         return slot, down
 
-    @staticmethod
-    def _slot(answer: PlacementAnswer) -> WaypointProposal:
-        if answer.waypoint is None:
-            raise _Refused("the answer needs a waypoint")
-        return _checked(answer.waypoint)
+    def _slot(
+        self, answer: PlacementAnswer, state: WorldState, brick: int, back: Callable[[], None]
+    ) -> WaypointProposal:
+        """The answer's slot pose; a re-grasp, if that is what Ag5 asked for."""
+        if answer.regrasp:
+            tilt = self.calls.measure(state, SLIP, BrickQuery(brick_id=brick)).tilt_in_hand_deg
+            back()
+            raise _Regrasp(
+                Refusal(
+                    agent=Stage.PLACEMENT,
+                    gate="regrasp",
+                    measured=Measured(tilt_deg=tilt),
+                    note=f"placement asked for a re-grasp: {answer.rationale}",
+                )
+            )
+        self._require(Stage.PLACEMENT, answer, ("waypoint",))
+        assert answer.waypoint is not None
+        return _checked(Stage.PLACEMENT, answer.waypoint)
 
-    def _check_descent(
+    def _check_slot(
         self,
         state: WorldState,
+        brick: int,
+        target: int,
         slot: WaypointProposal,
-        start: WaypointProposal,
-        path: CollisionReport | None = None,
+        above: WaypointProposal,
+        transfer: CollisionReport,
     ) -> None:
-        """Refuse a slot whose way down (and ``path`` to its start, if given) collides.
-
-        The set-down ends in contact by design: the check goes to just above the seat.
-        """
+        """Refuse a slot that would not set the brick, as it sits in the hand now, within the
+        success rule, or whose way over it (``transfer``) or down collides. The way down
+        ends in contact by design: it is checked to just above the seat."""
+        goal = state.goal.targets[target]
+        held = state.brick(brick)
+        predicted = alignment_of(carried_pose(state, brick, _as_pose(slot)), held.size_m, goal)
         x, y, z = slot.position_m
         near = WaypointProposal(position_m=(x, y, z + SEAT_CLEARANCE_M), quat_xyzw=slot.quat_xyzw)
-        descent = self._clearance(state, near, start=start)
-        for report in (path, descent):
-            if report is not None and not self.tol.clear(report.clearance_m, report.reachable):
-                raise _Refused(
-                    f"path to the slot collides: {report.closest}", FailureCode.COLLISION
-                )
+        descent = self._clearance(state, near, start=above)
+        worst = min((transfer, descent), key=lambda r: r.clearance_m if r.reachable else -1e9)
+        verdict = GateVerdict(
+            f"{Stage.PLACEMENT}_plan",
+            (
+                Check("predicted_offset_m", predicted.offset_m, self.tol.max_offset_m, True),
+                Check(
+                    "predicted_rotation_deg",
+                    predicted.rotation_deg,
+                    self.tol.max_rotation_deg,
+                    True,
+                ),
+                *_clear(worst, self.tol, "way_"),
+            ),
+            measured=Measured(
+                e_x_m=predicted.e_xy_m[0],
+                e_y_m=predicted.e_xy_m[1],
+                e_theta_deg=predicted.e_theta_deg,
+                d_perp_m=predicted.d_perp_m,
+                clearance_m=worst.clearance_m,
+                closest=worst.closest,
+            ),
+        )
+        collides = not self.tol.clear(worst.clearance_m, worst.reachable)
+        self._gate(
+            verdict,
+            Stage.PLACEMENT,
+            FailureCode.COLLISION if collides else FailureCode.INVALID_OUTPUT,
+        )
 
     def _clearance(
         self,
@@ -521,9 +667,34 @@ class Orchestrator:
         return self.calls.measure(state, COLLISION, query)
 
     def _release(self, answer: ReleaseAnswer, state: WorldState, brick: int) -> None:
-        if answer.gripper_opening_m is None or answer.waypoint is None:
-            raise _Refused("the answer needs gripper_opening_m and waypoint")
-        ready = _checked(answer.waypoint)
+        key = Stage.RELEASE
+        self._require(key, answer, ("gripper_opening_m", "waypoint"))
+        assert answer.gripper_opening_m is not None and answer.waypoint is not None
+        ready = _checked(key, answer.waypoint)
+        home = state.robot.ready_pose
+        self._gate(
+            GateVerdict(
+                f"{key}_plan",
+                (
+                    Check(
+                        "opening_m", answer.gripper_opening_m, state.brick(brick).size_m[1], False
+                    ),
+                    Check(
+                        "ready_offset_m",
+                        math.dist(ready.position_m, home.position_m),
+                        self.tol.eps_g_m,
+                        at_most=True,
+                    ),
+                    Check(
+                        "ready_turn_deg",
+                        rotation_deg(ready.quat_xyzw, home.quat_xyzw),
+                        self.tol.eps_g_deg,
+                        at_most=True,
+                    ),
+                ),
+            ),
+            key,
+        )
         x, y, z = state.robot.ee_pose.position_m
         retreat = WaypointProposal(
             position_m=(x, y, z + RETREAT_M), quat_xyzw=state.robot.ee_pose.quat_xyzw, path="linear"
@@ -543,10 +714,23 @@ class Orchestrator:
             ignore=brick,
             joint=True,
         )
-        self._gate(gates.sigma6_return(way_up, onward, self.tol), FailureCode.COLLISION)
+        self._gate(gates.sigma6_return(way_up, onward, self.tol), key, FailureCode.COLLISION)
         self.world.grip(answer.gripper_opening_m)
         self.world.move(retreat)
         self.world.move(ready)
+
+
+def _failed(gate: str, check: str, note: str) -> GateVerdict:
+    """A verdict with the one failed yes/no check ``check``, saying why in ``note``."""
+    return GateVerdict(gate, (Check(check, 0.0, 1.0, at_most=False),)).noted(note)
+
+
+def _clear(report: CollisionReport, tol: Tolerances, prefix: str) -> tuple[Check, ...]:
+    """A path reachable and clear, no overlap beyond what sensing noise can show."""
+    return (
+        Check(f"{prefix}reachable", float(report.reachable), 1.0, at_most=False),
+        Check(f"{prefix}clearance_m", report.clearance_m, -tol.overlap_m, at_most=False),
+    )
 
 
 def _above(slot: WaypointProposal, state: WorldState, path: str = "joint") -> WaypointProposal:
@@ -567,18 +751,32 @@ def _touch_down(motion: Motion, after: WorldState, slot: WaypointProposal) -> st
     )
 
 
+def _speed(tool: Pose, waypoint: WaypointProposal) -> float:
+    """Mean speed (m/s) of a move from ``tool`` to ``waypoint``: infinite without a duration
+    (as fast as the controller's limits allow)."""
+    length = math.dist(tool.position_m, waypoint.position_m)
+    return length / waypoint.duration_s if waypoint.duration_s else math.inf
+
+
+def _tilt_from_down(waypoint: WaypointProposal) -> float:
+    """Angle (deg) between the tool's z axis and world down."""
+    axis = Rotation.from_quat(waypoint.quat_xyzw).apply((0.0, 0.0, 1.0))
+    return math.degrees(math.acos(max(-1.0, min(1.0, -float(axis[2])))))
+
+
+def _half_turn_deg(angle_rad: float) -> float:
+    """An angle modulo a half turn, in degrees in [-90, 90): pads grip a brick turned 180 deg
+    the same."""
+    return math.degrees(wrap_angle(2.0 * angle_rad) / 2.0)
+
+
 def _as_pose(waypoint: WaypointProposal | Pose) -> Pose:
     return Pose(position_m=waypoint.position_m, quat_xyzw=waypoint.quat_xyzw)
 
 
-def _checked(waypoint: WaypointProposal, path: str | None = None) -> WaypointProposal:
+def _checked(key: Stage, waypoint: WaypointProposal, path: str | None = None) -> WaypointProposal:
     """A waypoint with a unit quaternion (normalised within tolerance, else refused)."""
     try:
         return unit_waypoint(waypoint, path)
     except ValueError as error:
-        raise _Refused(str(error)) from None
-
-
-def _wrap_half_turn(angle_rad: float) -> float:
-    """An angle modulo pi, into [-pi/2, pi/2): a gripper turned 180 deg grips the same."""
-    return (angle_rad + math.pi / 2.0) % math.pi - math.pi / 2.0
+        raise _Refused(_failed(f"{key}_answer", "valid_answer", str(error)).refusal(key)) from None

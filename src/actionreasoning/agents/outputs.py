@@ -13,11 +13,9 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.world.geometry import QUAT_NORM_TOLERANCE, QuatXYZW, Vec3
+from actionreasoning.world.motion import MAX_MOVE_S
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M
 from actionreasoning.world.stages import Stage
-
-#: The longest a single move may be asked to take.
-MAX_MOVE_S = 30.0
 
 
 class _Output(BaseModel):
@@ -87,9 +85,15 @@ class DescentAnswer(AgentAnswer):
 
 
 class GraspAnswer(AgentAnswer):
-    """Agent 3: close the gripper at the current pose (or not yet)."""
+    """Agent 3: close the gripper where the tool is, or at a corrected pose."""
 
     close: bool = False
+    waypoint: WaypointProposal | None = Field(
+        None,
+        description="Where to close, reached straight from where the tool is (after a "
+        "refused grasp: the tool pose shifted and turned by the refusal's errors); null: "
+        "where the tool is.",
+    )
 
 
 class LiftAnswer(AgentAnswer):

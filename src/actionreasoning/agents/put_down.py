@@ -20,12 +20,12 @@ from actionreasoning.agents.calls import AgentCaller
 from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.agents.world import World
 from actionreasoning.tools.collision import COLLISION, CollisionQuery
-from actionreasoning.tools.reach import REACHABILITY, ReachQuery
+from actionreasoning.tools.grasp_plan import GRASP_OPTIONS, GraspOptionsQuery
 from actionreasoning.world.boxes import Box
-from actionreasoning.world.geometry import Vec3, quat_yaw, top_down_quat
+from actionreasoning.world.geometry import Vec3, quat_yaw, top_down_quat, yaw_quat
 from actionreasoning.world.ground import free_spots
 from actionreasoning.world.models import Pose, WorldState
-from actionreasoning.world.scene_spec import GRIPPER_GAP_M
+from actionreasoning.world.scene_spec import GRIPPER_GAP_M, ReachBand
 
 GRIPPER_OPEN_M = GRIPPER_GAP_M[1]
 #: Mean speed of every move with a brick to put down, and the shortest move.
@@ -35,19 +35,18 @@ MIN_MOVE_S = 0.1
 PUT_DOWN_SLACK_M = 0.01
 #: Where a brick is set aside: within this distance of the tool, this far from every other
 #: brick and target (room for the open fingers and a loose brick's bounce), trying up to
-#: this many spots, nearest first and this far apart, for one within reach.
+#: this many spots, nearest first and this far apart, for one within reach and graspable.
 SET_ASIDE_RANGE_M = 0.6
 SET_ASIDE_MARGIN_M = 0.08
 SET_ASIDE_CANDIDATES = 40
 SET_ASIDE_SPREAD_M = 0.05
-#: How far from its spot a brick put down may end up (seen: up to 5 cm).
-SET_ASIDE_SLACK_M = 0.05
+#: How far from its spot a brick put down may end up (seen: up to 10 cm, a brick rolled
+#: 55 deg in the hand, which turns flat about its pivot on a pad rather than the tool).
+SET_ASIDE_SLACK_M = 0.10
 #: A brick swinging in the hand is measured again over its spot up to this many times,
 #: until the place to press it flat from moves less than this.
 PRESS_CHECKS = 3
 PRESS_TOLERANCE_M = 0.005
-#: Distances from the arm's base probed for reach (start, stop, step; m).
-REACH_PROBES_M = (0.30, 0.90, 0.02)
 
 
 class PutDown:
@@ -102,17 +101,19 @@ class PutDown:
         self.world.move(down.model_copy(update={"position_m": (*press[:2], height)}))
 
     def free_spot(
-        self, state: WorldState, brick: int, built: set[int], grasp: Pose, height: float
+        self, state: WorldState, brick: int, target: int, built: set[int], height: float
     ) -> Pose | None:
         """The tool pose that grasps brick ``brick`` set down on the nearest free ground:
-        clear of every other brick and every target not in ``built``, and within reach (from
-        the grasp up to ``height``) even if the brick lands a little off."""
+        clear of every other brick and every target not in ``built``, inside the arm's
+        measured reach band with room for a landing off by SET_ASIDE_SLACK_M, reached on the
+        way down from ``height``, and graspable there for ``target`` (a grasp that reaches
+        the brick and the target)."""
         occupied = [_footprint(b.pose, b.size_m) for b in state.bricks if b.id != brick]
         occupied += [
             _footprint(t.pose, t.size_m) for t in state.goal.targets if t.index not in built
         ]
         held, tool = state.brick(brick), state.robot.ee_pose
-        quat = top_down_quat(quat_yaw(tool.quat_xyzw))
+        yaw = quat_yaw(tool.quat_xyzw)
         spots = free_spots(
             tool.position_m[:2],
             held.size_m,
@@ -121,22 +122,41 @@ class PutDown:
             SET_ASIDE_MARGIN_M,
             SET_ASIDE_RANGE_M,
         )
-        # Within reach on the whole way up from the ground: an approach pose is in between.
-        ground = grasp.position_m[2]
-        heights = (ground, (ground + height) / 2.0, height)
-        low, high = self._reach_band(state, tool.position_m[:2], quat, heights)
+        band = ReachBand()
+        low, high = band.min_radius_m + SET_ASIDE_SLACK_M, band.max_radius_m - SET_ASIDE_SLACK_M
         tried: list[tuple[float, float]] = []
         for x, y in spots:
             if len(tried) == SET_ASIDE_CANDIDATES:
                 return None
-            within = low + SET_ASIDE_SLACK_M <= math.hypot(x, y) <= high - SET_ASIDE_SLACK_M
-            if not within or any(math.dist((x, y), t) < SET_ASIDE_SPREAD_M for t in tried):
+            if not low <= math.hypot(x, y) <= high or any(
+                math.dist((x, y), t) < SET_ASIDE_SPREAD_M for t in tried
+            ):
                 continue
             tried.append((x, y))
-            spot = Pose(position_m=(x, y, ground), quat_xyzw=quat)
-            if self._way_down_reachable(state, spot, height, brick):
+            spot = Pose(position_m=(x, y, held.size_m[2] / 2.0), quat_xyzw=top_down_quat(yaw))
+            if self._way_down_reachable(state, spot, height, brick) and self._graspable(
+                state, brick, target, spot, yaw
+            ):
                 return spot
         return None
+
+    def _graspable(
+        self, state: WorldState, brick: int, target: int, spot: Pose, yaw: float
+    ) -> bool:
+        """Whether a grasp of brick ``brick`` lying flat under ``spot`` (at ``yaw``) reaches
+        it and ``target`` (``grasp_options`` on the world with the brick put there)."""
+        lying = state.brick(brick).model_copy(
+            update={
+                "pose": Pose(position_m=spot.position_m, quat_xyzw=yaw_quat(yaw)),
+                "status": "dropped",
+            }
+        )
+        there = state.model_copy(
+            update={"bricks": tuple(lying if b.id == brick else b for b in state.bricks)}
+        )
+        query = GraspOptionsQuery(brick_id=brick, target_index=target)
+        options = self.calls.measure(there, GRASP_OPTIONS, query).options
+        return any(option.reachable for option in options)
 
     def _way_down_reachable(self, state: WorldState, spot: Pose, height: float, brick: int) -> bool:
         """Every pose of the way straight down onto ``spot`` within reach (the held brick is
@@ -151,28 +171,6 @@ class PutDown:
         )
         report = self.calls.measure(state, COLLISION, query)
         return bool(report.reachable)
-
-    def _reach_band(
-        self,
-        state: WorldState,
-        towards: tuple[float, float],
-        quat: tuple[float, float, float, float],
-        heights: tuple[float, ...],
-    ) -> tuple[float, float]:
-        """The least and greatest distance from the arm's base, along the ray through
-        ``towards``, at which the tool reaches down at ``quat`` at every one of ``heights``."""
-        azimuth = math.atan2(towards[1], towards[0])
-
-        def reached(radius: float) -> bool:
-            x, y = radius * math.cos(azimuth), radius * math.sin(azimuth)
-            poses = (Pose(position_m=(x, y, z), quat_xyzw=quat) for z in heights)
-            return all(
-                self.calls.measure(state, REACHABILITY, ReachQuery(pose=pose)).reachable
-                for pose in poses
-            )
-
-        radii = [float(r) for r in np.arange(*REACH_PROBES_M) if reached(float(r))]
-        return (min(radii), max(radii)) if radii else (math.inf, -math.inf)
 
     def _gently(self, move: WaypointProposal, length_m: float) -> None:
         seconds = max(length_m / PUT_BACK_SPEED_MPS, MIN_MOVE_S)

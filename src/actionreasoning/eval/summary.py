@@ -10,10 +10,10 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.eval.provenance import Provenance
 from actionreasoning.eval.results import LLMUsage, TrialResult
-from actionreasoning.eval.rules import SuccessRule
 from actionreasoning.records import FailureCode
 from actionreasoning.world.noise import NoiseLevel
 from actionreasoning.world.physics import PhysicsProfile
+from actionreasoning.world.success import SuccessRule
 
 METRICS = ("rotation_error_deg", "center_offset_cm", "iou", "symmetric_rotation_error_deg")
 

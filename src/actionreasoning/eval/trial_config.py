@@ -15,7 +15,6 @@ from pydantic import BaseModel, ConfigDict, Field, field_serializer
 from actionreasoning.agents.orchestrator import Budgets
 from actionreasoning.control.limits import ControllerLimits
 from actionreasoning.control.safety import SafetyLimits
-from actionreasoning.eval.rules import SuccessRule
 from actionreasoning.reasoners.backend import LLMConfig
 from actionreasoning.reasoners.llm import LLMLimits
 from actionreasoning.reasoners.sampling import RecordedSampling, Sampling
@@ -23,6 +22,7 @@ from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.noise import LEVELS, NoiseLevel
 from actionreasoning.world.physics import PAPER, PhysicsProfile
 from actionreasoning.world.scene_spec import SceneSpec
+from actionreasoning.world.success import SuccessRule
 from actionreasoning.world.tolerances import Tolerances
 
 

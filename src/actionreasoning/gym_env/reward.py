@@ -13,12 +13,12 @@ from __future__ import annotations
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.control.classical import StageEvent
 from actionreasoning.eval.metrics import brick_metrics
-from actionreasoning.eval.rules import SuccessRule
 from actionreasoning.eval.trial import TrialObserver
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.models import GoalPattern
 from actionreasoning.world.stages import Stage
+from actionreasoning.world.success import SuccessRule
 
 
 class PlacedCount(TrialObserver):

@@ -9,13 +9,16 @@ policy on a briefing parsed from the prompt's text. It is the offline default.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable
 from itertools import pairwise
 from typing import Literal
 
+import numpy as np
+from scipy.spatial.transform import Rotation
+
 from actionreasoning.agents.memory import PlacementPhase, TaskMemory
 from actionreasoning.agents.outputs import (
-    MAX_MOVE_S,
     AgentAnswer,
     DescentAnswer,
     GraspAnswer,
@@ -31,22 +34,26 @@ from actionreasoning.agents.spec import SINGLE_AGENT, SINGLE_AGENT_START, AgentK
 from actionreasoning.agents.view import BrickView
 from actionreasoning.tools.grasp_plan import GRASP_OPTIONS, GraspOption, GraspOptionsQuery
 from actionreasoning.tools.placement import PLACEMENT_POSE, PlacementPose, PlacementQuery
+from actionreasoning.world.geometry import quat_yaw, top_down_quat
 from actionreasoning.world.models import Pose
+from actionreasoning.world.motion import MAX_MOVE_S
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M, RETREAT_M
 from actionreasoning.world.stages import Stage
-from actionreasoning.world.tolerances import Tolerances
 
 LIFT_CLEARANCE_M = 0.12
 MIN_LIFT_M = 0.30
 RELEASE_SIDE_M = 0.005
-DESCENT_EXTRA_M = 0.01
-#: Mean speeds of the moves with a brick in the hand. A lift breaks the brick away from
-#: its support slowly, so that an edge still touching does not roll it in the grip; the
-#: carry is slow enough that the grip is not loaded much beyond the brick's weight.
-#: Whether a lift rolls the brick turns on how it breaks away, which no measurement here
-#: predicts: a brick grasped again after a roll is lifted at the next speed of the cycle.
-LIFT_SPEEDS_MPS = (0.02, 0.01, 0.03, 0.015, 0.025)
-CARRY_SPEED_MPS = 0.10
+#: The descent opens this much wider than the brick (two centimetres a side), at most the
+#: gripper's full opening: room for the pads past the side walls beyond what sigma_2 needs.
+DESCENT_SLACK_M = 0.04
+#: Mean speed of a carry with a brick in the hand: a brick creeps and rolls in the hand with
+#: time, so a faster carry rolls it less (``bench/lift_roll.py``: carries at 5, 10, 20 and
+#: 40 cm/s rolled 16 bricks more than 10 deg 7, 3, 1 and 1 times).
+CARRY_SPEED_MPS = 0.20
+#: Gates whose refusal put the brick down to be grasped again.
+PUT_DOWN_GATES = ("sigma4_lift", "regrasp")
+#: Checks of sigma_4 that fail when the brick slips in the grip.
+SLIP_CHECKS = ("relative_speed_mps", "friction_margin_n", "normal_force_n")
 
 #: The single agent's cycle: the step that follows the one executed last.
 NEXT_STEP: dict[str, Stage] = {
@@ -91,7 +98,7 @@ def _pre_grasp(briefing: Briefing) -> AgentAnswer:
         query = GraspOptionsQuery(
             brick_id=brick.id,
             target_index=target.index,
-            descent_opening_m=_descent_opening(brick, tol),
+            descent_opening_m=_descent_opening(brick),
         )
         options = briefing.use(GRASP_OPTIONS, query).options
         return min(options, key=lambda o: o.wrist_deg if o.reachable else math.inf)
@@ -106,6 +113,8 @@ def _pre_grasp(briefing: Briefing) -> AgentAnswer:
     # The first free brick with a grasp reachable at pick and place and a clear way down
     # to it (a dropped brick may lie where none is, or beside another); else the first,
     # for the gates to refuse with feedback.
+    in_the_way = _in_the_way(memory)
+    free.sort(key=lambda b: b.id != in_the_way)
     seen: list[tuple[BrickView, GraspOption]] = []
     for brick in free:
         seen.append((brick, best_grasp(brick)))
@@ -121,56 +130,137 @@ def _pre_grasp(briefing: Briefing) -> AgentAnswer:
     )
 
 
+def _in_the_way(memory: TaskMemory) -> int | None:
+    """The brick the last refusal found in the way (``closest``: "... vs brick N"), if any:
+    it is picked first, so that it is in the way no longer."""
+    if not memory.refusals or not memory.refusals[-1].measured.closest:
+        return None
+    found = re.search(r"vs brick (\d+)$", memory.refusals[-1].measured.closest)
+    return int(found.group(1)) if found else None
+
+
 def _descent(briefing: Briefing) -> AgentAnswer:
     view = briefing.view
     brick = view.brick(_current(briefing.memory))
-    grasp = _grasp_pose(brick, view.robot.tool_pose.quat_xyzw)
+    grasp = _grasp_pose(brick, top_down_quat(quat_yaw(view.robot.tool_pose.quat_xyzw)))
     return DescentAnswer(
-        gripper_opening_m=_descent_opening(brick, briefing.tolerances),
+        gripper_opening_m=_descent_opening(brick),
         waypoint=_proposal(grasp, path="linear"),
-        rationale="open to width + delta + 1 cm, straight down to the brick's centre",
+        rationale="open 4 cm past the brick's width, straight down to its centre",
     )
 
 
 def _grasp(briefing: Briefing) -> AgentAnswer:
-    return GraspAnswer(close=True, rationale="at the grasp pose: close")
+    refusals = briefing.memory.refusals
+    if not refusals or refusals[-1].gate != "sigma3_grasp":
+        return GraspAnswer(close=True, rationale="at the grasp pose: close")
+    miss = refusals[-1].measured
+    dx, dy, turn = miss.e_x_m or 0.0, miss.e_y_m or 0.0, miss.e_theta_deg or 0.0
+    tool = briefing.view.robot.tool_pose
+    x, y, z = tool.position_m
+    spin = Rotation.from_euler("z", turn, degrees=True) * Rotation.from_quat(tool.quat_xyzw)
+    at = Pose(
+        position_m=(x + dx, y + dy, z),
+        quat_xyzw=tuple(float(q) for q in spin.as_quat()),  # type: ignore[arg-type]
+    )
+    return GraspAnswer(
+        close=True,
+        waypoint=_proposal(at, path="linear"),
+        rationale=f"the last grasp missed by ({1000 * dx:+.1f}, {1000 * dy:+.1f}) mm and "
+        f"{turn:+.2f} deg: close again there, shifted and turned by it",
+    )
 
 
 def _lift(briefing: Briefing) -> AgentAnswer:
-    view = briefing.view
+    view, tol = briefing.view, briefing.tolerances
     tool = view.robot.tool_pose
     x, y, _ = tool.position_m
     z = max(MIN_LIFT_M, max(b.top_m for b in view.bricks) + LIFT_CLEARANCE_M)
     lift = Pose(position_m=(x, y, z), quat_xyzw=tool.quat_xyzw)
-    speed = LIFT_SPEEDS_MPS[briefing.memory.regrasps % len(LIFT_SPEEDS_MPS)]
-    duration = min((z - tool.position_m[2]) / speed, MAX_MOVE_S)
+    slips = sum(
+        1
+        for refusal in briefing.memory.refusals
+        if refusal.gate == "sigma4_lift" and any(c.name in SLIP_CHECKS for c in refusal.failed)
+    )
+    rise = z - tool.position_m[2]
+    speed = max(tol.v_lift_mps / 2**slips, rise / MAX_MOVE_S)
     return LiftAnswer(
-        waypoint=_proposal(lift, path="linear", duration_s=duration),
-        rationale=f"straight up over every brick at {100 * speed:g} cm/s, so it leaves level",
+        waypoint=_proposal(lift, path="linear", duration_s=min(rise / speed, MAX_MOVE_S)),
+        rationale=f"straight up over every brick at {100 * speed:.2g} cm/s, at most v_lift"
+        + (f", halved for each of {slips} slips" if slips else ""),
     )
 
 
 def _placement(briefing: Briefing) -> AgentAnswer:
-    phase = briefing.memory.phase
+    phase, tol = briefing.memory.phase, briefing.tolerances
     if phase is None:
         raise ValueError("memory shows no placement phase")
     placement = _placement_pose(briefing, "linear" if phase == PlacementPhase.SET_DOWN else "joint")
-    tilt, limit = placement.tilt_in_hand_deg, briefing.tolerances.eps_tilt_deg
-    if tilt > limit:
+    tilt = placement.tilt_in_hand_deg
+    if tilt > tol.eps_roll_deg:
         return PlacementAnswer(
             regrasp=True,
-            rationale=f"the brick rolled {tilt:.1f} deg in the hand, more than the {limit:g} "
-            "deg the tool may tilt to set it level: grasp it again",
+            rationale=f"the brick rolled {tilt:.1f} deg in the hand, more than the "
+            f"{tol.eps_roll_deg:g} deg a set-down seats: grasp it again",
         )
-    if not briefing.tolerances.clear(placement.way_clearance_m, placement.reachable):
+    if not tol.clear(placement.way_clearance_m, placement.reachable):
         return PlacementAnswer(
             regrasp=True,
-            rationale=f"with the brick where it sits in the hand (rolled {tilt:.1f} deg), the "
-            "way to the slot collides or is out of reach: grasp it again",
+            rationale=f"set level as it sits in the hand (rolled {tilt:.1f} deg), the brick's "
+            f"way to the slot collides or is out of reach ({placement.closest}): grasp it again",
         )
+    dx, dy, turn, misses = _misses(briefing)
+    if math.hypot(dx, dy) > tol.max_offset_m or abs(turn) > tol.max_rotation_deg:
+        return PlacementAnswer(
+            regrasp=True,
+            rationale=f"the set-downs missed by ({1000 * dx:+.1f}, {1000 * dy:+.1f}) mm and "
+            f"{turn:+.2f} deg in all: more than a correction within the success rule: grasp "
+            "it again",
+        )
+    slot = _corrected(briefing, placement.slot_pose, dx, dy, turn)
+    note = (
+        f"; shifted by ({1000 * dx:+.1f}, {1000 * dy:+.1f}) mm and turned by {turn:+.2f} deg: "
+        f"the sum of the {misses} seated misses sigma_5 measured"
+        if misses
+        else ""
+    )
     return PlacementAnswer(
-        waypoint=_slot(briefing, placement.slot_pose),
-        rationale="the slot pose for the brick as it sits in the hand",
+        waypoint=_slot(briefing, slot),
+        rationale=f"the slot pose for the brick as it sits in the hand, rolled {tilt:.1f} deg "
+        "and set level by tilting the tool" + note,
+    )
+
+
+def _misses(briefing: Briefing) -> tuple[float, float, float, int]:
+    """The summed offset (x, y) and yaw error of the set-downs sigma_5 refused since the
+    brick was last grasped that seated the brick (within eps_perp and eps_tilt: a brick
+    that did not seat missed for that reason, not by an offset), and how many."""
+    tol, refusals = briefing.tolerances, briefing.memory.refusals
+    put_down = [i for i, r in enumerate(refusals) if r.gate in PUT_DOWN_GATES]
+    seated = [
+        r.measured
+        for r in refusals[put_down[-1] + 1 if put_down else 0 :]
+        if r.gate == "sigma5_placement"
+        and abs(r.measured.d_perp_m or 0.0) <= tol.eps_perp_m
+        and (r.measured.tilt_deg or 0.0) <= tol.eps_tilt_deg
+    ]
+    return (
+        sum(m.e_x_m or 0.0 for m in seated),
+        sum(m.e_y_m or 0.0 for m in seated),
+        sum(m.e_theta_deg or 0.0 for m in seated),
+        len(seated),
+    )
+
+
+def _corrected(briefing: Briefing, slot: Pose, dx: float, dy: float, turn: float) -> Pose:
+    """``slot`` turned about the vertical axis through the target's centre by ``turn``
+    degrees, then shifted by (``dx``, ``dy``)."""
+    target = briefing.view.targets[0].pose.position_m
+    spin = Rotation.from_euler("z", turn, degrees=True)
+    x, y, z = spin.apply(np.subtract(slot.position_m, target)) + np.asarray(target)
+    return Pose(
+        position_m=(float(x + dx), float(y + dy), float(z)),
+        quat_xyzw=tuple(float(q) for q in (spin * Rotation.from_quat(slot.quat_xyzw)).as_quat()),  # type: ignore[arg-type]
     )
 
 
@@ -214,7 +304,7 @@ def _single_agent(briefing: Briefing) -> AgentAnswer:
     if step == Stage.PRE_GRASP:
         pick = _pre_grasp(briefing)
         assert isinstance(pick, PreGraspAnswer) and pick.brick_id is not None
-        opening = _descent_opening(view.brick(pick.brick_id), briefing.tolerances)
+        opening = _descent_opening(view.brick(pick.brick_id))
         return SingleAgentAnswer(
             step=step,
             brick_id=pick.brick_id,
@@ -283,8 +373,8 @@ def _grasp_pose(brick: BrickView, quat_xyzw: tuple[float, ...]) -> Pose:
     return Pose(position_m=(x, y, brick.size_m[2] / 2.0), quat_xyzw=quat_xyzw)
 
 
-def _descent_opening(brick: BrickView, tolerances: Tolerances) -> float:
-    return min(brick.size_m[1] + tolerances.delta_m + DESCENT_EXTRA_M, GRIPPER_GAP_M[1])
+def _descent_opening(brick: BrickView) -> float:
+    return min(brick.size_m[1] + DESCENT_SLACK_M, GRIPPER_GAP_M[1])
 
 
 def _ready(briefing: Briefing) -> Pose:

@@ -13,7 +13,13 @@ from pydantic import Field
 from actionreasoning.errors import ToolError
 from actionreasoning.tools.base import ToolContext, ToolModel, tool
 from actionreasoning.world.boxes import Box
-from actionreasoning.world.geometry import quat_yaw, tilt_deg, top_down_quat, wrap_angle
+from actionreasoning.world.geometry import (
+    quat_yaw,
+    rotation_deg,
+    tilt_deg,
+    top_down_quat,
+    wrap_angle,
+)
 from actionreasoning.world.models import BrickState, Pose, TargetBrick, WorldState
 from actionreasoning.world.support import carriers, centre_is_held
 
@@ -41,6 +47,11 @@ class AlignmentErrors(ToolModel):
     e_theta_deg: float = Field(description="Target yaw minus brick yaw, wrapped to [-180, 180).")
     d_perp_m: float = Field(description="Brick bottom minus target bottom; > 0 above its seat.")
     tilt_deg: float = Field(description="Angle between the brick's z axis and world up.")
+    rotation_deg: float = Field(
+        description="Angle of the rotation from the target's orientation to the brick's "
+        "(the success rule's rotation error)."
+    )
+    offset_m: float = Field(description="Distance between the centres (the success rule's).")
 
 
 class GraspQuery(ToolModel):
@@ -108,15 +119,23 @@ def _box(brick: BrickState) -> Box:
 def alignment_errors(context: ToolContext, query: AlignmentQuery) -> AlignmentErrors:
     """Planar offset, yaw error and height above the seat of a brick against a target."""
     brick = brick_state(context.state, query.brick_id)
-    target = target_of(context.state, query.target_index)
-    (bx, by, bz), (tx, ty, tz) = brick.pose.position_m, target.pose.position_m
-    e_theta = wrap_angle(quat_yaw(target.pose.quat_xyzw) - quat_yaw(brick.pose.quat_xyzw))
+    return alignment_of(brick.pose, brick.size_m, target_of(context.state, query.target_index))
+
+
+def alignment_of(
+    pose: Pose, size_m: tuple[float, float, float], target: TargetBrick
+) -> AlignmentErrors:
+    """The alignment errors of a brick of ``size_m`` at ``pose`` against ``target``."""
+    (bx, by, bz), (tx, ty, tz) = pose.position_m, target.pose.position_m
+    e_theta = wrap_angle(quat_yaw(target.pose.quat_xyzw) - quat_yaw(pose.quat_xyzw))
     return AlignmentErrors(
         e_xy_m=(tx - bx, ty - by),
         e_xy_norm_m=math.hypot(tx - bx, ty - by),
         e_theta_deg=math.degrees(e_theta),
-        d_perp_m=(bz - brick.size_m[2] / 2.0) - (tz - target.size_m[2] / 2.0),
-        tilt_deg=tilt_deg(brick.pose.quat_xyzw),
+        d_perp_m=(bz - size_m[2] / 2.0) - (tz - target.size_m[2] / 2.0),
+        tilt_deg=tilt_deg(pose.quat_xyzw),
+        rotation_deg=rotation_deg(target.pose.quat_xyzw, pose.quat_xyzw),
+        offset_m=math.dist(pose.position_m, target.pose.position_m),
     )
 
 

@@ -11,11 +11,11 @@ from __future__ import annotations
 import math
 
 from pydantic import Field
+from scipy.spatial.transform import Rotation
 
 from actionreasoning.tools.base import ToolContext, ToolModel, tool
 from actionreasoning.tools.collision import CollisionQuery, collision_check
 from actionreasoning.tools.geometry import GraspQuery, brick_state, grasp_candidates, target_of
-from actionreasoning.world.geometry import quat_yaw, top_down_quat
 from actionreasoning.world.models import Pose
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M
 
@@ -59,7 +59,6 @@ def grasp_options(context: ToolContext, query: GraspOptionsQuery) -> GraspOption
     state = context.state
     brick = brick_state(state, query.brick_id)
     goal = target_of(state, query.target_index)
-    turn = quat_yaw(goal.pose.quat_xyzw) - quat_yaw(brick.pose.quat_xyzw)
     x, y, z = goal.pose.position_m
     candidates = grasp_candidates(context, GraspQuery(brick_id=brick.id)).candidates
     options = []
@@ -67,9 +66,15 @@ def grasp_options(context: ToolContext, query: GraspOptionsQuery) -> GraspOption
         approach = candidate.approach_pose
         gx, gy, _ = candidate.grasp_pose.position_m
         grasp = Pose(position_m=(gx, gy, brick.size_m[2] / 2.0), quat_xyzw=approach.quat_xyzw)
+        # The brick as it lies, held by this grasp, set on the target: the tool turns as the
+        # brick must (a brick lying upside down would need the tool pointing up).
+        in_hand = Rotation.from_quat(approach.quat_xyzw).inv() * Rotation.from_quat(
+            brick.pose.quat_xyzw
+        )
+        place_rot = Rotation.from_quat(goal.pose.quat_xyzw) * in_hand.inv()
         place = Pose(
             position_m=(x, y, z + PLACE_CHECK_ABOVE_M),
-            quat_xyzw=top_down_quat(math.radians(candidate.gripper_yaw_deg) + turn),
+            quat_xyzw=tuple(float(q) for q in place_rot.as_quat()),  # type: ignore[arg-type]
         )
         solutions = [
             context.arm.solve(pose.position_m, pose.quat_xyzw)

@@ -102,6 +102,19 @@ def placement_pose(context: ToolContext, query: PlacementQuery) -> PlacementPose
     )
 
 
+def carried_pose(state: WorldState, brick_id: int, tool: Pose) -> Pose:
+    """Where brick ``brick_id`` would be with the tool at ``tool`` and the brick as it sits
+    in the hand now (measured)."""
+    offset, turn = _in_hand(state, brick_id)
+    grip = Rotation.from_quat(tool.quat_xyzw)
+    position = np.add(tool.position_m, grip.apply(offset))
+    quat = (grip * turn).as_quat()
+    return Pose(
+        position_m=tuple(float(v) for v in position),  # type: ignore[arg-type]
+        quat_xyzw=tuple(float(q) for q in quat),  # type: ignore[arg-type]
+    )
+
+
 def _in_hand(state: WorldState, brick_id: int) -> tuple[np.ndarray, Rotation]:
     """The brick's centre and orientation in the tool frame, as measured."""
     tool_pose, brick = state.robot.ee_pose, state.brick(brick_id)

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+#: The longest a single move may be asked to take (an answer's ``duration_s``).
+MAX_MOVE_S = 30.0
+
 
 @dataclass(frozen=True)
 class Motion:

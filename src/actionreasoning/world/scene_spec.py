@@ -18,6 +18,8 @@ from actionreasoning.world.geometry import Vec3
 GRIPPER_GAP_M = (0.06, 0.16)
 FINGERTIPS_BEYOND_TCP_M = 0.02
 PALM_BEHIND_TCP_M = 0.05
+#: How long each finger pad is along the brick (the URDF's finger box, along the tool's x).
+PAD_LENGTH_M = 0.04
 #: How far the tool rises straight up after letting go of a brick, before it moves on.
 RETREAT_M = 0.08
 

@@ -1,82 +1,386 @@
-"""Tolerances: every threshold of the gates sigma_1..sigma_6, in one place, with defaults.
+"""Tolerances: every threshold of the gates, each derived from what it protects.
 
-Thresholds that physics defines are not constants: the pad force a grasp needs comes from
-the brick's mass and friction (``ContactForces.required_normal_n``) times a safety factor,
-and the friction margin from the measured forces and mu. Geometric thresholds that noisy
-sensors judge are widened by three standard deviations of that noise (:meth:`under`).
+A threshold protects the success rule (2 cm, 5 deg: a gate must never pass what the rule
+fails), what the next course needs to seat, or the grip (the brick's mass and friction);
+sensing noise widens what compares two measurements by NOISE_SIGMAS standard deviations,
+so that a gate judges the world, not the noise. :func:`derivations` gives each value with
+its formula (the README's table, ``actionreasoning tolerances``); the design values come
+from :meth:`Tolerances.derive`, the values a trial runs under from :meth:`Tolerances.under`
+(sensing noise, announced mass and friction tolerances) and :meth:`Tolerances.for_goal`
+(the pattern's joints).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 from pydantic import BaseModel, ConfigDict, Field
+from shapely.geometry import Polygon
 
-from actionreasoning.world.models import Sensing
+from actionreasoning.world.boxes import Box
+from actionreasoning.world.models import GoalPattern, Sensing
+from actionreasoning.world.motion import MAX_MOVE_S
+from actionreasoning.world.scene_spec import (
+    FINGERTIPS_BEYOND_TCP_M,
+    PAD_LENGTH_M,
+    SceneSpec,
+)
+from actionreasoning.world.success import SuccessRule
 
-#: Standard deviations of sensing noise a geometric threshold is widened by.
+#: Standard deviations of sensing noise a threshold that compares measurements is widened by.
 NOISE_SIGMAS = 3.0
+#: Measured under paper physics (``bench/lift_roll.py``): the fastest of the lift speeds
+#: tried (1, 2, 3, 5, 10 cm/s and the controller's limit, 16 grasps each) at which no
+#: brick rolled more than 10 deg in the hand.
+SAFE_LIFT_MPS = 0.02
+#: Measured under paper physics (``bench/grasp_error.py``): the largest tool-to-brick error a
+#: closed grip leaves when the pads close on a brick at rest (position, yaw), rounded up.
+GRASP_ERROR_M = 0.003
+GRASP_ERROR_DEG = 1.0
+#: Measured under paper physics (``bench/set_down_roll.py``): the largest roll of a brick in
+#: the hand that a set-down with the tool tilted to set it level still seats reliably.
+SETTABLE_ROLL_DEG = 90.0
+#: Measured (``bench/path_deviation.py``): the largest distance of the tool from its planned
+#: path during a move, rounded up; a path checked clear by less may not be.
+PATH_DEVIATION_M = 0.02
+#: Brick-on-ground friction the sidewall threshold is measured against: the brick's own
+#: (paper physics' default lateral friction) times the ground's (plane.urdf's 1.0).
+GROUND_FRICTION = 0.5
+GRAVITY = 9.81
+
+
+def opening_slack_m(eps_g_m: float, eps_g_deg: float) -> float:
+    """The opening beyond a brick's width that lets the pads pass both its side walls when
+    the tool is off by the grasp tolerance on each side and turned by its yaw tolerance
+    (the pads, PAD_LENGTH_M long, then meet the brick's width slanted)."""
+    return 2.0 * eps_g_m + PAD_LENGTH_M * math.sin(math.radians(eps_g_deg))
+
+
+def grip_load_factor(sensing: Sensing) -> float:
+    """How many times the catalogue brick's required pad force a grip must show: the
+    heaviest brick over the least friction the tolerances allow, read through force noise
+    of NOISE_SIGMAS standard deviations (never below zero)."""
+    worst = (1.0 + sensing.mass_tolerance) / (1.0 - sensing.friction_tolerance)
+    return max(0.0, worst * (1.0 - NOISE_SIGMAS * sensing.force_rel_std))
+
+
+def joint_share_m(joint_m: float, width_m: float, eps_theta_deg: float) -> float:
+    """The planar offset that keeps a brick's corner, turned by up to ``eps_theta_deg``, out
+    of the far half of a joint ``joint_m`` wide."""
+    return joint_m / 2.0 - width_m / 2.0 * math.sin(math.radians(eps_theta_deg))
+
+
+def smallest_joint_m(goal: GoalPattern) -> float | None:
+    """The narrowest gap between two bricks of one course of ``goal`` (None: no course holds
+    two bricks)."""
+    courses: dict[int, list[Polygon]] = {}
+    for target in goal.targets:
+        footprint = Box(target.pose.position_m, target.pose.quat_xyzw, target.size_m).footprint
+        courses.setdefault(round(target.pose.position_m[2] * 1000), []).append(footprint)
+    gaps = [
+        a.distance(b)
+        for course in courses.values()
+        for i, a in enumerate(course)
+        for b in course[i + 1 :]
+    ]
+    return min(gaps, default=None)
+
+
+@dataclass(frozen=True)
+class Derivation:
+    """One threshold: its value, what it protects and how it follows from its inputs."""
+
+    name: str
+    value: float
+    unit: str
+    protects: str
+    formula: str
+
+
+def derivations(
+    rule: SuccessRule = SuccessRule(), scene: SceneSpec = SceneSpec()
+) -> list[Derivation]:
+    """Every design threshold with its derivation, in the order of the gates."""
+    return _design(rule, scene)
+
+
+def _design(rule: SuccessRule, scene: SceneSpec) -> list[Derivation]:
+    length, _, height = scene.brick_size_m
+    offset = rule.max_center_offset_cm / 100.0
+    turn = rule.max_rotation_error_deg
+    half_turn = turn / 2.0
+    seat = length / 2.0 * math.tan(math.radians(half_turn))
+    weight = scene.brick_mass_kg * GRAVITY
+    return [
+        Derivation(
+            "c_min_m",
+            PATH_DEVIATION_M,
+            "m",
+            "sigma_1, lift: a transit path",
+            f"the tool's largest measured deviation from its planned path: {PATH_DEVIATION_M}",
+        ),
+        Derivation(
+            "delta_m",
+            opening_slack_m(GRASP_ERROR_M, GRASP_ERROR_DEG),
+            "m",
+            "sigma_2: the pads pass the side walls",
+            f"2 eps_g_m + pad length {PAD_LENGTH_M} x sin(eps_g_deg)",
+        ),
+        Derivation(
+            "sidewall_contact_n",
+            GROUND_FRICTION * weight,
+            "N",
+            "sigma_2: the brick is not shoved before the grip closes",
+            f"the force that slides the brick over the ground: friction {GROUND_FRICTION} x "
+            f"{scene.brick_mass_kg} kg x g",
+        ),
+        Derivation(
+            "grip_load_factor",
+            1.0,
+            "",
+            "sigma_3, sigma_4: the grip carries the brick",
+            "(1 + mass tolerance) / (1 - friction tolerance) x (1 - 3 force noise): 1 "
+            "for exact sensors and catalogue bricks",
+        ),
+        Derivation(
+            "friction_factor",
+            1.0,
+            "",
+            "sigma_4: friction margin",
+            "1 - friction tolerance: the least friction a brick may have",
+        ),
+        Derivation(
+            "eps_g_m",
+            GRASP_ERROR_M,
+            "m",
+            "sigma_3: a grip centred on the brick",
+            "the largest error a grip closing on a brick at rest leaves (measured)",
+        ),
+        Derivation(
+            "eps_g_deg",
+            GRASP_ERROR_DEG,
+            "deg",
+            "sigma_3: pads flat on the brick",
+            "the largest yaw error a closing grip leaves (measured)",
+        ),
+        Derivation(
+            "v_th_mps",
+            (height / 2.0 + FINGERTIPS_BEYOND_TCP_M) / MAX_MOVE_S,
+            "m/s",
+            "sigma_4: the brick stays in the hand until it is measured again",
+            f"(brick height / 2 + fingertips {FINGERTIPS_BEYOND_TCP_M} m below the tool "
+            f"centre) / the longest move, {MAX_MOVE_S:g} s",
+        ),
+        Derivation(
+            "v_lift_mps",
+            SAFE_LIFT_MPS,
+            "m/s",
+            "lift: the brick leaves its support level",
+            "the fastest lift speed measured at which no brick rolled more than 10 deg",
+        ),
+        Derivation(
+            "eps_roll_deg",
+            SETTABLE_ROLL_DEG,
+            "deg",
+            "sigma_4, placement: the set-down seats the brick",
+            "the largest roll in the hand measured to seat when set down with the tool "
+            "tilted by it; beyond it the brick is grasped again",
+        ),
+        Derivation(
+            "eps_perp_m",
+            seat,
+            "m",
+            "sigma_5: the next course's seat",
+            f"a brick bridging two seats half its length ({length / 2:g} m) apart tilts by "
+            f"at most half the success rule's rotation: {length / 2:g} x tan({half_turn:g} deg)",
+        ),
+        Derivation(
+            "eps_xy_m",
+            offset / 2.0,
+            "m",
+            "sigma_5: success rule; the next brick of the row",
+            f"half the success rule's {offset:g} m (the other half for the height and the "
+            "release); for a pattern, also the narrowest joint / 2 - width / 2 x "
+            "sin(eps_theta_deg)",
+        ),
+        Derivation(
+            "eps_theta_deg",
+            half_turn,
+            "deg",
+            "sigma_5: success rule",
+            f"half the success rule's {turn:g} deg (the other half for the tilt)",
+        ),
+        Derivation(
+            "eps_tilt_deg",
+            half_turn,
+            "deg",
+            "sigma_5: success rule",
+            f"half the success rule's {turn:g} deg (the other half for the yaw)",
+        ),
+        Derivation(
+            "max_offset_m",
+            offset,
+            "m",
+            "sigma_5: success rule, never widened",
+            "the success rule's centre offset",
+        ),
+        Derivation(
+            "max_rotation_deg",
+            turn,
+            "deg",
+            "sigma_5: success rule, never widened",
+            "the success rule's rotation error",
+        ),
+        Derivation(
+            "delta_h_m",
+            2.0 * seat,
+            "m",
+            "sigma_5 = 0: the raise clears the seat",
+            "2 eps_perp_m: a brick up to eps_perp_m above its seat rises as far again clear",
+        ),
+        Derivation(
+            "overlap_m",
+            0.0,
+            "m",
+            "path checks: judge the world, not the noise",
+            "sqrt(2) x 3 position noise: what two noisy positions can show",
+        ),
+    ]
+
+
+_DEFAULTS = {row.name: row.value for row in _design(SuccessRule(), SceneSpec())}
 
 
 class Tolerances(BaseModel):
-    """Gate thresholds (paper section III-C). Lengths in metres, forces in newtons."""
+    """Gate thresholds (paper section III-C). Lengths in metres, forces in newtons; the
+    defaults are :meth:`derive`'s for the default success rule and the catalogue brick."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    c_min_m: float = Field(0.02, gt=0, description="sigma_1: least clearance of a transit path.")
+    c_min_m: float = Field(
+        _DEFAULTS["c_min_m"], gt=0, description="sigma_1, lift: least clearance of a path."
+    )
     delta_m: float = Field(
-        0.03, gt=0, description="sigma_2: opening beyond the brick's width (both sides together)."
+        _DEFAULTS["delta_m"],
+        gt=0,
+        description="sigma_2: opening beyond the brick's width (both sides together).",
     )
     sidewall_contact_n: float = Field(
-        1.0, gt=0, description="sigma_2: a pad force above this is contact with a side wall."
-    )
-    grip_safety_factor: float = Field(
-        2.0,
-        ge=1.0,
-        description="sigma_3, sigma_4: each pad must press with this many times the force whose "
-        "friction carries the brick's weight, m g / (2 mu), from its catalogue mass and friction",
-    )
-    eps_g_m: float = Field(0.003, gt=0, description="sigma_3: tool position error at the grasp.")
-    eps_g_deg: float = Field(1.0, gt=0, description="sigma_3: tool orientation error at grasp.")
-    v_th_mps: float = Field(
-        0.005, gt=0, description="sigma_4: largest brick speed relative to the gripper."
-    )
-    eps_tilt_deg: float = Field(
-        20.0,
+        _DEFAULTS["sidewall_contact_n"],
         gt=0,
-        description="sigma_4: largest roll of the brick in the hand; placement sets a brick "
-        "rolled this far level by tilting the tool, a brick rolled further is grasped again.",
+        description="sigma_2: a pad force above this is contact with a side wall.",
+    )
+    grip_load_factor: float = Field(
+        _DEFAULTS["grip_load_factor"],
+        ge=0.0,
+        description="sigma_3, sigma_4: each pad must press with this many times "
+        "required_normal_n, the force whose friction carries the brick's catalogue weight: "
+        "the heaviest, least grippy brick the noise allows, less the force noise",
+    )
+    friction_factor: float = Field(
+        _DEFAULTS["friction_factor"],
+        gt=0,
+        le=1.0,
+        description="sigma_4: share of the catalogue friction counted on.",
+    )
+    eps_g_m: float = Field(_DEFAULTS["eps_g_m"], gt=0, description="sigma_3: tool position error.")
+    eps_g_deg: float = Field(_DEFAULTS["eps_g_deg"], gt=0, description="sigma_3: tool yaw error.")
+    v_th_mps: float = Field(
+        _DEFAULTS["v_th_mps"],
+        gt=0,
+        description="sigma_4: largest brick speed relative to the gripper.",
+    )
+    v_lift_mps: float = Field(
+        _DEFAULTS["v_lift_mps"],
+        gt=0,
+        description="Lift: largest mean speed of a lift from the ground.",
+    )
+    eps_roll_deg: float = Field(
+        _DEFAULTS["eps_roll_deg"],
+        gt=0,
+        description="sigma_4, placement: largest roll in the hand set down by tilting the tool.",
+    )
+    force_noise: float = Field(
+        0.0, ge=0.0, description="Relative noise (std) of a pad force reading."
     )
     eps_perp_m: float = Field(
-        0.002, gt=0, description="sigma_5: largest height of the brick's bottom above its seat."
+        _DEFAULTS["eps_perp_m"],
+        gt=0,
+        description="sigma_5: largest height of the brick's bottom above its seat.",
     )
-    eps_xy_m: float = Field(0.002, gt=0, description="sigma_5: largest planar offset.")
-    eps_theta_deg: float = Field(0.5, gt=0, description="sigma_5: largest yaw error.")
-    delta_h_m: float = Field(0.01, gt=0, description="sigma_5 = 0 in contact: raise by this.")
+    eps_xy_m: float = Field(
+        _DEFAULTS["eps_xy_m"], gt=0, description="sigma_5: largest planar offset."
+    )
+    eps_theta_deg: float = Field(
+        _DEFAULTS["eps_theta_deg"], gt=0, description="sigma_5: largest yaw error."
+    )
+    eps_tilt_deg: float = Field(
+        _DEFAULTS["eps_tilt_deg"], gt=0, description="sigma_5: largest tilt of the set brick."
+    )
+    max_offset_m: float = Field(
+        _DEFAULTS["max_offset_m"], gt=0, description="sigma_5: the success rule's centre offset."
+    )
+    max_rotation_deg: float = Field(
+        _DEFAULTS["max_rotation_deg"], gt=0, description="sigma_5: the success rule's rotation."
+    )
+    delta_h_m: float = Field(
+        _DEFAULTS["delta_h_m"], gt=0, description="sigma_5 = 0 in contact: raise by this."
+    )
     overlap_m: float = Field(
-        0.0,
+        _DEFAULTS["overlap_m"],
         ge=0,
         description="Largest overlap of two measured bodies a path check still calls clear: "
         "none for exact sensors; under noise, what the noise of two positions can show.",
     )
 
+    @classmethod
+    def derive(
+        cls, rule: SuccessRule = SuccessRule(), scene: SceneSpec = SceneSpec()
+    ) -> Tolerances:
+        """The design values: derived from the success rule, the catalogue brick and the
+        gripper, for exact sensors and any pattern (see :func:`derivations`)."""
+        return cls(**{row.name: row.value for row in _design(rule, scene)})
+
     def clear(self, clearance_m: float, reachable: bool = True) -> bool:
         """Whether a path with this clearance counts as collision-free."""
         return reachable and clearance_m > -self.overlap_m
 
+    def f_min_n(self, required_normal_n: float) -> float:
+        """The least pad force sigma_3 and sigma_4 accept for a brick whose catalogue weight
+        needs ``required_normal_n`` per pad."""
+        return self.grip_load_factor * required_normal_n
+
     def under(self, sensing: Sensing) -> Tolerances:
-        """These thresholds as judged through noisy sensors: each geometric one widened by
-        NOISE_SIGMAS standard deviations of the noise of what it compares, so that a gate
-        judges the world and not the noise (unchanged without noise)."""
+        """These thresholds as judged through noisy sensors: each that compares measured
+        positions or yaws widened by NOISE_SIGMAS standard deviations of their noise, the
+        grip's by the announced mass and friction tolerances and the force noise
+        (unchanged without noise). The success rule's own limits are never widened."""
         position = NOISE_SIGMAS * sensing.position_std_m
         yaw = NOISE_SIGMAS * sensing.yaw_std_deg
+        eps_g_m, eps_g_deg = self.eps_g_m + position, self.eps_g_deg + yaw
         return self.model_copy(
             update={
-                "eps_g_m": self.eps_g_m + position,
-                "eps_g_deg": self.eps_g_deg + yaw,
+                "eps_g_m": eps_g_m,
+                "eps_g_deg": eps_g_deg,
+                "delta_m": opening_slack_m(eps_g_m, eps_g_deg),
                 "eps_perp_m": self.eps_perp_m + position,
                 "eps_xy_m": self.eps_xy_m + position,
                 "eps_theta_deg": self.eps_theta_deg + yaw,
                 "overlap_m": self.overlap_m + math.sqrt(2.0) * position,
+                "grip_load_factor": grip_load_factor(sensing),
+                "force_noise": sensing.force_rel_std,
+                "friction_factor": 1.0 - sensing.friction_tolerance,
             }
+        )
+
+    def for_goal(self, goal: GoalPattern) -> Tolerances:
+        """These thresholds for building ``goal``: the planar offset also keeps each brick out
+        of the far half of the narrowest joint between two bricks of a course."""
+        joint = smallest_joint_m(goal)
+        if joint is None:
+            return self
+        width = goal.brick_size_m[1]
+        return self.model_copy(
+            update={"eps_xy_m": min(self.eps_xy_m, joint_share_m(joint, width, self.eps_theta_deg))}
         )
