@@ -14,6 +14,7 @@ from typing import Any
 
 from pydantic import BaseModel, Field
 
+from actionreasoning.agents.answer_errors import AnswerCorruption
 from actionreasoning.agents.gates import GateVerdict
 from actionreasoning.records import LLMUsage
 
@@ -98,6 +99,11 @@ class AgentCall(BaseModel):
     tool_turns: int = 0
     fallback: bool = Field(False, description="Answered by the built-in reasoner instead.")
     usage: LLMUsage = LLMUsage()
+    corruption: AnswerCorruption | None = Field(
+        None,
+        description="What eval --answer-errors changed in the reasoner's answer (its original "
+        "kept there); ``answer`` is the corrupted one, as judged.",
+    )
 
     @property
     def brick_in_hand(self) -> int | None:
