@@ -10,11 +10,12 @@ import json
 import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from conftest import SMALL_PATTERN
+from conftest import SMALL_PATTERN, assert_clean_error, cli
 from fake_world import FakeWorld
 from scipy.spatial.transform import Rotation
 
@@ -24,7 +25,9 @@ from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.outputs import AgentAnswer, PreGraspAnswer, ToolCall
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest, Reasoner
 from actionreasoning.agents.single_agent import SingleAgent
+from actionreasoning.agents.transcript import AgentCall, CheckRecord, GateRecord, Outcome
 from actionreasoning.agents.view import target_supports
+from actionreasoning.eval.results import AnswerErrorCounts, PlacementMetrics, TrialResult
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.reasoners.imperfect import (
     ANSWER_ERROR_STREAM,
@@ -456,3 +459,91 @@ def test_at_rate_1_every_answer_a_kind_applies_to_is_corrupted(kinematics, wall)
     assert result.failure is not None
     assert result.transcript and all(c.corruption is not None for c in result.transcript)
     assert [c.call for c in result.transcript] == list(range(len(result.transcript)))
+
+
+# --- what caught them: results lines ----------------------------------------------------
+
+
+def gate(name: str, *checks: tuple[str, bool]) -> GateRecord:
+    records = [
+        CheckRecord(name=c, value=0.0, relation="<=", threshold=1.0, passed=ok) for c, ok in checks
+    ]
+    return GateRecord(gate=name, passed=all(ok for _, ok in checks), checks=records)
+
+
+def test_a_corrupted_answer_is_counted_by_what_caught_it() -> None:
+    corrupted = AnswerCorruption(kind=CorruptionKind.SIGN_FLIP, detail="x", original={})
+    call = AgentCall(
+        call=0, agent="lift", brick=0, target=0, attempt=1, prompt_chars=1, answer={},
+        corruption=corrupted,
+    )  # fmt: skip
+    sigma4 = gate("sigma4_lift", ("normal_force_n", True), ("slip_mps", False), ("tilt", False))
+    cases = [
+        ({"outcome": Outcome.REGRASP, "gates": [gate("lift_plan", ("c", True)), sigma4]},
+         "sigma4_lift:slip_mps"),
+        ({"outcome": Outcome.RAISED, "gates": [gate("a", ("x", False)), gate("b", ("y", False))]},
+         "b:y"),
+        ({"outcome": Outcome.REFUSED}, "refused"),
+        ({"outcome": Outcome.ACCEPTED, "gates": [gate("a", ("x", True))]}, "missed"),
+        ({"outcome": Outcome.EXECUTED}, "missed"),
+        ({"outcome": Outcome.PENDING}, "trial_stopped"),
+        ({"outcome": Outcome.FAILED}, "trial_stopped"),
+    ]  # fmt: skip
+    for update, caught in cases:
+        assert call.model_copy(update=update).caught_by == caught
+    calls = [call.model_copy(update=update) for update, _ in cases]
+    calls.append(call.model_copy(update={"corruption": None}))
+    counts = AnswerErrorCounts.of(calls)
+    assert counts.corrupted == len(cases)
+    assert counts.by_kind == {CorruptionKind.SIGN_FLIP: len(cases)}
+    assert counts.caught_by == {
+        "b:y": 1, "missed": 2, "refused": 1, "sigma4_lift:slip_mps": 1, "trial_stopped": 2,
+    }  # fmt: skip
+    assert counts + counts == AnswerErrorCounts(
+        corrupted=14,
+        by_kind={CorruptionKind.SIGN_FLIP: 14},
+        caught_by={k: 2 * n for k, n in counts.caught_by.items()},
+    )
+
+
+def test_a_build_counts_every_corrupted_answer_once(kinematics, wall) -> None:
+    result = imperfect_build(kinematics, wall, rate=0.3)
+    counts = AnswerErrorCounts.of(result.transcript)
+    assert counts.corrupted == sum(c.corruption is not None for c in result.transcript) > 2
+    assert sum(counts.by_kind.values()) == sum(counts.caught_by.values()) == counts.corrupted
+    assert any(":" in caught for caught in counts.caught_by)  # a gate caught one
+
+
+def test_lines_at_rate_0_have_no_answer_errors_field_and_the_schema_has_one() -> None:
+    metrics = PlacementMetrics(
+        center_offset_cm=0.0, rotation_error_deg=0.0, symmetric_rotation_error_deg=0.0, iou=1.0
+    )
+    line = TrialResult(
+        method="agents", pattern="p", seed=0, trial=0, trial_seed=1, success=True, llm="builtin",
+        bricks=(), bricks_placed=0, metrics=metrics, failure=None, sim_steps=0,
+    )  # fmt: skip
+    assert "answer_errors" not in json.loads(line.model_dump_json())
+    counted = line.model_copy(update={"answer_errors": AnswerErrorCounts(corrupted=0)})
+    stored = json.loads(counted.model_dump_json())["answer_errors"]
+    assert stored == {"corrupted": 0, "by_kind": {}, "caught_by": {}}
+    assert TrialResult.model_validate_json(counted.model_dump_json()) == counted
+    printed = cli("schema", "results")
+    assert printed.returncode == 0 and "AnswerErrorCounts" in printed.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (("--answer-errors", "1.5"), "--answer-errors 1.5"),
+        (("--answer-errors", "-0.2"), "--answer-errors -0.2"),
+        (("--answer-errors", "nan"), "--answer-errors nan"),
+        (("--answer-errors", "inf"), "--answer-errors inf"),
+        (("--method", "classical", "--answer-errors", "0.1"), "drop --answer-errors"),
+    ],
+)
+def test_bad_answer_error_rates_are_refused_in_one_line(
+    tmp_path: Path, args: tuple[str, ...], needle: str
+) -> None:
+    result = cli("eval", *args, "--trials", "1", "--out", str(tmp_path / "o"))
+    assert_clean_error(result, needle)
+    assert not (tmp_path / "o").exists()

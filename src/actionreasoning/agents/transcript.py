@@ -106,6 +106,22 @@ class AgentCall(BaseModel):
     )
 
     @property
+    def caught_by(self) -> str:
+        """What stopped this answer: ``gate:check``, the first failed check of its last failed
+        gate verdict, when it was refused, raised or re-grasped (else the outcome: a refusal
+        before any gate); ``missed`` when it was accepted or executed; ``trial_stopped`` when
+        the trial ended on it."""
+        if self.outcome in (Outcome.ACCEPTED, Outcome.EXECUTED):
+            return "missed"
+        if self.outcome in (Outcome.FAILED, Outcome.PENDING):
+            return "trial_stopped"
+        failed = [gate for gate in self.gates if not gate.passed]
+        if not failed:
+            return str(self.outcome)
+        check = next((c.name for c in failed[-1].checks if not c.passed), None)
+        return failed[-1].gate if check is None else f"{failed[-1].gate}:{check}"
+
+    @property
     def brick_in_hand(self) -> int | None:
         """The brick this call was about (for Ag1: the brick it chose)."""
         if self.brick is not None:
