@@ -28,6 +28,7 @@ from actionreasoning.agents.single_agent import SingleAgent
 from actionreasoning.agents.transcript import AgentCall, CheckRecord, GateRecord, Outcome
 from actionreasoning.agents.view import target_supports
 from actionreasoning.eval.results import AnswerErrorCounts, PlacementMetrics, TrialResult
+from actionreasoning.eval.summary import summarize, summary_markdown
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.reasoners.imperfect import (
     ANSWER_ERROR_STREAM,
@@ -514,21 +515,52 @@ def test_a_build_counts_every_corrupted_answer_once(kinematics, wall) -> None:
     assert any(":" in caught for caught in counts.caught_by)  # a gate caught one
 
 
-def test_lines_at_rate_0_have_no_answer_errors_field_and_the_schema_has_one() -> None:
+def line(counts: AnswerErrorCounts | None = None, trial: int = 0) -> TrialResult:
+    """A results line of no bricks, with ``counts``."""
     metrics = PlacementMetrics(
         center_offset_cm=0.0, rotation_error_deg=0.0, symmetric_rotation_error_deg=0.0, iou=1.0
     )
-    line = TrialResult(
-        method="agents", pattern="p", seed=0, trial=0, trial_seed=1, success=True, llm="builtin",
-        bricks=(), bricks_placed=0, metrics=metrics, failure=None, sim_steps=0,
+    return TrialResult(
+        method="agents", pattern="p", seed=0, trial=trial, trial_seed=1, success=True,
+        llm="builtin", bricks=(), bricks_placed=0, metrics=metrics, failure=None, sim_steps=0,
+        answer_errors=counts,
     )  # fmt: skip
-    assert "answer_errors" not in json.loads(line.model_dump_json())
-    counted = line.model_copy(update={"answer_errors": AnswerErrorCounts(corrupted=0)})
+
+
+def test_lines_at_rate_0_have_no_answer_errors_field_and_the_schema_has_one() -> None:
+    assert "answer_errors" not in json.loads(line().model_dump_json())
+    counted = line(AnswerErrorCounts())
     stored = json.loads(counted.model_dump_json())["answer_errors"]
     assert stored == {"corrupted": 0, "by_kind": {}, "caught_by": {}}
     assert TrialResult.model_validate_json(counted.model_dump_json()) == counted
     printed = cli("schema", "results")
     assert printed.returncode == 0 and "AnswerErrorCounts" in printed.stdout
+
+
+def test_summaries_sum_the_counts_and_name_the_rate() -> None:
+    flip, hover = CorruptionKind.SIGN_FLIP, CorruptionKind.SKIPPED_HOVER
+    results = [
+        line(AnswerErrorCounts(corrupted=2, by_kind={flip: 2}, caught_by={"g:c": 1, "missed": 1})),
+        line(AnswerErrorCounts(corrupted=1, by_kind={hover: 1}, caught_by={"g:c": 1}), trial=1),
+    ]
+    errors = AnswerErrors(rate=0.25)
+    summary = summarize(results, 1.0, answer_errors=errors)
+    assert summary.answer_errors is not None
+    assert summary.answer_errors.model_dump(mode="json") == {
+        "corrupted": 3,
+        "by_kind": {"sign_flip": 2, "skipped_hover": 1},
+        "caught_by": {"g:c": 2, "missed": 1},
+        "rate": 0.25,
+        "kinds": [k.value for k in ALL],
+    }
+    markdown = summary_markdown(summary)
+    assert markdown.splitlines()[0].endswith(", answer errors 0.25")
+    assert f"| `sign_flip` | {flip.meaning} | 2 |" in markdown
+    assert "| `g:c` | 2 |" in markdown and "| `missed` | 1 |" in markdown
+    for at_zero in (summarize(results, 1.0), summarize(results, 1.0, answer_errors=AnswerErrors())):
+        assert at_zero.answer_errors is None
+        assert "answer_errors" not in json.loads(at_zero.model_dump_json())
+        assert "Answer errors" not in summary_markdown(at_zero)
 
 
 @pytest.mark.parametrize(
