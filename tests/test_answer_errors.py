@@ -579,3 +579,17 @@ def test_bad_answer_error_rates_are_refused_in_one_line(
     result = cli("eval", *args, "--trials", "1", "--out", str(tmp_path / "o"))
     assert_clean_error(result, needle)
     assert not (tmp_path / "o").exists()
+
+
+def test_the_readme_table_is_the_enum_in_order() -> None:
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    lines = readme.split("### Answer errors", 1)[1].splitlines()
+    start = lines.index("| kind | what changes | where it applies |") + 2
+    rows = []
+    for row in lines[start:]:
+        if not row.startswith("| `"):
+            break
+        kind, meaning, where = row.strip("| ").split(" | ")
+        rows.append((kind.strip("`"), meaning, where))
+    assert rows == [(k.value, k.meaning, k.applies_to) for k in ALL]
+    assert "<!-- which check catches each kind: filled in by the gates work -->" in readme
