@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -593,3 +594,69 @@ def test_the_readme_table_is_the_enum_in_order() -> None:
         rows.append((kind.strip("`"), meaning, where))
     assert rows == [(k.value, k.meaning, k.applies_to) for k in ALL]
     assert "<!-- which check catches each kind: filled in by the gates work -->" in readme
+
+
+def test_the_single_agents_corrupted_answers_are_marked_and_counted(kinematics, wall) -> None:
+    def build(seed: int) -> BuildResult:
+        reasoner = ImperfectReasoner(BuiltinReasoner(), AnswerErrors(rate=0.3), trial_seed=seed)
+        return SingleAgent(FakeWorld(wall, BRICKS, *kinematics), reasoner).build(wall)
+
+    result = build(seed=2)
+    corrupted = [c for c in result.transcript if c.corruption is not None]
+    assert corrupted and all(c.corruption.original != c.answer for c in corrupted)  # type: ignore[union-attr]
+    counts = AnswerErrorCounts.of(result.transcript)
+    assert set(counts.caught_by) <= {"missed", "trial_stopped"}  # nothing gates it
+    assert [c.model_dump() for c in build(seed=2).transcript] == [
+        c.model_dump() for c in result.transcript
+    ]
+
+
+# --- real trials ------------------------------------------------------------------------
+
+TWO_BRICKS = {**SMALL_PATTERN, "name": "two", "bricks": SMALL_PATTERN["bricks"][:2]}
+
+
+@pytest.mark.slow
+def test_eval_with_answer_errors_is_the_same_run_to_run_and_resumed(tmp_path: Path) -> None:
+    pattern = tmp_path / "two.json"
+    pattern.write_text(json.dumps(TWO_BRICKS))
+
+    def run(out: str, trials: int, rate: str = "0.2") -> subprocess.CompletedProcess[str]:
+        return cli(
+            "eval", "--method", "agents", "--pattern", str(pattern), "--trials", str(trials),
+            "--answer-errors", rate, "--seed", "3", "--workers", "1", "--transcripts",
+            "--out", str(tmp_path / out),
+        )  # fmt: skip
+
+    def lines(out: str) -> str:
+        return (tmp_path / out / "results.jsonl").read_text()
+
+    for out in ("a", "b"):
+        assert run(out, 2).returncode == 0
+    assert lines("a") == lines("b")
+    assert run("c", 1).returncode == 0
+    assert run("c", 2).returncode == 0
+    assert lines("c") == lines("a")
+    records = [json.loads(line) for line in lines("a").splitlines()]
+    counts = [AnswerErrorCounts.model_validate(r["answer_errors"]) for r in records]
+    assert sum(c.corrupted for c in counts) > 0
+    for trial, count in enumerate(counts):
+        calls = [
+            AgentCall.model_validate_json(text)
+            for text in (tmp_path / "a" / "transcripts" / f"trial_{trial:03d}.jsonl")
+            .read_text()
+            .splitlines()
+        ]
+        assert AnswerErrorCounts.of(calls) == count
+    stored = json.loads((tmp_path / "a" / "run.json").read_text())["config"]["answer_errors"]
+    assert stored == {"rate": 0.2, "kinds": [k.value for k in ALL]}
+    summary = json.loads((tmp_path / "a" / "summary.json").read_text())["answer_errors"]
+    assert summary["corrupted"] == sum(c.corrupted for c in counts) and summary["rate"] == 0.2
+    refused = run("a", 2, rate="0.1")
+    assert_clean_error(refused, "answer_errors.rate 0.2 there, 0.1 now")
+    assert lines("a") == lines("b")
+    shown = cli("report", str(tmp_path / "a"), "--out", str(tmp_path / "report"))
+    assert shown.returncode == 0, shown.stderr
+    table = (tmp_path / "report" / "table.md").read_text()
+    assert "| agents (builtin), paper, answer errors 0.2 | two | 0.2 |" in table
+    assert 'id="answer-errors"' in (tmp_path / "report" / "report.html").read_text()
