@@ -190,13 +190,13 @@ def summary_markdown(summary: RunSummary) -> str:
     else:
         lines.append("No failures.")
     if summary.answer_errors is not None:
-        lines += ["", *answer_error_lines(summary.answer_errors)]
+        lines += ["", *_answer_error_lines(summary.answer_errors)]
     if summary.llm_usage.calls:
         lines += ["", *_llm_lines(summary)]
     return "\n".join(lines) + "\n"
 
 
-def answer_error_lines(totals: AnswerErrorTotals) -> list[str]:
+def _answer_error_lines(totals: AnswerErrorTotals) -> list[str]:
     """The answers eval --answer-errors corrupted, by kind, and what caught them."""
     kinds = "all kinds" if set(totals.kinds) == set(CorruptionKind) else ", ".join(totals.kinds)
     lines = [

@@ -150,7 +150,7 @@ def _pool(label: str, pattern: str, runs: Sequence[Run]) -> Group:
         conditions=runs[0].conditions(),
         results=results,
         sources=sources,
-        summary=summarize(results, 0.0, answer_errors=runs[0].manifest.answer_errors),
+        summary=summarize(results, wall_time_s=0.0, answer_errors=runs[0].manifest.answer_errors),
         repeated=repeated,
     )
 
