@@ -135,9 +135,13 @@ def _fail(error: ActionReasoningError | OSError, where: Path | None = None) -> N
     raise typer.Exit(code=2)
 
 
-def _check_options(method: Method, llm: LLMConfig, transcripts: bool) -> None:
+def _check_options(method: Method, llm: LLMConfig, transcripts: bool, answer_errors: float) -> None:
     if transcripts and method is Method.CLASSICAL:
         raise ConfigError("--transcripts records agent calls; --method classical makes none")
+    if not (math.isfinite(answer_errors) and 0.0 <= answer_errors <= 1.0):
+        raise ConfigError(f"--answer-errors {answer_errors}: give a probability from 0 to 1")
+    if answer_errors > 0 and method is Method.CLASSICAL:
+        raise ConfigError("--method classical asks no reasoner; drop --answer-errors")
     if method is Method.CLASSICAL:
         given = (["--llm"] if llm.spec != "builtin" else []) + llm.sampling.options()
         if given:
@@ -202,6 +206,14 @@ def eval_command(
     max_tokens: MaxTokensOption = MAX_COMPLETION_TOKENS,
     llm_seed: LLMSeedOption = 0,
     reasoning_effort: EffortOption = None,
+    answer_errors: Annotated[
+        float,
+        typer.Option(
+            metavar="RATE",
+            help="Corrupt each answer of the reasoner with this probability (0 to 1), drawn from "
+            "the trial's seed, with a mistake models make (see README): what the gates catch.",
+        ),
+    ] = 0.0,
     repairs: Annotated[
         int, typer.Option(min=0, help="Invalid answers sent back to the model per step.")
     ] = 2,
@@ -272,7 +284,7 @@ def eval_command(
             record=record,
             sampling=Sampling(temperature, top_p, max_tokens, llm_seed, reasoning_effort),
         )
-        _check_options(method, config, transcripts)
+        _check_options(method, config, transcripts, answer_errors)
     except ActionReasoningError as error:
         _fail(error)
     _evaluate(
@@ -291,6 +303,7 @@ def eval_command(
         budget=TrialBudget(max_steps=max_steps, max_wall_s=max_trial_s),
         physics=physics,
         noise=noise,
+        answer_errors=answer_errors,
     )
 
 
@@ -353,9 +366,11 @@ def _evaluate(
     budget: TrialBudget = TrialBudget(),
     physics: str = "paper",
     noise: str = "none",
+    answer_errors: float = 0.0,
 ) -> RunSummary:
     """Load the pattern and conditions, run the trials with progress, print the table; errors
     end the command."""
+    from actionreasoning.agents.answer_errors import AnswerErrors
     from actionreasoning.eval.jobs import RESUME_HINT
     from actionreasoning.eval.progress import ConsoleProgress
     from actionreasoning.eval.run import RunConfig, run_eval
@@ -365,7 +380,11 @@ def _evaluate(
         pattern = os.path.normpath(pattern)
     try:
         trials_under = TrialConfig(
-            llm=llm, budget=budget, physics=load_physics(physics), noise=load_noise(noise)
+            llm=llm,
+            budget=budget,
+            physics=load_physics(physics),
+            noise=load_noise(noise),
+            answer_errors=AnswerErrors(rate=answer_errors),
         )
         config = RunConfig(
             method=method,
@@ -384,6 +403,8 @@ def _evaluate(
         )
         physics_name, noise_name = trials_under.physics.name, trials_under.noise.name
         title = f"{method} / {pattern} / {physics_name} / noise {noise_name}"
+        if answer_errors:
+            title += f" / answer errors {answer_errors:g}"
         with ConsoleProgress(console, title) as progress:
             summary = run_eval(config, progress)
     except (ActionReasoningError, OSError) as error:

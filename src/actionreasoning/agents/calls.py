@@ -133,6 +133,7 @@ class AgentCaller:
                     tolerances=self.tol,
                     call_tool=partial(_run_tool, spec.tools, knowledge, context, tool_calls),
                     measure=partial(_run_tool, GATE_MEASUREMENTS, gates, context, tool_calls),
+                    call=call.call,
                 )
             )
         except LLMError as error:
@@ -146,6 +147,7 @@ class AgentCaller:
         call.answer, call.tool_calls = reply.answer.model_dump(mode="json"), tool_calls
         call.usage, call.repairs = reply.usage, list(reply.repairs)
         call.tool_turns, call.fallback = reply.tool_turns, reply.fallback
+        call.corruption = reply.corruption
         call.prompt_chars = reply.prompt_chars or call.prompt_chars
         self._tell(call)
         if not isinstance(reply.answer, expected):

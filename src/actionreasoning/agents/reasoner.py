@@ -6,6 +6,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from actionreasoning.agents.answer_errors import AnswerCorruption
 from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.outputs import AgentAnswer
 from actionreasoning.agents.spec import AgentKey, AgentSpec
@@ -28,7 +29,7 @@ class AgentRequest:
     measurements (``GATE_MEASUREMENTS``) on that world, for an agent answered from outside
     (the in-process reasoners never call it); both log the call in the transcript.
     ``state`` is the whole measured state, for validating an answer's ids (a reasoner does
-    not read it).
+    not read it). ``call`` is the index of this call in the trial (its transcript record's).
     """
 
     spec: AgentSpec
@@ -39,6 +40,7 @@ class AgentRequest:
     tolerances: Tolerances
     call_tool: ToolRunner
     measure: ToolRunner
+    call: int = 0
 
 
 @dataclass(frozen=True)
@@ -69,6 +71,7 @@ class AgentReply:
     ``tool_turns`` how many rounds of tool calls it made, and ``fallback`` whether the
     built-in reasoner answered after the repair budget was spent. ``prompt_chars`` is how
     many characters went to the model over all its turns (None: the prompt once).
+    ``corruption`` says what ``eval --answer-errors`` changed in the answer, if anything.
     """
 
     answer: AgentAnswer
@@ -77,6 +80,7 @@ class AgentReply:
     tool_turns: int = 0
     fallback: bool = False
     prompt_chars: int | None = None
+    corruption: AnswerCorruption | None = None
 
 
 class Reasoner(Protocol):

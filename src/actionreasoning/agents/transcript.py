@@ -14,6 +14,7 @@ from typing import Any
 
 from pydantic import BaseModel, Field
 
+from actionreasoning.agents.answer_errors import AnswerCorruption
 from actionreasoning.agents.gates import GateVerdict
 from actionreasoning.records import LLMUsage
 
@@ -98,6 +99,27 @@ class AgentCall(BaseModel):
     tool_turns: int = 0
     fallback: bool = Field(False, description="Answered by the built-in reasoner instead.")
     usage: LLMUsage = LLMUsage()
+    corruption: AnswerCorruption | None = Field(
+        None,
+        description="What eval --answer-errors changed in the reasoner's answer (its original "
+        "kept there); ``answer`` is the corrupted one, as judged.",
+    )
+
+    @property
+    def caught_by(self) -> str:
+        """What stopped this answer: ``gate:check``, the first failed check of its last failed
+        gate verdict, when it was refused, raised or re-grasped (else the outcome: a refusal
+        before any gate); ``missed`` when it was accepted or executed; ``trial_stopped`` when
+        the trial ended on it."""
+        if self.outcome in (Outcome.ACCEPTED, Outcome.EXECUTED):
+            return "missed"
+        if self.outcome in (Outcome.FAILED, Outcome.PENDING):
+            return "trial_stopped"
+        failed = [gate for gate in self.gates if not gate.passed]
+        if not failed:
+            return str(self.outcome)
+        check = next((c.name for c in failed[-1].checks if not c.passed), None)
+        return failed[-1].gate if check is None else f"{failed[-1].gate}:{check}"
 
     @property
     def brick_in_hand(self) -> int | None:

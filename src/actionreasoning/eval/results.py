@@ -8,13 +8,28 @@ which name the code that wrote it.
 
 from __future__ import annotations
 
+from collections import Counter
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
 from pydantic import BaseModel, ConfigDict, Field
 
+from actionreasoning.agents.answer_errors import CorruptionKind
 from actionreasoning.eval.provenance import Provenance
 from actionreasoning.records import Failure, LLMUsage
 from actionreasoning.world.geometry import QuatXYZW, Vec3
 
-__all__ = ["BrickResult", "Failure", "LLMUsage", "PlacementMetrics", "TrialResult"]
+if TYPE_CHECKING:
+    from actionreasoning.agents.transcript import AgentCall
+
+__all__ = [
+    "AnswerErrorCounts",
+    "BrickResult",
+    "Failure",
+    "LLMUsage",
+    "PlacementMetrics",
+    "TrialResult",
+]
 
 
 class _Record(BaseModel):
@@ -47,6 +62,38 @@ class PlacementMetrics(_Record):
     iou: float
 
 
+class AnswerErrorCounts(_Record):
+    """What ``eval --answer-errors`` corrupted, by kind, and what caught the corrupted answers:
+    ``gate:check`` (the first failed check of the last failed verdict on the answer),
+    ``refused`` (refused before any gate), ``missed`` (accepted or executed) or
+    ``trial_stopped`` (the trial ended on it). Counts add up with ``+``."""
+
+    corrupted: int = 0
+    by_kind: dict[CorruptionKind, int] = Field(default_factory=dict)
+    caught_by: dict[str, int] = Field(default_factory=dict)
+
+    @classmethod
+    def of(cls, transcript: Sequence[AgentCall]) -> AnswerErrorCounts:
+        """The corrupted calls of a trial's transcript, counted."""
+        return sum(
+            (
+                cls(corrupted=1, by_kind={call.corruption.kind: 1}, caught_by={call.caught_by: 1})
+                for call in transcript
+                if call.corruption is not None
+            ),
+            cls(),
+        )
+
+    def __add__(self, other: AnswerErrorCounts) -> AnswerErrorCounts:
+        kinds = Counter(self.by_kind) + Counter(other.by_kind)
+        caught = Counter(self.caught_by) + Counter(other.caught_by)
+        return AnswerErrorCounts(
+            corrupted=self.corrupted + other.corrupted,
+            by_kind={kind: kinds[kind] for kind in CorruptionKind if kind in kinds},
+            caught_by=dict(sorted(caught.items())),
+        )
+
+
 class TrialResult(Provenance):
     """One finished trial, as one line of results.jsonl: which code wrote it (empty in
     lines written before that was recorded), then the trial."""
@@ -70,4 +117,6 @@ class TrialResult(Provenance):
     llm_usage_by_agent: dict[str, LLMUsage] = Field(default_factory=dict)
     decisions: int = 0
     fallback_decisions: int = 0
+    #: With eval --answer-errors RATE > 0 only: lines at rate 0 have no such field.
+    answer_errors: AnswerErrorCounts | None = Field(None, exclude_if=lambda counts: counts is None)
     sim_steps: int

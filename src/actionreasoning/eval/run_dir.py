@@ -21,6 +21,7 @@ from typing import IO, Any
 
 from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
 
+from actionreasoning.agents.answer_errors import AnswerErrors
 from actionreasoning.errors import ConfigError, StorageError
 from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.results import TrialResult
@@ -77,6 +78,10 @@ class RunManifest(BaseModel):
     def noise_name(self) -> str:
         return self.config.noise.name
 
+    @property
+    def answer_errors(self) -> AnswerErrors:
+        return self.config.answer_errors
+
     def fields(self) -> dict[str, Any]:
         """Every recorded value, nested ones dotted and those of the config by their path
         in it (``tolerances.c_min_m``); the hash, which only sums them up, left out."""
@@ -109,6 +114,11 @@ class EarlierManifest(BaseModel):
     @property
     def noise_name(self) -> str:
         return str(self.noise["name"])
+
+    @property
+    def answer_errors(self) -> AnswerErrors:
+        """Rate 0: answer errors did not exist yet."""
+        return AnswerErrors()
 
     def fields(self) -> dict[str, Any]:
         """What it recorded, by the names a :class:`RunManifest` gives the same values."""

@@ -8,8 +8,9 @@ from collections.abc import Sequence
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from actionreasoning.agents.answer_errors import AnswerErrors, CorruptionKind
 from actionreasoning.eval.provenance import Provenance
-from actionreasoning.eval.results import LLMUsage, TrialResult
+from actionreasoning.eval.results import AnswerErrorCounts, LLMUsage, TrialResult
 from actionreasoning.records import FailureCode
 from actionreasoning.world.noise import NoiseLevel
 from actionreasoning.world.physics import PhysicsProfile
@@ -25,6 +26,13 @@ class MetricStats(BaseModel):
 
     mean: float | None
     std: float | None
+
+
+class AnswerErrorTotals(AnswerErrorCounts):
+    """A run's answer errors: the rate and kinds it ran with, its trials' counts summed."""
+
+    rate: float
+    kinds: tuple[CorruptionKind, ...]
 
 
 class RunSummary(Provenance):
@@ -55,6 +63,7 @@ class RunSummary(Provenance):
     fallback_decisions: int = 0
     wall_time_s: float
     resumed_trials: int = 0
+    answer_errors: AnswerErrorTotals | None = Field(None, exclude_if=lambda totals: totals is None)
 
 
 def describe_rule(rule: SuccessRule) -> str:
@@ -82,8 +91,10 @@ def summarize(
     resumed_trials: int = 0,
     physics: PhysicsProfile | None = None,
     noise: NoiseLevel | None = None,
+    answer_errors: AnswerErrors | None = None,
 ) -> RunSummary:
-    """Means and standard deviations over successful trials (the paper's protocol) and all."""
+    """Means and standard deviations over successful trials (the paper's protocol) and all;
+    with ``answer_errors`` at a rate above 0, what they corrupted and what caught it."""
     if not results:
         raise ValueError("no trial results to summarize")
     first = results[0]
@@ -120,7 +131,17 @@ def summarize(
         fallback_decisions=sum(r.fallback_decisions for r in results),
         wall_time_s=wall_time_s,
         resumed_trials=resumed_trials,
+        answer_errors=_answer_error_totals(results, answer_errors),
     )
+
+
+def _answer_error_totals(
+    results: Sequence[TrialResult], errors: AnswerErrors | None
+) -> AnswerErrorTotals | None:
+    if errors is None or not errors.rate:
+        return None
+    counts = sum((r.answer_errors or AnswerErrorCounts() for r in results), AnswerErrorCounts())
+    return AnswerErrorTotals(rate=errors.rate, kinds=errors.kinds, **dict(counts))
 
 
 def _cell(stats: MetricStats, scale: float = 1.0, digits: int = 3) -> str:
@@ -135,7 +156,8 @@ def summary_markdown(summary: RunSummary) -> str:
     lines = [
         f"# {summary.method} on {summary.pattern}"
         + (f" under {summary.physics.name} physics" if summary.physics else "")
-        + (f", noise {summary.noise.name}" if summary.noise else ""),
+        + (f", noise {summary.noise.name}" if summary.noise else "")
+        + (f", answer errors {summary.answer_errors.rate:g}" if summary.answer_errors else ""),
         "",
         f"Reasoning backend: `{summary.llm}` · seed {summary.seed} · {summary.trials} trials · "
         f"wall time {summary.wall_time_s:.1f} s"
@@ -167,9 +189,26 @@ def summary_markdown(summary: RunSummary) -> str:
         ]
     else:
         lines.append("No failures.")
+    if summary.answer_errors is not None:
+        lines += ["", *_answer_error_lines(summary.answer_errors)]
     if summary.llm_usage.calls:
         lines += ["", *_llm_lines(summary)]
     return "\n".join(lines) + "\n"
+
+
+def _answer_error_lines(totals: AnswerErrorTotals) -> list[str]:
+    """The answers eval --answer-errors corrupted, by kind, and what caught them."""
+    kinds = "all kinds" if set(totals.kinds) == set(CorruptionKind) else ", ".join(totals.kinds)
+    lines = [
+        f"Answer errors: each answer corrupted with probability {totals.rate:g} ({kinds}); "
+        f"{totals.corrupted} answers corrupted.",
+    ]
+    if totals.corrupted:
+        lines += ["", "| Kind | Meaning | Answers |", "|---|---|---|"]
+        lines += [f"| `{k}` | {k.meaning} | {n} |" for k, n in totals.by_kind.items()]
+        lines += ["", "| Caught by | Answers |", "|---|---|"]
+        lines += [f"| `{check}` | {n} |" for check, n in totals.caught_by.items()]
+    return lines
 
 
 def _condition_lines(summary: RunSummary) -> list[str]:

@@ -18,6 +18,7 @@ from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointC
 from actionreasoning.errors import ConfigError, TrialAborted, UnreachableError
 from actionreasoning.eval.metrics import brick_metrics
 from actionreasoning.eval.results import (
+    AnswerErrorCounts,
     BrickResult,
     Failure,
     LLMUsage,
@@ -28,6 +29,7 @@ from actionreasoning.eval.rules import Method, trial_seed
 from actionreasoning.eval.sim_world import SimWorld
 from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.factory import make_reasoner
+from actionreasoning.reasoners.imperfect import ImperfectReasoner
 from actionreasoning.records import FailureCode
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.perceive import Sensor
@@ -56,6 +58,8 @@ class TrialSpec:
     def __post_init__(self) -> None:
         if self.method is not Method.CLASSICAL and self.config.llm is None:
             raise ConfigError(f"--method {self.method} needs a reasoning backend (config.llm)")
+        if self.method is Method.CLASSICAL and self.config.answer_errors.rate > 0:
+            raise ConfigError("--method classical asks no reasoner; drop --answer-errors")
 
 
 class TrialObserver:
@@ -194,11 +198,14 @@ def _run_agents(
     reasoner: Reasoner | None = None,
 ) -> BuildResult:
     """The six gated agents, or the merged single agent, with ``reasoner`` (default: the
-    spec's)."""
+    spec's), whose answers are corrupted at the rate of ``config.answer_errors``."""
     config, world = spec.config, SimWorld(controller, spec.goal, sensor)
     assert config.llm is not None  # TrialSpec checks it
     if reasoner is None:
         reasoner = make_reasoner(config.llm, controller.scene.deadline)
+    if config.answer_errors.rate > 0:
+        seed = trial_seed(spec.run_seed, spec.trial)
+        reasoner = ImperfectReasoner(reasoner, config.answer_errors, seed)
     runner = (
         SingleAgent(world, reasoner, config.tolerances, on_stage=stage, on_call=on_call)
         if spec.method is Method.SINGLE_AGENT
@@ -282,6 +289,9 @@ def _measure(
         },
         decisions=outcome.decisions,
         fallback_decisions=outcome.fallbacks,
+        answer_errors=AnswerErrorCounts.of(outcome.transcript)
+        if config.answer_errors.rate
+        else None,
         sim_steps=scene.ticks,
     )
 

@@ -12,6 +12,7 @@ from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field, field_serializer
 
+from actionreasoning.agents.answer_errors import AnswerErrors
 from actionreasoning.agents.orchestrator import Budgets
 from actionreasoning.control.limits import ControllerLimits
 from actionreasoning.control.safety import SafetyLimits
@@ -45,7 +46,7 @@ class Backend(BaseModel):
 
 class TrialConfig(BaseModel):
     """The scene, physics, perturbations, gate tolerances, budgets, controller and safety
-    limits, success rule and reasoning backend of every trial of a run.
+    limits, success rule, reasoning backend and answer errors of every trial of a run.
 
     ``llm`` is None for the classical script, which asks no reasoner. Of a backend only
     what defines it is recorded (:class:`Backend`): where its server is and how patiently
@@ -67,6 +68,7 @@ class TrialConfig(BaseModel):
     safety: SafetyLimits = SafetyLimits()
     success_rule: SuccessRule = SuccessRule()
     llm: LLMConfig | None = LLMConfig()
+    answer_errors: AnswerErrors = AnswerErrors()
 
     @field_serializer("llm")
     def _backend(self, llm: LLMConfig | None) -> Backend | None:

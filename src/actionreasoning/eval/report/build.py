@@ -161,6 +161,7 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
             for row in table.rows
         ],
         failures=table.failures,
+        answer_errors=table.answer_errors,
         notes=table.notes,
         plots=[{"data": _data_uri(p), "caption": c} for p, c in report.plots],
         grids=[{"data": _data_uri(p), "caption": c} for p, c in report.grids],

@@ -62,10 +62,12 @@ def pattern_title(pattern: str) -> str:
 
 def method_label(manifest: AnyManifest) -> str:
     """How a row names a method: with its reasoning backend where it has one, its physics
-    profile and, where there is any, its noise level."""
+    profile and, where there are any, its noise level and answer error rate."""
     name = manifest.method if manifest.llm == "none" else f"{manifest.method} ({manifest.llm})"
     noise = "" if manifest.noise_name == "none" else f", noise {manifest.noise_name}"
-    return f"{name}, {manifest.physics_name}{noise}"
+    rate = manifest.answer_errors.rate
+    errors = f", answer errors {rate:g}" if rate else ""
+    return f"{name}, {manifest.physics_name}{noise}{errors}"
 
 
 def show(value: Any) -> str:
@@ -148,7 +150,7 @@ def _pool(label: str, pattern: str, runs: Sequence[Run]) -> Group:
         conditions=runs[0].conditions(),
         results=results,
         sources=sources,
-        summary=summarize(results, wall_time_s=0.0),
+        summary=summarize(results, wall_time_s=0.0, answer_errors=runs[0].manifest.answer_errors),
         repeated=repeated,
     )
 

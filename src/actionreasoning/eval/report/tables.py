@@ -1,6 +1,7 @@
 """The paper's Table I: methods in rows; per pattern and on average, rotation error (°),
 centre offset (cm) and IoU (%), means over successful trials; as markdown, CSV and LaTeX.
-Rows and pattern columns are the groups of collect.py; the notes say how runs differ.
+Rows and pattern columns are the groups of collect.py; the notes say how runs differ. Runs
+with answer errors get a table of what was corrupted and what caught it.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from actionreasoning.eval.report.collect import Group, condition_notes, labels, patterns
+from actionreasoning.eval.summary import AnswerErrorTotals
 from actionreasoning.records import FailureCode
 
 #: (summary metric, column title, scale, digits, lower is better)
@@ -37,6 +39,24 @@ class FailureRow:
 
 
 @dataclass(frozen=True)
+class AnswerErrorRow:
+    """What eval --answer-errors corrupted in one method's runs on one pattern, and what
+    caught it, summed over their trials."""
+
+    label: str
+    pattern: str
+    totals: AnswerErrorTotals
+
+    @property
+    def kinds(self) -> str:
+        return ", ".join(f"{kind} {n}" for kind, n in self.totals.by_kind.items()) or "–"
+
+    @property
+    def caught(self) -> str:
+        return ", ".join(f"{check} {n}" for check, n in self.totals.caught_by.items()) or "–"
+
+
+@dataclass(frozen=True)
 class Table:
     """Cell values (None where a method has no successful trial on a pattern)."""
 
@@ -47,6 +67,7 @@ class Table:
     # (row, Average): summed over the patterns
     failures: list[FailureRow]
     notes: list[str]  # how the runs' conditions differ (collect.condition_notes)
+    answer_errors: list[AnswerErrorRow]  # the groups run with answer errors
 
     def best(self, pattern: str, metric: str) -> float | None:
         """The best value of a column, for bold type."""
@@ -101,6 +122,11 @@ def comparison_table(groups: Sequence[Group]) -> Table:
         success=success,
         failures=_failures(groups),
         notes=condition_notes(groups),
+        answer_errors=[
+            AnswerErrorRow(g.label, g.pattern, g.summary.answer_errors)
+            for g in groups
+            if g.summary.answer_errors is not None
+        ],
     )
 
 
@@ -161,6 +187,17 @@ def to_markdown(table: Table) -> str:
         ]
     else:
         lines.append("No trial failed.")
+    if table.answer_errors:
+        lines += [
+            "",
+            "| Method | Pattern | Answer error rate | Corrupted | By kind | Caught by |",
+            "|---|---|---|---|---|---|",
+            *(
+                f"| {a.label} | {a.pattern} | {a.totals.rate:g} | {a.totals.corrupted} | "
+                f"{a.kinds} | {a.caught} |"
+                for a in table.answer_errors
+            ),
+        ]
     if table.notes:
         lines += ["", *(f"- {note}" for note in table.notes)]
     return "\n".join(lines) + "\n"

@@ -1,0 +1,662 @@
+"""eval --answer-errors: each kind of mistake changes exactly what it says, the draws come
+from the trial's seed and the call's index, and corrupted calls are marked in transcripts.
+
+The answers corrupted are real ones: the built-in reasoner's, asked by the real orchestrator
+and the single agent on the scripted FakeWorld (no physics)."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from conftest import SMALL_PATTERN, assert_clean_error, cli
+from fake_world import FakeWorld
+from scipy.spatial.transform import Rotation
+
+from actionreasoning.agents.answer_errors import AnswerCorruption, AnswerErrors, CorruptionKind
+from actionreasoning.agents.calls import BuildResult
+from actionreasoning.agents.orchestrator import Orchestrator
+from actionreasoning.agents.outputs import AgentAnswer, PreGraspAnswer, ToolCall
+from actionreasoning.agents.reasoner import AgentReply, AgentRequest, Reasoner
+from actionreasoning.agents.single_agent import SingleAgent
+from actionreasoning.agents.transcript import AgentCall, CheckRecord, GateRecord, Outcome
+from actionreasoning.agents.view import target_supports
+from actionreasoning.eval.results import AnswerErrorCounts, PlacementMetrics, TrialResult
+from actionreasoning.eval.summary import summarize, summary_markdown
+from actionreasoning.reasoners.builtin import BuiltinReasoner
+from actionreasoning.reasoners.imperfect import (
+    ANSWER_ERROR_STREAM,
+    CM_AS_M_FACTOR,
+    ImperfectReasoner,
+    corruption,
+)
+from actionreasoning.sim.collision import CollisionChecker
+from actionreasoning.sim.kinematics import KinematicArm
+from actionreasoning.world import noise
+from actionreasoning.world.layout import sample_pick_poses
+from actionreasoning.world.models import GoalPattern
+from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.scene_spec import SceneSpec
+
+SPEC = SceneSpec()
+BRICKS = sample_pick_poses(np.random.default_rng(0), 3, SPEC)
+ALL = tuple(CorruptionKind)
+
+
+@dataclass
+class Recorder:
+    """A reasoner that keeps every request it was asked with its reply."""
+
+    inner: Reasoner = field(default_factory=BuiltinReasoner)
+    name: str = "recorder"
+    seen: list[tuple[AgentRequest, AgentReply]] = field(default_factory=list)
+
+    def decide(self, request: AgentRequest) -> AgentReply:
+        reply = self.inner.decide(request)
+        self.seen.append((request, reply))
+        return reply
+
+
+@dataclass(frozen=True)
+class Exchange:
+    """One request and the built-in reasoner's answer to it."""
+
+    request: AgentRequest
+    answer: AgentAnswer
+
+    @property
+    def step(self) -> str:
+        return str(getattr(self.answer, "step", self.request.spec.key))
+
+    @property
+    def placed(self) -> int:
+        return len(self.request.memory.placed)
+
+
+@pytest.fixture(scope="module")
+def kinematics() -> Iterator[tuple[KinematicArm, CollisionChecker]]:
+    arm = KinematicArm()
+    yield arm, CollisionChecker(arm)
+    arm.close()
+
+
+@pytest.fixture(scope="module")
+def wall(tmp_path_factory: pytest.TempPathFactory) -> GoalPattern:
+    """Two bricks side by side and one on top."""
+    path = tmp_path_factory.mktemp("patterns") / "small.json"
+    path.write_text(json.dumps(SMALL_PATTERN))
+    return load_pattern(path, SPEC)
+
+
+def recorded(runner: Callable[[FakeWorld, Reasoner], Any], world: FakeWorld) -> list[Exchange]:
+    recorder = Recorder()
+    runner(world, recorder).build(world.goal)
+    return [Exchange(request, reply.answer) for request, reply in recorder.seen]
+
+
+@pytest.fixture(scope="module")
+def agents(kinematics, wall) -> list[Exchange]:
+    """Every call of the six agents building the wall."""
+    return recorded(Orchestrator, FakeWorld(wall, BRICKS, *kinematics))
+
+
+@pytest.fixture(scope="module")
+def single(kinematics, wall) -> list[Exchange]:
+    """Every call of the single agent building the wall."""
+    return recorded(SingleAgent, FakeWorld(wall, BRICKS, *kinematics))
+
+
+def first(exchanges: list[Exchange], step: str, placed: int | None = 0) -> Exchange:
+    """The first call at ``step`` with ``placed`` bricks built (None: any number)."""
+    return next(e for e in exchanges if e.step == step and placed in (None, e.placed))
+
+
+def corrupt(
+    exchange: Exchange, kind: CorruptionKind, seed: int = 0
+) -> tuple[AgentAnswer, AnswerCorruption]:
+    found = corruption(exchange.answer, exchange.request, [kind], np.random.default_rng(seed))
+    assert found is not None, f"{kind} does not apply to {exchange.step}"
+    return found
+
+
+def changed(before: AgentAnswer, after: AgentAnswer) -> dict[str, tuple[Any, Any]]:
+    """The leaves of the two answers' JSON that differ, by dotted path."""
+    old, new = flat(before.model_dump(mode="json")), flat(after.model_dump(mode="json"))
+    return {k: (old.get(k), new.get(k)) for k in {*old, *new} if old.get(k) != new.get(k)}
+
+
+def flat(value: Any, prefix: str = "") -> dict[str, Any]:
+    if isinstance(value, dict):
+        return {
+            k: v for name, item in value.items() for k, v in flat(item, f"{prefix}{name}.").items()
+        }
+    if isinstance(value, list):
+        return {
+            k: v for i, item in enumerate(value) for k, v in flat(item, f"{prefix}{i}.").items()
+        }
+    return {prefix.rstrip("."): value}
+
+
+def displacement(exchange: Exchange, answer: AgentAnswer) -> np.ndarray:
+    tool = np.array(exchange.request.state.robot.ee_pose.position_m)
+    return np.array(answer.waypoint.position_m) - tool  # type: ignore[attr-defined]
+
+
+# --- each kind --------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("step", "placed"), [("release", 0), ("pre_grasp", 1), ("descent", 0)])
+def test_sign_flip_flips_one_component_of_the_displacement(agents, step, placed) -> None:
+    exchange = first(agents, step, placed)
+    before = displacement(exchange, exchange.answer)
+    for seed in range(8):
+        answer, record = corrupt(exchange, CorruptionKind.SIGN_FLIP, seed)
+        after = displacement(exchange, answer)
+        (axis,) = np.flatnonzero(~np.isclose(before, after))
+        assert after[axis] == pytest.approx(-before[axis])
+        big = [i for i in (0, 1) if abs(before[i]) >= 0.001]
+        assert axis in (big or [2])
+        assert set(changed(exchange.answer, answer)) == {f"waypoint.position_m.{axis}"}
+        assert record.detail.startswith(f"waypoint.position_m[{axis}] ")
+    if step == "descent":  # straight down: the flip sends the tool up
+        assert axis == 2 and after[2] > 0
+
+
+@pytest.mark.parametrize(
+    ("kind", "turns"), [(CorruptionKind.YAW_90, {90.0, -90.0}), (CorruptionKind.YAW_180, {180.0})]
+)
+def test_yaw_turns_the_orientation_about_world_z(agents, kind, turns) -> None:
+    exchange = first(agents, "descent")
+    old = Rotation.from_quat(exchange.answer.waypoint.quat_xyzw)  # type: ignore[attr-defined]
+    seen = set()
+    for seed in range(12):
+        answer, record = corrupt(exchange, kind, seed)
+        assert answer.waypoint.position_m == exchange.answer.waypoint.position_m  # type: ignore[attr-defined]
+        new = Rotation.from_quat(answer.waypoint.quat_xyzw)  # type: ignore[attr-defined]
+        turn = next(
+            t
+            for t in turns
+            if (Rotation.from_euler("z", t, degrees=True) * old).approx_equal(new, 1e-9)
+        )
+        seen.add(turn)
+        assert {k.rsplit(".", 1)[0] for k in changed(exchange.answer, answer)} == {
+            "waypoint.quat_xyzw"
+        }
+        assert f"turned {turn:+g} deg" in record.detail
+    assert seen == turns
+
+
+def test_cm_as_m_multiplies_the_largest_displacement_component_by_100(agents) -> None:
+    exchange = first(agents, "lift")
+    before = displacement(exchange, exchange.answer)
+    axis = int(np.argmax(np.abs(before)))
+    answer, record = corrupt(exchange, CorruptionKind.CM_AS_M)
+    after = displacement(exchange, answer)
+    assert axis == 2 and after[2] == pytest.approx(CM_AS_M_FACTOR * before[2])
+    assert set(changed(exchange.answer, answer)) == {"waypoint.position_m.2"}
+    assert record.detail.startswith("waypoint.position_m[2] ")
+
+
+def test_into_obstacle_goes_to_a_placed_brick_or_into_the_ground(agents) -> None:
+    alone = first(agents, "pre_grasp", placed=0)
+    answer, record = corrupt(alone, CorruptionKind.INTO_OBSTACLE)
+    x, y, _ = alone.answer.waypoint.position_m  # type: ignore[attr-defined]
+    assert answer.waypoint.position_m == (x, y, 0.0)  # type: ignore[attr-defined]
+    assert "into the ground" in record.detail
+    later = first(agents, "pre_grasp", placed=2)
+    placed = {b.id: b.pose.position_m for b in later.request.state.bricks if b.status == "placed"}
+    assert len(placed) == 2
+    hit = set()
+    for seed in range(8):
+        answer, record = corrupt(later, CorruptionKind.INTO_OBSTACLE, seed)
+        brick = next(i for i, p in placed.items() if answer.waypoint.position_m == p)  # type: ignore[attr-defined]
+        hit.add(brick)
+        assert f"placed brick {brick}" in record.detail
+        assert {k.rsplit(".", 1)[0] for k in changed(later.answer, answer)} == {
+            "waypoint.position_m"
+        }
+    assert hit == set(placed)
+
+
+def test_skipped_hover_lowers_the_approach_and_the_single_agents_carry(agents, single) -> None:
+    for exchange in (first(agents, "pre_grasp"), first(single, "pre_grasp")):
+        answer, _ = corrupt(exchange, CorruptionKind.SKIPPED_HOVER)
+        brick = exchange.request.state.brick(exchange.answer.brick_id)  # type: ignore[attr-defined]
+        x, y, _ = exchange.answer.waypoint.position_m  # type: ignore[attr-defined]
+        assert answer.waypoint.position_m == (x, y, brick.pose.position_m[2])  # type: ignore[attr-defined]
+    carry = first(single, "transfer", placed=1)
+    answer, record = corrupt(carry, CorruptionKind.SKIPPED_HOVER)
+    target = carry.request.state.goal.targets[carry.request.memory.current_target]  # type: ignore[index]
+    placement = first(single, "placement", placed=1).answer
+    assert answer.waypoint.position_m[2] == target.pose.position_m[2]  # type: ignore[attr-defined]
+    assert answer.waypoint.position_m[2] == pytest.approx(
+        placement.waypoint.position_m[2], abs=0.005
+    )  # type: ignore[attr-defined]
+    assert set(changed(carry.answer, answer)) == {"waypoint.position_m.2"}
+    assert f"target {target.index}" in record.detail
+    for step in ("descent", "lift", "placement", "release"):
+        assert not applies(first(agents, step), CorruptionKind.SKIPPED_HOVER)
+    for step in ("descent", "lift", "placement", "retreat"):
+        assert not applies(first(single, step, None), CorruptionKind.SKIPPED_HOVER)
+
+
+def test_too_fast_drops_the_duration_of_moves_that_have_one(agents) -> None:
+    lift = first(agents, "lift")
+    answer, record = corrupt(lift, CorruptionKind.TOO_FAST)
+    assert lift.answer.waypoint.duration_s is not None  # type: ignore[attr-defined]
+    assert changed(lift.answer, answer) == {
+        "waypoint.duration_s": (lift.answer.waypoint.duration_s, None)  # type: ignore[attr-defined]
+    }
+    assert record.detail.endswith("-> None")
+    assert not applies(first(agents, "pre_grasp"), CorruptionKind.TOO_FAST)
+
+
+def test_wrong_choice_names_a_brick_or_target_that_cannot_be_used(
+    agents, single, kinematics, wall
+) -> None:
+    for exchange in (first(agents, "pre_grasp", placed=0), first(single, "pre_grasp", placed=0)):
+        answer, record = corrupt(exchange, CorruptionKind.WRONG_CHOICE)  # nothing placed yet:
+        assert changed(exchange.answer, answer) == {"target_index": (0, 2)}  # 2 rests on 0, 1
+        assert "support is not built" in record.detail
+    later = first(agents, "pre_grasp", placed=1)
+    state, memory = later.request.state, later.request.memory
+    placed = {b.id for b in state.bricks if b.status == "placed"}
+    built = {p.target_index for p in memory.placed}
+    supports = target_supports(state.goal)
+    unsupported = {t for t, under in supports.items() if t not in built and not set(under) <= built}
+    seen = set()
+    for seed in range(20):
+        answer, _ = corrupt(later, CorruptionKind.WRONG_CHOICE, seed)
+        ((name, (_, new)),) = changed(later.answer, answer).items()
+        group = (
+            "placed"
+            if name == "brick_id" and new in placed
+            else "built"
+            if new in built
+            else "unsupported"
+        )
+        assert name == "target_index" or group == "placed"
+        assert group != "unsupported" or new in unsupported
+        seen.add(group)
+    assert seen == {"placed", "built", "unsupported"}
+    one = wall.model_copy(update={"targets": wall.targets[:1]})
+    alone = recorded(Orchestrator, FakeWorld(one, BRICKS, *kinematics))[0]
+    answer, record = corrupt(alone, CorruptionKind.WRONG_CHOICE)
+    assert answer.brick_id == 3 and record.detail.endswith("(no such brick)")  # type: ignore[attr-defined]
+    for step in ("descent", "release"):
+        assert not applies(first(agents, step), CorruptionKind.WRONG_CHOICE)
+    assert not applies(first(single, "descent"), CorruptionKind.WRONG_CHOICE)
+
+
+def test_missing_field_leaves_out_one_decision_the_answer_made(agents, single) -> None:
+    cases = [
+        (first(agents, "pre_grasp"), {"waypoint", "brick_id", "target_index"}),
+        (first(agents, "descent"), {"waypoint", "gripper_opening_m"}),
+        (first(agents, "grasp"), {"close"}),
+        (first(agents, "release"), {"waypoint", "gripper_opening_m"}),
+        (
+            first(single, "pre_grasp"),
+            {"waypoint", "brick_id", "target_index", "gripper", "gripper_opening_m"},
+        ),
+        (first(single, "grasp"), {"gripper"}),
+    ]
+    for exchange, fields in cases:
+        seen = set()
+        for seed in range(40):
+            answer, record = corrupt(exchange, CorruptionKind.MISSING_FIELD, seed)
+            (name,) = {k.split(".", 1)[0] for k in changed(exchange.answer, answer)}
+            seen.add(name)
+            expected = {"close": False, "gripper": "hold"}.get(name)
+            assert getattr(answer, name) == expected
+            assert record.detail.startswith(name)
+        assert seen == fields, exchange.step
+
+
+def applies(exchange: Exchange, kind: CorruptionKind) -> bool:
+    return (
+        corruption(exchange.answer, exchange.request, [kind], np.random.default_rng(0)) is not None
+    )
+
+
+def test_answers_no_kind_applies_to_are_left_as_they_are(agents, single) -> None:
+    grasp = first(agents, "grasp")
+    assert [k for k in ALL if applies(grasp, k)] == [CorruptionKind.MISSING_FIELD]
+    done = next(e for e in single if e.step == "done")
+    assert done.answer.waypoint is not None and not any(applies(done, k) for k in ALL)  # type: ignore[attr-defined]
+    tools = Exchange(
+        first(agents, "pre_grasp").request,
+        PreGraspAnswer(tool_calls=[ToolCall(name="grasp_options", arguments={"brick_id": 0})]),
+    )
+    assert not any(applies(tools, k) for k in ALL)
+    for exchange in (done, tools):
+        reasoner = ImperfectReasoner(Fixed(exchange.answer), AnswerErrors(rate=1.0), 7)
+        reply = reasoner.decide(exchange.request)
+        assert reply.answer is exchange.answer and reply.corruption is None
+
+
+def test_every_corruption_of_every_answer_keeps_numbers_finite_and_the_original(
+    agents, single
+) -> None:
+    tried = 0
+    for exchange in agents + single:
+        for kind in ALL:
+            for seed in range(3):
+                found = corruption(
+                    exchange.answer, exchange.request, [kind], np.random.default_rng(seed)
+                )
+                if found is None:
+                    continue
+                answer, record = found
+                tried += 1
+                numbers = [
+                    v for v in flat(answer.model_dump(mode="json")).values() if isinstance(v, float)
+                ]
+                assert all(math.isfinite(v) for v in numbers)
+                assert record.kind is kind and record.detail and "\n" not in record.detail
+                assert record.original == exchange.answer.model_dump(mode="json")
+                assert changed(exchange.answer, answer)
+                assert type(answer) is type(exchange.answer)
+    assert tried > 300
+
+
+# --- the draws --------------------------------------------------------------------------
+
+
+@dataclass
+class Fixed:
+    """Answers every request with the same answer."""
+
+    answer: AgentAnswer
+    name: str = "fixed"
+
+    def decide(self, request: AgentRequest) -> AgentReply:
+        return AgentReply(answer=self.answer)
+
+
+def replies(exchange: Exchange, errors: AnswerErrors, seed: int, calls: range) -> list[AgentReply]:
+    reasoner = ImperfectReasoner(Fixed(exchange.answer), errors, seed)
+    return [reasoner.decide(replace(exchange.request, call=call)) for call in calls]
+
+
+def test_the_stream_is_apart_from_the_noise_streams() -> None:
+    assert ANSWER_ERROR_STREAM not in (noise.VARIATION_STREAM, noise.PERCEPTION_STREAM)
+
+
+def test_draws_depend_on_the_trial_seed_and_the_call_index_only(agents) -> None:
+    exchange = first(agents, "release")
+    errors = AnswerErrors(rate=0.3)
+    once = replies(exchange, errors, seed=5, calls=range(2000))
+    again = replies(exchange, errors, seed=5, calls=range(2000))
+    assert [r.corruption for r in once] == [r.corruption for r in again]
+    assert [r.answer for r in once] == [r.answer for r in again]
+    corrupted = [r.corruption for r in once if r.corruption is not None]
+    assert len(corrupted) / 2000 == pytest.approx(0.3, abs=0.04)
+    kinds = {c.kind for c in corrupted}
+    assert kinds == {k for k in ALL if applies(exchange, k)}
+    other = replies(exchange, errors, seed=6, calls=range(2000))
+    assert [r.corruption for r in other] != [r.corruption for r in once]
+    # the same call index always draws the same, whatever was asked before it
+    assert replies(exchange, errors, seed=5, calls=range(1500, 1501))[0] == once[1500]
+
+
+def test_rate_0_never_corrupts_and_rate_1_always_does_where_a_kind_applies(agents, single) -> None:
+    for exchange in agents + single:
+        none = replies(exchange, AnswerErrors(rate=0.0), seed=1, calls=range(20))
+        assert all(r.corruption is None and r.answer is exchange.answer for r in none)
+        every = replies(exchange, AnswerErrors(rate=1.0), seed=1, calls=range(20))
+        applicable = any(applies(exchange, k) for k in ALL)
+        assert all((r.corruption is not None) == applicable for r in every), exchange.step
+
+
+def test_only_the_configured_kinds_are_drawn(agents) -> None:
+    exchange = first(agents, "lift")
+    errors = AnswerErrors(rate=1.0, kinds=(CorruptionKind.TOO_FAST, CorruptionKind.YAW_180))
+    drawn = {r.corruption.kind for r in replies(exchange, errors, 2, range(50))}  # type: ignore[union-attr]
+    assert drawn == set(errors.kinds)
+    grasp = first(agents, "grasp")
+    assert all(r.corruption is None for r in replies(grasp, errors, 2, range(20)))
+
+
+def test_the_setting_refuses_rates_outside_0_to_1_and_no_kinds() -> None:
+    for rate in (-0.1, 1.5, math.nan, math.inf):
+        with pytest.raises(ValueError):
+            AnswerErrors(rate=rate)
+    with pytest.raises(ValueError):
+        AnswerErrors(rate=0.5, kinds=())
+    assert AnswerErrors().model_dump(mode="json") == {"rate": 0.0, "kinds": [k.value for k in ALL]}
+
+
+# --- in the orchestrator's transcript ---------------------------------------------------
+
+
+def imperfect_build(kinematics, goal: GoalPattern, rate: float, seed: int = 4) -> BuildResult:
+    reasoner = ImperfectReasoner(BuiltinReasoner(), AnswerErrors(rate=rate), trial_seed=seed)
+    assert reasoner.name == "builtin"
+    return Orchestrator(FakeWorld(goal, BRICKS, *kinematics), reasoner).build(goal)
+
+
+def test_the_transcript_marks_corrupted_calls_and_keeps_their_originals(kinematics, wall) -> None:
+    one = wall.model_copy(update={"targets": wall.targets[:1]})
+    result = imperfect_build(kinematics, one, rate=0.3, seed=5)
+    corrupted = [c for c in result.transcript if c.corruption is not None]
+    assert corrupted and len(corrupted) < len(result.transcript)
+    for call in corrupted:
+        assert call.corruption.original != call.answer  # type: ignore[union-attr]
+        assert call.corruption.detail  # type: ignore[union-attr]
+    again = imperfect_build(kinematics, one, rate=0.3, seed=5)
+    assert [c.model_dump() for c in again.transcript] == [c.model_dump() for c in result.transcript]
+    other = imperfect_build(kinematics, one, rate=0.3, seed=4)
+    assert [c.model_dump() for c in other.transcript] != [c.model_dump() for c in result.transcript]
+
+
+def test_at_rate_1_every_answer_a_kind_applies_to_is_corrupted(kinematics, wall) -> None:
+    result = imperfect_build(kinematics, wall, rate=1.0)
+    assert result.failure is not None
+    assert result.transcript and all(c.corruption is not None for c in result.transcript)
+    assert [c.call for c in result.transcript] == list(range(len(result.transcript)))
+
+
+# --- what caught them: results lines ----------------------------------------------------
+
+
+def gate(name: str, *checks: tuple[str, bool]) -> GateRecord:
+    records = [
+        CheckRecord(name=c, value=0.0, relation="<=", threshold=1.0, passed=ok) for c, ok in checks
+    ]
+    return GateRecord(gate=name, passed=all(ok for _, ok in checks), checks=records)
+
+
+def test_a_corrupted_answer_is_counted_by_what_caught_it() -> None:
+    corrupted = AnswerCorruption(kind=CorruptionKind.SIGN_FLIP, detail="x", original={})
+    call = AgentCall(
+        call=0, agent="lift", brick=0, target=0, attempt=1, prompt_chars=1, answer={},
+        corruption=corrupted,
+    )  # fmt: skip
+    sigma4 = gate("sigma4_lift", ("normal_force_n", True), ("slip_mps", False), ("tilt", False))
+    cases = [
+        ({"outcome": Outcome.REGRASP, "gates": [gate("lift_plan", ("c", True)), sigma4]},
+         "sigma4_lift:slip_mps"),
+        ({"outcome": Outcome.RAISED, "gates": [gate("a", ("x", False)), gate("b", ("y", False))]},
+         "b:y"),
+        ({"outcome": Outcome.REFUSED}, "refused"),
+        ({"outcome": Outcome.ACCEPTED, "gates": [gate("a", ("x", True))]}, "missed"),
+        ({"outcome": Outcome.EXECUTED}, "missed"),
+        ({"outcome": Outcome.PENDING}, "trial_stopped"),
+        ({"outcome": Outcome.FAILED}, "trial_stopped"),
+    ]  # fmt: skip
+    for update, caught in cases:
+        assert call.model_copy(update=update).caught_by == caught
+    calls = [call.model_copy(update=update) for update, _ in cases]
+    calls.append(call.model_copy(update={"corruption": None}))
+    counts = AnswerErrorCounts.of(calls)
+    assert counts.corrupted == len(cases)
+    assert counts.by_kind == {CorruptionKind.SIGN_FLIP: len(cases)}
+    assert counts.caught_by == {
+        "b:y": 1, "missed": 2, "refused": 1, "sigma4_lift:slip_mps": 1, "trial_stopped": 2,
+    }  # fmt: skip
+    assert counts + counts == AnswerErrorCounts(
+        corrupted=14,
+        by_kind={CorruptionKind.SIGN_FLIP: 14},
+        caught_by={k: 2 * n for k, n in counts.caught_by.items()},
+    )
+
+
+def test_a_build_counts_every_corrupted_answer_once(kinematics, wall) -> None:
+    result = imperfect_build(kinematics, wall, rate=0.3)
+    counts = AnswerErrorCounts.of(result.transcript)
+    assert counts.corrupted == sum(c.corruption is not None for c in result.transcript) > 2
+    assert sum(counts.by_kind.values()) == sum(counts.caught_by.values()) == counts.corrupted
+    assert any(":" in caught for caught in counts.caught_by)  # a gate caught one
+
+
+def line(counts: AnswerErrorCounts | None = None, trial: int = 0) -> TrialResult:
+    """A results line of no bricks, with ``counts``."""
+    metrics = PlacementMetrics(
+        center_offset_cm=0.0, rotation_error_deg=0.0, symmetric_rotation_error_deg=0.0, iou=1.0
+    )
+    return TrialResult(
+        method="agents", pattern="p", seed=0, trial=trial, trial_seed=1, success=True,
+        llm="builtin", bricks=(), bricks_placed=0, metrics=metrics, failure=None, sim_steps=0,
+        answer_errors=counts,
+    )  # fmt: skip
+
+
+def test_lines_at_rate_0_have_no_answer_errors_field_and_the_schema_has_one() -> None:
+    assert "answer_errors" not in json.loads(line().model_dump_json())
+    counted = line(AnswerErrorCounts())
+    stored = json.loads(counted.model_dump_json())["answer_errors"]
+    assert stored == {"corrupted": 0, "by_kind": {}, "caught_by": {}}
+    assert TrialResult.model_validate_json(counted.model_dump_json()) == counted
+    printed = cli("schema", "results")
+    assert printed.returncode == 0 and "AnswerErrorCounts" in printed.stdout
+
+
+def test_summaries_sum_the_counts_and_name_the_rate() -> None:
+    flip, hover = CorruptionKind.SIGN_FLIP, CorruptionKind.SKIPPED_HOVER
+    results = [
+        line(AnswerErrorCounts(corrupted=2, by_kind={flip: 2}, caught_by={"g:c": 1, "missed": 1})),
+        line(AnswerErrorCounts(corrupted=1, by_kind={hover: 1}, caught_by={"g:c": 1}), trial=1),
+    ]
+    errors = AnswerErrors(rate=0.25)
+    summary = summarize(results, 1.0, answer_errors=errors)
+    assert summary.answer_errors is not None
+    assert summary.answer_errors.model_dump(mode="json") == {
+        "corrupted": 3,
+        "by_kind": {"sign_flip": 2, "skipped_hover": 1},
+        "caught_by": {"g:c": 2, "missed": 1},
+        "rate": 0.25,
+        "kinds": [k.value for k in ALL],
+    }
+    markdown = summary_markdown(summary)
+    assert markdown.splitlines()[0].endswith(", answer errors 0.25")
+    assert f"| `sign_flip` | {flip.meaning} | 2 |" in markdown
+    assert "| `g:c` | 2 |" in markdown and "| `missed` | 1 |" in markdown
+    for at_zero in (summarize(results, 1.0), summarize(results, 1.0, answer_errors=AnswerErrors())):
+        assert at_zero.answer_errors is None
+        assert "answer_errors" not in json.loads(at_zero.model_dump_json())
+        assert "Answer errors" not in summary_markdown(at_zero)
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (("--answer-errors", "1.5"), "--answer-errors 1.5"),
+        (("--answer-errors", "-0.2"), "--answer-errors -0.2"),
+        (("--answer-errors", "nan"), "--answer-errors nan"),
+        (("--answer-errors", "inf"), "--answer-errors inf"),
+        (("--method", "classical", "--answer-errors", "0.1"), "drop --answer-errors"),
+    ],
+)
+def test_bad_answer_error_rates_are_refused_in_one_line(
+    tmp_path: Path, args: tuple[str, ...], needle: str
+) -> None:
+    result = cli("eval", *args, "--trials", "1", "--out", str(tmp_path / "o"))
+    assert_clean_error(result, needle)
+    assert not (tmp_path / "o").exists()
+
+
+def test_the_readme_table_is_the_enum_in_order() -> None:
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    lines = readme.split("### Answer errors", 1)[1].splitlines()
+    start = lines.index("| kind | what changes | where it applies |") + 2
+    rows = []
+    for row in lines[start:]:
+        if not row.startswith("| `"):
+            break
+        kind, meaning, where = row.strip("| ").split(" | ")
+        rows.append((kind.strip("`"), meaning, where))
+    assert rows == [(k.value, k.meaning, k.applies_to) for k in ALL]
+    assert "<!-- which check catches each kind: filled in by the gates work -->" in readme
+
+
+def test_the_single_agents_corrupted_answers_are_marked_and_counted(kinematics, wall) -> None:
+    def build(seed: int) -> BuildResult:
+        reasoner = ImperfectReasoner(BuiltinReasoner(), AnswerErrors(rate=0.3), trial_seed=seed)
+        return SingleAgent(FakeWorld(wall, BRICKS, *kinematics), reasoner).build(wall)
+
+    result = build(seed=2)
+    corrupted = [c for c in result.transcript if c.corruption is not None]
+    assert corrupted and all(c.corruption.original != c.answer for c in corrupted)  # type: ignore[union-attr]
+    counts = AnswerErrorCounts.of(result.transcript)
+    assert set(counts.caught_by) <= {"missed", "trial_stopped"}  # nothing gates it
+    assert [c.model_dump() for c in build(seed=2).transcript] == [
+        c.model_dump() for c in result.transcript
+    ]
+
+
+# --- real trials ------------------------------------------------------------------------
+
+TWO_BRICKS = {**SMALL_PATTERN, "name": "two", "bricks": SMALL_PATTERN["bricks"][:2]}
+
+
+@pytest.mark.slow
+def test_eval_with_answer_errors_is_the_same_run_to_run_and_resumed(tmp_path: Path) -> None:
+    pattern = tmp_path / "two.json"
+    pattern.write_text(json.dumps(TWO_BRICKS))
+
+    def run(out: str, trials: int, rate: str = "0.2") -> subprocess.CompletedProcess[str]:
+        return cli(
+            "eval", "--method", "agents", "--pattern", str(pattern), "--trials", str(trials),
+            "--answer-errors", rate, "--seed", "3", "--workers", "1", "--transcripts",
+            "--out", str(tmp_path / out),
+        )  # fmt: skip
+
+    def lines(out: str) -> str:
+        return (tmp_path / out / "results.jsonl").read_text()
+
+    for out in ("a", "b"):
+        assert run(out, 2).returncode == 0
+    assert lines("a") == lines("b")
+    assert run("c", 1).returncode == 0
+    assert run("c", 2).returncode == 0
+    assert lines("c") == lines("a")
+    records = [json.loads(line) for line in lines("a").splitlines()]
+    counts = [AnswerErrorCounts.model_validate(r["answer_errors"]) for r in records]
+    assert sum(c.corrupted for c in counts) > 0
+    for trial, count in enumerate(counts):
+        calls = [
+            AgentCall.model_validate_json(text)
+            for text in (tmp_path / "a" / "transcripts" / f"trial_{trial:03d}.jsonl")
+            .read_text()
+            .splitlines()
+        ]
+        assert AnswerErrorCounts.of(calls) == count
+    stored = json.loads((tmp_path / "a" / "run.json").read_text())["config"]["answer_errors"]
+    assert stored == {"rate": 0.2, "kinds": [k.value for k in ALL]}
+    summary = json.loads((tmp_path / "a" / "summary.json").read_text())["answer_errors"]
+    assert summary["corrupted"] == sum(c.corrupted for c in counts) and summary["rate"] == 0.2
+    refused = run("a", 2, rate="0.1")
+    assert_clean_error(refused, "answer_errors.rate 0.2 there, 0.1 now")
+    assert lines("a") == lines("b")
+    shown = cli("report", str(tmp_path / "a"), "--out", str(tmp_path / "report"))
+    assert shown.returncode == 0, shown.stderr
+    table = (tmp_path / "report" / "table.md").read_text()
+    assert "| agents (builtin), paper, answer errors 0.2 | two | 0.2 |" in table
+    assert 'id="answer-errors"' in (tmp_path / "report" / "report.html").read_text()
