@@ -178,9 +178,9 @@ def sigma4_lift(
 ) -> GateVerdict:
     """Held through the move: f_n >= f_min on both pads, brick speed relative to the gripper
     <= v_th, and the grasp's friction f_t <= mu f_n (with the least mu the brick may have);
-    and a brick that rolled in the hand can still be set down level: rolled at most
-    eps_roll, and ``set_down``, its slot pose as it sits in the hand now with the tool
-    tilted by the roll, reachable with a clear way over the slot and down. How far it
+    and a brick that rolled in the hand can still be set down level: ``set_down``, its slot
+    pose as it sits in the hand now with the tool tilted by the roll, is reachable with a
+    clear way over the slot and down. How far it
     crept in the hand is not judged here: placement measures it again."""
     return GateVerdict(
         "sigma4_lift",
@@ -188,7 +188,6 @@ def sigma4_lift(
             _held(pads, tol),
             Check("relative_speed_mps", slip.relative_speed_mps, tol.v_th_mps, at_most=True),
             _friction_margin(pads, tol),
-            Check("tilt_in_hand_deg", slip.tilt_in_hand_deg, tol.eps_roll_deg, at_most=True),
             Check("set_down_reachable", float(set_down.reachable), 1.0, at_most=False),
             Check("set_down_clearance_m", set_down.way_clearance_m, -tol.overlap_m, False),
         ),

@@ -197,12 +197,6 @@ def _placement(briefing: Briefing) -> AgentAnswer:
         raise ValueError("memory shows no placement phase")
     placement = _placement_pose(briefing, "linear" if phase == PlacementPhase.SET_DOWN else "joint")
     tilt = placement.tilt_in_hand_deg
-    if tilt > tol.eps_roll_deg:
-        return PlacementAnswer(
-            regrasp=True,
-            rationale=f"the brick rolled {tilt:.1f} deg in the hand, more than the "
-            f"{tol.eps_roll_deg:g} deg a set-down seats: grasp it again",
-        )
     if not tol.clear(placement.way_clearance_m, placement.reachable):
         return PlacementAnswer(
             regrasp=True,

@@ -38,9 +38,6 @@ SAFE_LIFT_MPS = 0.02
 #: closed grip leaves when the pads close on a brick at rest (position, yaw), rounded up.
 GRASP_ERROR_M = 0.003
 GRASP_ERROR_DEG = 1.0
-#: Measured under paper physics (``bench/set_down_roll.py``): the largest roll of a brick in
-#: the hand that a set-down with the tool tilted to set it level still seats reliably.
-SETTABLE_ROLL_DEG = 90.0
 #: Measured (``bench/path_deviation.py``): the largest distance of the tool from its planned
 #: path during a move, rounded up; a path checked clear by less may not be.
 PATH_DEVIATION_M = 0.02
@@ -180,14 +177,6 @@ def _design(rule: SuccessRule, scene: SceneSpec) -> list[Derivation]:
             "the fastest lift speed measured at which no brick rolled more than 10 deg",
         ),
         Derivation(
-            "eps_roll_deg",
-            SETTABLE_ROLL_DEG,
-            "deg",
-            "sigma_4, placement: the set-down seats the brick",
-            "the largest roll in the hand measured to seat when set down with the tool "
-            "tilted by it; beyond it the brick is grasped again",
-        ),
-        Derivation(
             "eps_perp_m",
             seat,
             "m",
@@ -295,11 +284,6 @@ class Tolerances(BaseModel):
         _DEFAULTS["v_lift_mps"],
         gt=0,
         description="Lift: largest mean speed of a lift from the ground.",
-    )
-    eps_roll_deg: float = Field(
-        _DEFAULTS["eps_roll_deg"],
-        gt=0,
-        description="sigma_4, placement: largest roll in the hand set down by tilting the tool.",
     )
     force_noise: float = Field(
         0.0, ge=0.0, description="Relative noise (std) of a pad force reading."
