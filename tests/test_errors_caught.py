@@ -1,0 +1,177 @@
+"""Each kind of answer error is caught by the check that should catch it, before the arm
+moves, and the agent's next answer is accepted (the scripted FakeWorld, the real
+orchestrator, the built-in reasoner's answers corrupted as ``eval --answer-errors`` does).
+
+The errors are made on the first brick's cycle, and ``into_obstacle`` on the second's, so
+that a placed brick exists to move into. ``EXPECTED`` is the README's table of what catches
+what.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+from conftest import SMALL_PATTERN
+from fake_world import FakeWorld
+
+from actionreasoning.agents.answer_errors import CorruptionKind
+from actionreasoning.agents.orchestrator import Orchestrator
+from actionreasoning.agents.reasoner import AgentReply, AgentRequest
+from actionreasoning.agents.transcript import AgentCall
+from actionreasoning.reasoners.builtin import BuiltinReasoner
+from actionreasoning.reasoners.imperfect import corruption
+from actionreasoning.sim.collision import CollisionChecker
+from actionreasoning.sim.kinematics import KinematicArm
+from actionreasoning.world.layout import sample_pick_poses
+from actionreasoning.world.models import GoalPattern
+from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.scene_spec import SceneSpec
+
+K = CorruptionKind
+SPEC = SceneSpec()
+BRICKS = sample_pick_poses(np.random.default_rng(0), 3, SPEC)
+#: (agent, kind) -> the check that refuses the corrupted answer, as ``gate:check``.
+EXPECTED: dict[tuple[str, CorruptionKind], str] = {
+    ("pre_grasp", K.SIGN_FLIP): "pre_grasp_plan:grasp_offset_m",
+    ("pre_grasp", K.YAW_90): "pre_grasp_plan:grasp_yaw_deg",
+    ("pre_grasp", K.CM_AS_M): "pre_grasp_answer:valid_answer",
+    ("pre_grasp", K.INTO_OBSTACLE): "pre_grasp_plan:grasp_offset_m",
+    ("pre_grasp", K.SKIPPED_HOVER): "sigma1_pre_grasp:clearance_m",
+    ("pre_grasp", K.WRONG_CHOICE): "pre_grasp_choice:target_buildable",
+    ("pre_grasp", K.MISSING_FIELD): "pre_grasp_plan:answer_complete",
+    ("descent", K.SIGN_FLIP): "descent_plan:grasp_offset_m",
+    ("descent", K.YAW_90): "descent_plan:turn_deg",
+    ("descent", K.YAW_180): "descent_plan:turn_deg",
+    ("descent", K.CM_AS_M): "descent_answer:valid_answer",
+    ("descent", K.INTO_OBSTACLE): "descent_plan:grasp_offset_m",
+    ("descent", K.MISSING_FIELD): "descent_plan:answer_complete",
+    ("grasp", K.MISSING_FIELD): "grasp_plan:close",
+    ("lift", K.SIGN_FLIP): "lift_answer:valid_answer",
+    ("lift", K.YAW_90): "lift_plan:turn_deg",
+    ("lift", K.YAW_180): "lift_plan:turn_deg",
+    ("lift", K.CM_AS_M): "lift_answer:valid_answer",
+    ("lift", K.INTO_OBSTACLE): "lift_plan:sideways_m",
+    ("lift", K.TOO_FAST): "lift_plan:speed_mps",
+    ("lift", K.MISSING_FIELD): "lift_plan:answer_complete",
+    # Flipped, the carry's long way from the pick area to the slot leaves the workspace.
+    ("placement", K.SIGN_FLIP): "placement_answer:valid_answer",
+    ("placement", K.YAW_90): "placement_plan:predicted_rotation_deg",
+    ("placement", K.YAW_180): "placement_plan:predicted_rotation_deg",
+    ("placement", K.CM_AS_M): "placement_answer:valid_answer",
+    ("placement", K.INTO_OBSTACLE): "placement_plan:predicted_offset_m",
+    ("placement", K.MISSING_FIELD): "placement_plan:answer_complete",
+    ("release", K.SIGN_FLIP): "release_plan:ready_offset_m",
+    ("release", K.YAW_90): "release_plan:ready_turn_deg",
+    ("release", K.YAW_180): "release_plan:ready_turn_deg",
+    ("release", K.CM_AS_M): "release_answer:valid_answer",
+    ("release", K.INTO_OBSTACLE): "release_plan:ready_offset_m",
+    ("release", K.MISSING_FIELD): "release_plan:answer_complete",
+}
+#: Corruptions that change nothing a gate should refuse, and why (the README says so too).
+HARMLESS: dict[tuple[str, CorruptionKind], str] = {
+    # The pads grip a brick turned 180 deg the same: the other of grasp_options' two grasps,
+    # still checked to reach the brick and its slot (sigma_4's set-down check).
+    ("pre_grasp", K.YAW_180): "pre_grasp_plan",
+    # A carry at the controller's full speed rolls the brick no more than one at 10 cm/s
+    # (bench/lift_roll.py): nothing to refuse; the set-down re-measures the brick anyway.
+    ("placement", K.TOO_FAST): "placement_plan",
+}
+
+
+class Enough(Exception):
+    """The corrupted call and the answer after it are judged: the build may stop."""
+
+
+@dataclass
+class CorruptOnce:
+    """The built-in reasoner, with the first answer of ``agent`` corrupted by ``kind`` (on
+    the first brick, or the second for ``into_obstacle``); remembers how many moves the world had made at each call, and
+    stops the build once the answer after the corrupted one is judged."""
+
+    world: FakeWorld
+    agent: str
+    kind: CorruptionKind
+    name: str = "corrupt-once"
+    builtin: BuiltinReasoner = field(default_factory=BuiltinReasoner)
+    done: bool = False
+    moves_at_call: list[int] = field(default_factory=list)
+    after: int = 0
+
+    def decide(self, request: AgentRequest) -> AgentReply:
+        self.moves_at_call.append(len(self.world.moves))
+        if self.done:
+            self.after += 1
+            if self.after == 2:
+                raise Enough
+        reply = self.builtin.decide(request)
+        brick = 1 if self.kind is K.INTO_OBSTACLE else 0
+        if self.done or request.spec.key != self.agent or len(request.memory.placed) != brick:
+            return reply
+        made = corruption(reply.answer, request, [self.kind], np.random.default_rng(7))
+        assert made is not None, f"{self.kind} does not apply to {self.agent}'s answer"
+        self.done = True
+        answer, record = made
+        return AgentReply(answer=answer, corruption=record)
+
+
+@pytest.fixture(scope="module")
+def kinematics() -> Iterator[tuple[KinematicArm, CollisionChecker]]:
+    arm = KinematicArm()
+    yield arm, CollisionChecker(arm)
+    arm.close()
+
+
+@pytest.fixture(scope="module")
+def wall(tmp_path_factory: pytest.TempPathFactory) -> GoalPattern:
+    """Two bricks side by side and one on top."""
+    path = tmp_path_factory.mktemp("patterns") / "small.json"
+    path.write_text(json.dumps(SMALL_PATTERN))
+    return load_pattern(path, SPEC)
+
+
+def corrupted_build(
+    kinematics, wall: GoalPattern, agent: str, kind: CorruptionKind
+) -> tuple[AgentCall, CorruptOnce, FakeWorld, list[AgentCall]]:
+    """Build the wall with one corrupted answer; the corrupted call and what followed."""
+    world = FakeWorld(wall, BRICKS, *kinematics)
+    reasoner = CorruptOnce(world, agent, kind)
+    orchestrator = Orchestrator(world, reasoner)
+    with pytest.raises(Enough):
+        orchestrator.build(wall)
+    transcript = orchestrator.result.transcript
+    index, call = next((i, c) for i, c in enumerate(transcript) if c.corruption)
+    assert call.corruption is not None and call.corruption.kind == kind
+    return call, reasoner, world, transcript[index + 1 :]
+
+
+@pytest.mark.parametrize(("agent", "kind"), list(EXPECTED), ids=lambda v: str(v))
+def test_each_error_is_refused_by_its_check_before_the_arm_moves(
+    kinematics, wall, agent: str, kind: CorruptionKind
+) -> None:
+    call, reasoner, _, later = corrupted_build(kinematics, wall, agent, kind)
+    assert call.outcome == "refused"
+    assert call.caught_by == EXPECTED[agent, kind]
+    # Nothing moved between the corrupted answer and the next question.
+    assert reasoner.moves_at_call[call.call] == reasoner.moves_at_call[call.call + 1]
+    retry = later[0]
+    assert (retry.agent, retry.attempt, retry.outcome) == (agent, call.attempt + 1, "accepted")
+    assert retry.corruption is None
+
+
+@pytest.mark.parametrize(("agent", "kind"), list(HARMLESS), ids=lambda v: str(v))
+def test_an_error_that_harms_nothing_passes_its_checks_and_the_build_goes_on(
+    kinematics, wall, agent: str, kind: CorruptionKind
+) -> None:
+    call, _, _, later = corrupted_build(kinematics, wall, agent, kind)
+    assert call.outcome == "accepted" and call.caught_by == "missed"
+    assert later[0].outcome == "accepted"
+    plan = next(g for g in call.gates if g.gate == HARMLESS[agent, kind])
+    assert plan.passed
+
+
+def test_every_kind_is_caught_somewhere() -> None:
+    assert {kind for _, kind in EXPECTED} == set(CorruptionKind)
