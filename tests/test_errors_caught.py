@@ -89,8 +89,9 @@ class Enough(Exception):
 @dataclass
 class CorruptOnce:
     """The built-in reasoner, with the first answer of ``agent`` corrupted by ``kind`` (on
-    the first brick, or the second for ``into_obstacle``); remembers how many moves the world had made at each call, and
-    stops the build once the answer after the corrupted one is judged."""
+    the first brick, or the second for ``into_obstacle``); remembers how many moves the
+    world had made at each call, and stops the build once the answer after the corrupted
+    one is judged."""
 
     world: FakeWorld
     agent: str
