@@ -33,13 +33,13 @@ from actionreasoning.eval.rules import Method
 from actionreasoning.eval.trial import TrialSpec, run_trial, trial_world
 from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.builtin import CARRY_SPEED_MPS
-from actionreasoning.world.tolerances import SAFE_LIFT_MPS
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.geometry import quat_yaw, top_down_quat
 from actionreasoning.world.models import Pose
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PROFILES, PhysicsProfile, load_physics
 from actionreasoning.world.scene_spec import SceneSpec
+from actionreasoning.world.tolerances import SAFE_LIFT_MPS
 
 LIFT_Z = 0.30
 OVER_BUILD = (0.45, 0.30, LIFT_Z)

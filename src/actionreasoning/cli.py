@@ -560,6 +560,24 @@ def pattern_command(
     console.print(table)
 
 
+@app.command("tolerances")
+def tolerances_command(
+    pattern: PatternOption = "pyramid",
+    noise: NoiseOption = "none",
+) -> None:
+    """Print every gate threshold as a Markdown table: its design value, its value when the
+    pattern is built under the noise level, what it protects and how it is derived."""
+    from actionreasoning.world.tolerances import Tolerances, derivation_table
+
+    try:
+        level = load_noise(noise)
+        goal = load_pattern(pattern, SceneSpec())
+    except ActionReasoningError as error:
+        _fail(error)
+    run = Tolerances.derive().for_goal(goal).under(level.sensing())
+    print(derivation_table(run, f"{goal.name}, noise {level.name}"), end="")
+
+
 @app.command("serve-reference")
 def serve_reference(
     port: Annotated[

@@ -26,7 +26,6 @@ from actionreasoning.world.models import (
     Pose,
     Progress,
     RobotState,
-    Sensing,
     WorldState,
 )
 from actionreasoning.world.noise import PERCEPTION_STREAM, NoiseLevel
@@ -47,14 +46,7 @@ class Sensor:
         self._contact_rng = np.random.default_rng(
             [trial_seed, PERCEPTION_STREAM, CONTACT_SUBSTREAM]
         )
-        perception, variation = noise.perception, noise.variation
-        self.sensing = Sensing(
-            position_std_m=perception.position_std_m,
-            yaw_std_deg=perception.yaw_std_deg,
-            force_rel_std=perception.force_rel_std,
-            mass_tolerance=variation.mass_rel,
-            friction_tolerance=variation.friction_rel,
-        )
+        self.sensing = noise.sensing()
 
     def brick_pose(self, brick: int) -> tuple[Vec3, QuatXYZW]:
         """Measured position and orientation of a brick (noise on position and yaw)."""

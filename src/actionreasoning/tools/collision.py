@@ -16,12 +16,14 @@ from scipy.spatial.transform import Rotation, Slerp
 from actionreasoning.errors import UnreachableError
 from actionreasoning.tools.base import ToolContext, ToolModel, tool
 from actionreasoning.world.boxes import Box
-from actionreasoning.world.clearance import SEARCH_DISTANCE_M, Clearance
+from actionreasoning.world.clearance import (
+    JOINT_STEP_RAD,
+    PATH_STEP_M,
+    SEARCH_DISTANCE_M,
+    Clearance,
+)
 from actionreasoning.world.models import BrickState, Pose, WorldState
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M
-
-PATH_STEP_M = 0.01
-JOINT_STEP_RAD = 0.05
 
 
 class CollisionQuery(ToolModel):

@@ -15,6 +15,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.world.config_files import load_named
+from actionreasoning.world.models import Sensing
 from actionreasoning.world.scene_spec import BrickBody
 
 
@@ -44,6 +45,17 @@ class NoiseLevel(_Level):
     name: str = Field(min_length=1, max_length=64)
     perception: PerceptionNoise = PerceptionNoise()
     variation: PhysicalVariation = PhysicalVariation()
+
+    def sensing(self) -> Sensing:
+        """What the robot is told of this level: its sensors' noise and how far a brick's
+        mass and friction may be from the catalogue's."""
+        return Sensing(
+            position_std_m=self.perception.position_std_m,
+            yaw_std_deg=self.perception.yaw_std_deg,
+            force_rel_std=self.perception.force_rel_std,
+            mass_tolerance=self.variation.mass_rel,
+            friction_tolerance=self.variation.friction_rel,
+        )
 
     def describe(self) -> str:
         """One line for headings."""
