@@ -92,6 +92,6 @@ def render_prompt(
         ),
         tolerances=thresholds_line(tolerances, spec.thresholds),
         tools=tools,
-        thinking=spec.thinking,
+        thinking=(*spec.thinking, *spec.feedback),
         answer_fields="\n".join(describe_fields(spec.output_model)),
     )

@@ -30,10 +30,11 @@ AgentKey = Stage | Literal["single_agent"]
 class AgentSpec:
     """One agent: number (1-6), key, name, role, tool names, thinking chain, output model.
 
-    ``role`` is the task, ``gate`` what checks the answer and what follows a refusal;
-    ``scope`` which bricks it is shown, ``thresholds`` the gate thresholds it reads and
-    ``frames`` whether its prompt explains the brick and tool frames, ``robot_extras``
-    the robot fields beyond the tool pose and opening it is shown.
+    ``role`` is the task, ``gate`` what checks the answer and what follows a refusal,
+    ``feedback`` the steps of the thinking chain that correct by earlier refusals (which
+    only a gated agent gets); ``scope`` which bricks it is shown, ``thresholds`` the gate
+    thresholds it reads and ``frames`` whether its prompt explains the brick and tool
+    frames, ``robot_extras`` the robot fields beyond the tool pose and opening it is shown.
     """
 
     number: int
@@ -48,6 +49,7 @@ class AgentSpec:
     tools: tuple[str, ...]
     thinking: tuple[str, ...]
     output_model: type[AgentAnswer]
+    feedback: tuple[str, ...] = ()
 
 
 @cache
@@ -74,6 +76,7 @@ def agent_specs() -> tuple[AgentSpec, ...]:
                 tools=tuple(entry["tools"]),
                 thinking=tuple(entry["thinking"]),
                 output_model=getattr(outputs, entry["output"]),
+                feedback=tuple(entry.get("feedback", ())),
             )
         )
     return tuple(specs)

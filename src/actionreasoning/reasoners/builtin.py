@@ -185,7 +185,7 @@ def _lift(briefing: Briefing) -> AgentAnswer:
     rise = z - tool.position_m[2]
     speed = max(tol.v_lift_mps / 2**slips, rise / MAX_MOVE_S)
     return LiftAnswer(
-        waypoint=_proposal(lift, path="linear", duration_s=min(rise / speed, MAX_MOVE_S)),
+        waypoint=_proposal(lift, path="linear", duration_s=_seconds(rise / speed)),
         rationale=f"straight up over every brick at {100 * speed:.2g} cm/s, at most v_lift"
         + (f", halved for each of {slips} slips" if slips else ""),
     )
@@ -381,6 +381,12 @@ def _current(memory: TaskMemory) -> int:
     if memory.current_brick is None:
         raise ValueError("no current brick in memory")
     return memory.current_brick
+
+
+def _seconds(duration_s: float) -> float:
+    """A move's duration rounded up to 0.01 s (so that its speed stays within a limit the
+    duration was computed from), at most MAX_MOVE_S."""
+    return min(math.ceil(duration_s * 100.0) / 100.0, MAX_MOVE_S)
 
 
 def _proposal(pose: Pose, path: str = "joint", duration_s: float | None = None) -> WaypointProposal:
