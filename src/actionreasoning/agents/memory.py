@@ -48,8 +48,8 @@ class EarlierAnswer(BaseModel):
 
 
 class PlacementPhase(StrEnum):
-    """Which of its two calls Ag5 is asked: to carry the brick over its slot, or, hovering
-    there, to set it down."""
+    """Which of its two calls Ag5 is asked: to carry the brick over its slot, or, over the
+    slot and measured there again, to set it down."""
 
     CARRY = "carry"
     SET_DOWN = "set_down"

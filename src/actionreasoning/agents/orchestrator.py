@@ -379,9 +379,7 @@ class Orchestrator:
                 ),
             ),
             key,
-            FailureCode.COLLISION
-            if not self.tol.clear(path.clearance_m)
-            else FailureCode.INVALID_OUTPUT,
+            _failure_of(path, self.tol),
         )
         self.world.grip(answer.gripper_opening_m)
         self.world.move(waypoint)
@@ -638,12 +636,7 @@ class Orchestrator:
                 closest=worst.closest,
             ),
         )
-        collides = not self.tol.clear(worst.clearance_m, worst.reachable)
-        self._gate(
-            verdict,
-            Stage.PLACEMENT,
-            FailureCode.COLLISION if collides else FailureCode.INVALID_OUTPUT,
-        )
+        self._gate(verdict, Stage.PLACEMENT, _failure_of(worst, self.tol))
 
     def _clearance(
         self,
@@ -723,6 +716,13 @@ class Orchestrator:
 def _failed(gate: str, check: str, note: str) -> GateVerdict:
     """A verdict with the one failed yes/no check ``check``, saying why in ``note``."""
     return GateVerdict(gate, (Check(check, 0.0, 1.0, at_most=False),)).noted(note)
+
+
+def _failure_of(path: CollisionReport, tol: Tolerances) -> FailureCode:
+    """How a trial ends if a plan with this path keeps being refused: on a collision if the
+    path is not clear, else on invalid answers."""
+    clear = tol.clear(path.clearance_m, path.reachable)
+    return FailureCode.INVALID_OUTPUT if clear else FailureCode.COLLISION
 
 
 def _clear(report: CollisionReport, tol: Tolerances, prefix: str) -> tuple[Check, ...]:

@@ -42,7 +42,7 @@ class PlacementQuery(ToolModel):
     brick_id: int = Field(ge=0)
     target_index: int = Field(ge=0)
     approach: Literal["joint", "linear"] = Field(
-        "joint", description="The move over the slot: joint to carry, linear when hovering."
+        "joint", description="The move over the slot: joint to carry, linear once over it."
     )
 
 
