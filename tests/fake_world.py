@@ -437,14 +437,35 @@ def _guarded(world: FakeWorld, waypoint: WaypointProposal | None, stop: int | No
     return stop is not None
 
 
-def slips(speed_mps: float = 0.02, drop_m: float = 0.01) -> Deviation:
-    """On a lift, the brick slides ``drop_m`` down the pads and is still sliding."""
+def _holding_still(world: FakeWorld, waypoint: WaypointProposal | None, stop: int | None) -> bool:
+    """A move that keeps a held brick where the tool is (the orchestrator's hold to let a
+    swing die out)."""
+    return (
+        world.held is not None
+        and waypoint is not None
+        and math.dist(waypoint.position_m, world.tool.position_m) < 1e-9
+    )
+
+
+def slips(speed_mps: float = 0.02, drop_m: float = 0.01, settles: bool = False) -> Deviation:
+    """On a lift, the brick slides ``drop_m`` down the pads and is still sliding; held still
+    after it, it keeps sliding at that speed, unless it ``settles`` (a swing that dies out)."""
+
+    def sliding(world: FakeWorld) -> None:
+        assert world.held is not None
+        world.bricks[world.held].velocity_mps = (0.0, 0.0, -speed_mps)
+
+    def hold(world: FakeWorld, waypoint: WaypointProposal, stop: int | None) -> Motion:
+        done = world.ideal_move(waypoint, stop)
+        sliding(world)
+        return done
 
     def apply(world: FakeWorld, waypoint: WaypointProposal, stop: int | None) -> Motion:
         done = world.ideal_move(waypoint, stop)
         world.turn_in_hand(Rotation.identity(), (0.0, 0.0, drop_m))
-        assert world.held is not None
-        world.bricks[world.held].velocity_mps = (0.0, 0.0, -speed_mps)
+        sliding(world)
+        if not settles and world.stage is not None:
+            world.script(world.stage, Deviation("move", hold, only=_holding_still))
         return done
 
     return Deviation("move", apply, only=_lifting)
@@ -461,17 +482,48 @@ def rolls(degrees: float) -> Deviation:
     return Deviation("move", apply, only=lambda world, *_: world.held is not None)
 
 
-def lands_off(shift_m: Vec3) -> Deviation:
+def lands_off(shift_m: Vec3, turn_deg: float = 0.0, tilt_deg: float = 0.0) -> Deviation:
     """On a set-down, the brick touches down and slides ``shift_m`` (world frame) in the
-    hand."""
+    hand, turning ``turn_deg`` about the vertical through its centre and tipping
+    ``tilt_deg`` about its length (it does not sit flat)."""
 
     def apply(world: FakeWorld, waypoint: WaypointProposal, stop: int | None) -> Motion:
         done = world.ideal_move(waypoint, stop)
-        tool = Rotation.from_quat(world.tool.quat_xyzw)
-        world.turn_in_hand(Rotation.identity(), tuple(tool.inv().apply(shift_m)))
+        assert world.held is not None
+        brick = world.bricks[world.held]
+        brick.pose = _moved(brick.pose, shift_m, turn_deg, tilt_deg)
+        world.hold(world.held, world.pads[world.held])
         return done
 
     return Deviation("move", apply, only=_guarded)
+
+
+def closes_off(shift_m: tuple[float, float], turn_deg: float = 0.0) -> Deviation:
+    """Closing, the pads leave the brick held ``shift_m`` (world x, y) off the tool centre
+    point and turned ``turn_deg`` about the vertical (a grip that pulled the brick along)."""
+
+    def apply(world: FakeWorld, opening_m: float | None) -> None:
+        world.ideal_grip(opening_m)
+        assert world.held is not None, "nothing between the pads to close on"
+        brick = world.bricks[world.held]
+        brick.pose = _moved(brick.pose, (*shift_m, 0.0), turn_deg)
+        world.hold(world.held, world.pads[world.held])
+
+    return Deviation("close", apply)
+
+
+def _moved(pose: Pose, shift_m: Vec3, turn_deg: float, tilt_deg: float = 0.0) -> Pose:
+    """``pose`` moved by ``shift_m`` (world frame), turned ``turn_deg`` about the vertical
+    through its centre and tipped ``tilt_deg`` about its own x axis (its length)."""
+    turn = (
+        Rotation.from_euler("z", turn_deg, degrees=True)
+        * Rotation.from_quat(pose.quat_xyzw)
+        * Rotation.from_euler("x", tilt_deg, degrees=True)
+    )
+    return Pose(
+        position_m=tuple(float(v) for v in np.add(pose.position_m, shift_m)),
+        quat_xyzw=tuple(float(q) for q in turn.as_quat()),
+    )
 
 
 def shoves(along_m: float) -> Deviation:

@@ -17,14 +17,18 @@ from actionreasoning.eval.rules import Method
 from actionreasoning.eval.trial import TrialObserver, TrialSpec, run_trial, trial_world
 from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.sim.scene import Scene
-from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.patterns import GRIP_MARGIN_M, brick_size_limits, load_pattern
 from actionreasoning.world.physics import PRECISE
-from actionreasoning.world.scene_spec import SceneSpec
+from actionreasoning.world.scene_spec import GRIPPER_GAP_M, SceneSpec
+from actionreasoning.world.tolerances import Tolerances
 
 SPEC = SceneSpec()
 #: The issue's bricks: 20 % larger on every edge than the catalogue's.
 SIZE = (0.24, 0.115, 0.071)
 CATALOGUE_DENSITY = SPEC.brick_mass_kg / math.prod(SPEC.brick_size_m)
+#: The widest brick allowed, and a millimetre wider.
+WIDEST_M = brick_size_limits(SPEC)[1][1]
+TOO_WIDE_M = round(WIDEST_M + 0.001, 4)
 
 
 def write_pattern(path: Path, size: tuple[float, ...], count: int = 2) -> Path:
@@ -100,7 +104,7 @@ def test_the_catalogue_brick_keeps_its_mass_exactly() -> None:
         ((1e6, 0.095, 0.06), "brick_size[0]: length 1e+06 m"),
         ((0.04, 0.095, 0.06), "brick_size[0]: length 0.04 m"),
         ((0.2, 0.2, 0.06), "brick_size[1]: width (across the gripper) 0.2 m"),
-        ((0.2, 0.13, 0.06), "brick_size[1]: width (across the gripper) 0.13 m"),
+        ((0.2, TOO_WIDE_M, 0.06), f"brick_size[1]: width (across the gripper) {TOO_WIDE_M:g} m"),
         ((0.2, 0.05, 0.06), "brick_size[1]: width (across the gripper) 0.05 m"),
         ((0.2, 0.095, 0.03), "brick_size[2]: height 0.03 m"),
         ((0.2, 0.095, 0.2), "brick_size[2]: height 0.2 m"),
@@ -120,6 +124,16 @@ def test_a_brick_the_gripper_cannot_hold_is_refused_naming_the_field(
 def test_the_pattern_command_refuses_an_absurd_brick(tmp_path: Path) -> None:
     path = write_pattern(tmp_path / "huge.json", (1e6, 0.095, 0.06), count=1)
     assert_clean_error(cli("pattern", str(path)), "huge.json", "brick_size[0]", "outside")
+
+
+def test_the_widest_brick_allowed_loads_and_leaves_the_pads_room_to_pass_it(
+    tmp_path: Path,
+) -> None:
+    """sigma_2 asks the opening to pass the brick by delta: the widest brick allowed leaves
+    that and a margin within the gripper's full opening."""
+    assert WIDEST_M <= GRIPPER_GAP_M[1] - Tolerances().delta_m - GRIP_MARGIN_M
+    size = (0.2, math.floor(WIDEST_M * 1e4) / 1e4, 0.06)
+    assert load_pattern(write_pattern(tmp_path / "wide.json", size), SPEC).brick_size_m == size
 
 
 @pytest.mark.parametrize("size", [(0.1, 0.07, 0.045), (0.3, 0.12, 0.085)])

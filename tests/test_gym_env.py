@@ -165,9 +165,16 @@ def test_an_answer_a_gate_refuses_comes_back_with_its_checks_and_the_arm_stays(
     _, reward, terminated, _, info = env.step(answer(waypoint=waypoint))
     call = info["call"]
     assert info["refusal"] is None and call["outcome"] == "refused" and not terminated
-    gate = call["gates"][0]
-    assert gate["gate"] == "sigma1_pre_grasp" and not gate["passed"] and gate["checks"]
-    assert call["feedback"] and info["agent"] == "pre_grasp" and reward == 0.0
+    # A choice that can be built; an approach that is not over the brick it chose, refused
+    # before it moves (sigma_1's path check is never reached).
+    choice, plan = call["gates"]
+    assert (choice["gate"], choice["passed"]) == ("pre_grasp_choice", True)
+    assert plan["gate"] == "pre_grasp_plan" and not plan["passed"]
+    failed = {c["name"]: c["value"] for c in plan["checks"] if not c["passed"]}
+    apart = np.linalg.norm(observed["brick_poses"][0][:2] - other[:2])
+    assert failed["grasp_offset_m"] == pytest.approx(apart, abs=1e-6)
+    assert call["feedback"].startswith("pre_grasp_plan failed: grasp_offset_m = ")
+    assert info["agent"] == "pre_grasp" and reward == 0.0
     assert env.session.turn().feedback == call["feedback"]
     assert env.session.in_scene(lambda scene: scene.ticks) == ticks
 

@@ -202,13 +202,19 @@ def test_an_answer_a_gate_refuses_comes_back_with_its_feedback_and_the_arm_stays
     async def scenario(client: ClientSession) -> None:
         before, _ = await call(client, "start_trial", pattern="pyramid", seed=0)
         state = before["turn"]["state"]
-        # Approach brick 0 through the middle of brick 1: valid, and refused by sigma_1.
+        # Approach brick 0 through the middle of brick 1: valid data, and refused before it
+        # moves, the approach not being over the brick chosen.
         judged, refused = await call(client, "submit_answer", answer=answer_at(state, brick=1))
         call_record = judged["call"]
         assert not refused and judged["agent"] == "pre_grasp" and judged["result"] is None
-        assert call_record["outcome"] == "refused" and call_record["feedback"]
-        gate = call_record["gates"][0]
-        assert gate["gate"] == "sigma1_pre_grasp" and not gate["passed"] and gate["checks"]
+        assert call_record["outcome"] == "refused"
+        choice, plan = call_record["gates"]
+        assert (choice["gate"], choice["passed"]) == ("pre_grasp_choice", True)
+        assert plan["gate"] == "pre_grasp_plan" and not plan["passed"]
+        failed = {c["name"]: c["value"] for c in plan["checks"] if not c["passed"]}
+        centres = [state["bricks"][i]["pose"]["position_m"][:2] for i in (0, 1)]
+        assert failed["grasp_offset_m"] == pytest.approx(math.dist(*centres), abs=1e-6)
+        assert call_record["feedback"].startswith("pre_grasp_plan failed: grasp_offset_m = ")
         after, _ = await call(client, "read_state")
         assert after["turn"]["feedback"] == call_record["feedback"]
         assert after["turn"]["state"] == state  # nothing moved: the same measured state

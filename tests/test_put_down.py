@@ -61,7 +61,8 @@ def test_a_brick_rolled_in_the_hand_is_pressed_flat_onto_its_spot(small_pattern,
         )
         scene.step(scene.ticks_for(0.3))
         assert scene.is_held(0)
-        assert tilt_deg(scene.brick_pose(0)[1]) > 20.0  # rolled past eps_tilt: a re-grasp case
+        # Rolled far past eps_tilt: let go as it is, it would come down on an edge.
+        assert tilt_deg(scene.brick_pose(0)[1]) > 20.0
 
         calls = AgentCaller(world, BuiltinReasoner(), Tolerances(), BuildResult())
         observe = lambda: world.observe(Progress(current_brick=0, step="lift"))  # noqa: E731
