@@ -593,7 +593,7 @@ def test_the_readme_table_is_the_enum_in_order() -> None:
         kind, meaning, where = row.strip("| ").split(" | ")
         rows.append((kind.strip("`"), meaning, where))
     assert rows == [(k.value, k.meaning, k.applies_to) for k in ALL]
-    assert "<!-- which check catches each kind: filled in by the gates work -->" in readme
+    assert "Which check catches each kind, before the arm moves" in readme
 
 
 def test_the_single_agents_corrupted_answers_are_marked_and_counted(kinematics, wall) -> None:

@@ -187,47 +187,53 @@ CASES = {
         False,
         f"sidewall_force_n = {PRESSING_N:.4g}, needs <= {TOL.sidewall_contact_n:.4g}",
     ),
-    "sigma3 firm": (sigma3_grasp(pads(40, 38), (0.001, 0.0), 0.2, TOL), True, ""),
+    "sigma3 firm": (sigma3_grasp(pads(40, 38), (0.001, 0.0, 0.0), 0.2, TOL), True, ""),
     "sigma3 weak pad": (
-        sigma3_grasp(pads(40, 10), (0.001, 0.0), 0.2, TOL),
+        sigma3_grasp(pads(40, 10), (0.001, 0.0, 0.0), 0.2, TOL),
         False,
         f"normal_force_n = 10, needs >= {TOL.f_min_n(required_n(1.5)):.4g}",
     ),
     # f_min follows the brick: 6 kg x 9.81 / (2 x 0.6) = 49.05 N is more than 40 N.
     "sigma3 heavy brick": (
-        sigma3_grasp(pads(40, 40, mass_kg=HEAVY_KG), (0.001, 0.0), 0.2, TOL),
+        sigma3_grasp(pads(40, 40, mass_kg=HEAVY_KG), (0.001, 0.0, 0.0), 0.2, TOL),
         False,
         f"needs >= {TOL.f_min_n(required_n(HEAVY_KG)):.4g}",
     ),
     # A brick that may be 20 % heavier and 20 % less grippy needs 1.5 x the catalogue force.
     "sigma3 unsure brick": (
-        sigma3_grasp(pads(40, 20, mass_kg=2.0), (0.001, 0.0), 0.2, UNSURE_BRICK),
+        sigma3_grasp(pads(40, 20, mass_kg=2.0), (0.001, 0.0, 0.0), 0.2, UNSURE_BRICK),
         False,
         f"normal_force_n = 20, needs >= {UNSURE_BRICK.f_min_n(required_n(2.0)):.4g}",
     ),
     "sigma3 catalogue brick": (
-        sigma3_grasp(pads(40, 20, mass_kg=2.0), (0.001, 0.0), 0.2, TOL),
+        sigma3_grasp(pads(40, 20, mass_kg=2.0), (0.001, 0.0, 0.0), 0.2, TOL),
         True,
         "",
     ),
     "sigma3 unsure brick held": (
-        sigma3_grasp(pads(40, 40, mass_kg=2.0), (0.001, 0.0), 0.2, UNSURE_BRICK),
+        sigma3_grasp(pads(40, 40, mass_kg=2.0), (0.001, 0.0, 0.0), 0.2, UNSURE_BRICK),
         True,
         "",
     ),
     "sigma3 off pose": (
-        sigma3_grasp(pads(110, 110), (0.01, 0.0), 0.2, TOL),
+        sigma3_grasp(pads(110, 110), (0.01, 0.0, 0.0), 0.2, TOL),
         False,
         "pose_error_m = 0.01",
     ),
     # 2.5 mm along each axis is 3.5 mm off: more than eps_g, though neither axis is.
     "sigma3 off pose diagonally": (
-        sigma3_grasp(pads(110, 110), (-0.0025, 0.0025), 0.2, TOL),
+        sigma3_grasp(pads(110, 110), (-0.0025, 0.0025, 0.0), 0.2, TOL),
         False,
         f"pose_error_m = {math.hypot(0.0025, 0.0025):.4g}, needs <= {TOL.eps_g_m:.4g}",
     ),
+    # A grip that closed 1 cm above the brick's centre (a descent that stopped short).
+    "sigma3 high": (
+        sigma3_grasp(pads(110, 110), (0.0, 0.0, -0.01), 0.2, TOL),
+        False,
+        "pose_error_m = 0.01",
+    ),
     "sigma3 turned": (
-        sigma3_grasp(pads(110, 110), (0.0, 0.0), -(TOL.eps_g_deg + 1.0), TOL),
+        sigma3_grasp(pads(110, 110), (0.0, 0.0, 0.0), -(TOL.eps_g_deg + 1.0), TOL),
         False,
         f"pose_error_deg = {TOL.eps_g_deg + 1.0:.4g}, needs <= {TOL.eps_g_deg:.4g}",
     ),
@@ -375,8 +381,8 @@ MEASURED = {
     ),
     # The brick's centre is 4 mm -x, 2 mm +y of the tool's, turned 3 deg more: move there.
     "sigma3 grip": (
-        sigma3_grasp(pads(40, 38), (-0.004, 0.002), 3.0, TOL),
-        Measured(e_x_m=-0.004, e_y_m=0.002, e_theta_deg=3.0, pad_forces_n=(40.0, 38.0)),
+        sigma3_grasp(pads(40, 38), (-0.004, 0.002, 0.0), 3.0, TOL),
+        Measured(e_x_m=-0.004, e_y_m=0.002, e_z_m=0.0, e_theta_deg=3.0, pad_forces_n=(40.0, 38.0)),
     ),
     "sigma4 lift": (
         sigma4_lift(slip(0.02, tilt_deg=12.0), pads(40, 40, 10), set_down(), 0.015, TOL),
@@ -450,7 +456,7 @@ def test_a_noted_verdict_says_what_happened_between_checks_and_measurements() ->
 
 def test_a_check_on_a_value_that_is_not_finite_never_passes() -> None:
     for value in (math.nan, math.inf, -math.inf):
-        verdict = sigma3_grasp(pads(40, 40), (value, 0.0), 0.0, TOL)
+        verdict = sigma3_grasp(pads(40, 40), (value, 0.0, 0.0), 0.0, TOL)
         assert not verdict.passed and "pose_error_m" in verdict.feedback
 
 

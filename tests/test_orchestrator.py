@@ -268,7 +268,7 @@ def test_placement_can_ask_for_a_regrasp_and_the_brick_is_grasped_again(small_go
     assert result.failure is None, result.failure
     (asked,) = [call for call in result.transcript if call.outcome == "regrasp"]
     assert asked.agent == "placement"
-    assert asked.feedback.startswith("regrasp failed; placement asked for a re-grasp: ")
+    assert asked.feedback.startswith("placement_regrasp; placement asked for a re-grasp: ")
     # Set aside on the ground near its slot, clear of the other bricks and targets (outside
     # the pick area, hence "dropped"): Ag1 picks the same brick again from there.
     again = result.transcript[result.transcript.index(asked) + 1]

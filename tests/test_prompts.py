@@ -103,12 +103,6 @@ def test_the_single_agent_is_told_nothing_checks_it() -> None:
     assert len(merged.thinking) == sum(len(spec.thinking) for spec in specs)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="src bug: the six agents' thinking steps now read memory.refusals and name the "
-    "gates (sigma_2, sigma3_grasp, sigma4_lift, sigma5_placement); single_agent_spec merges "
-    "them all into the ablation's prompt, which has no gates and no refusals",
-)
 def test_the_single_agent_is_told_of_no_gate_and_no_refusal() -> None:
     prompt = _prompt(single_agent_spec())
     assert "sigma_" not in prompt and "sigma" not in prompt.lower()

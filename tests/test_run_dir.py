@@ -175,7 +175,7 @@ def test_a_changed_setting_is_refused_naming_each_field_with_both_values(tmp_pat
     with pytest.raises(ConfigError) as refused:
         open_run(tmp_path, changed)
     message = str(refused.value)
-    assert "tolerances.c_min_m 0.02 there, 0.025 now" in message
+    assert f"tolerances.c_min_m {Tolerances().c_min_m} there, 0.025 now" in message
     assert "controller.max_joint_speed_radps 2.5 there, 2.0 now" in message
     assert "choose another --out" in message
     assert message.count(" there, ") == 2  # nothing else is named

@@ -109,34 +109,28 @@ def _one_pad_seen(state: WorldState, pads: ContactForces, pad: int) -> None:
 
 @pytest.mark.parametrize(
     ("offset_m", "pad", "noise"),
-    [(OFFSET_M, 1, "none"), (-OFFSET_M, 0, "none"), (OFFSET_M, 1, "medium")],
+    [
+        (OFFSET_M, 1, "none"),
+        (-OFFSET_M, 0, "none"),
+        (OFFSET_M, 1, "medium"),
+        (-OFFSET_M, 0, "medium"),
+    ],
 )
 def test_a_pad_on_one_side_of_the_brick_is_seen_and_refused(
     offset_m: float, pad: int, noise: str
 ) -> None:
     state, pads, verdict, _ = _descend(offset_m, noise)
     _one_pad_seen(state, pads, pad)
-    assert pads.normal_n[pad] > TOL.sidewall_contact_n  # more than slides the brick
+    # More than slides the lightest, least grippy brick the noise allows, read through it.
+    threshold = TOL.under(state.sensing).sidewall_contact_n
+    assert pads.normal_n[pad] > threshold
     assert not verdict.passed
     assert _checked(verdict)["sidewall_force_n"] == pads.normal_n[pad]
     assert verdict.measured.pad_forces_n == pads.normal_n
     assert verdict.feedback.startswith(
         f"sigma2_descent failed: sidewall_force_n = {pads.normal_n[pad]:.4g}, "
-        f"needs <= {TOL.sidewall_contact_n:.4g}"
+        f"needs <= {threshold:.4g}"
     )
-
-
-def test_a_pad_resting_on_a_side_wall_with_less_than_slides_the_brick_passes() -> None:
-    """The sidewall threshold is the force that slides the brick over the ground: in this
-    scene (medium noise, seed 0) the pad ends on the wall with less than that, the brick
-    moved less than sigma_2 allows, and the grasp is sigma_3's to judge."""
-    state, pads, verdict, _ = _descend(-OFFSET_M, "medium")
-    _one_pad_seen(state, pads, 0)
-    assert pads.normal_n[0] < TOL.sidewall_contact_n
-    checked = _checked(verdict)
-    assert checked["sidewall_force_n"] == pads.normal_n[0]
-    assert checked["brick_shift_m"] < TOL.under(state.sensing).eps_xy_m
-    assert verdict.passed, verdict.feedback
 
 
 @pytest.mark.parametrize("noise", ["none", "medium"])

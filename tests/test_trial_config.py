@@ -20,7 +20,6 @@ from actionreasoning.control.safety import SafetyLimits
 from actionreasoning.errors import ConfigError
 from actionreasoning.eval.provenance import SCHEMA_VERSION, Provenance, git_revision
 from actionreasoning.eval.rules import Method
-from actionreasoning.world.success import SuccessRule
 from actionreasoning.eval.run import RunConfig, run_eval
 from actionreasoning.eval.run_dir import config_digest
 from actionreasoning.eval.trial import TrialSpec, run_trial
@@ -28,6 +27,7 @@ from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PRECISE
 from actionreasoning.world.scene_spec import SceneSpec
+from actionreasoning.world.success import SuccessRule
 from actionreasoning.world.tolerances import Tolerances
 
 ONE_BRICK = {
@@ -93,7 +93,7 @@ def test_a_changed_default_is_refused_and_the_same_defaults_resume(
     with pytest.raises(ConfigError) as refused:
         run_eval(run_config(pattern, out, changed))
     message = str(refused.value)
-    assert "tolerances.c_min_m 0.02 there, 0.025 now" in message
+    assert f"tolerances.c_min_m {Tolerances().c_min_m} there, 0.025 now" in message
     assert "choose another --out" in message
     assert (out / "results.jsonl").read_bytes() == lines
     summary = run_eval(run_config(pattern, out))

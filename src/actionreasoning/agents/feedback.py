@@ -26,6 +26,7 @@ class Measured(_Data):
         None, description="Wanted minus measured x of the brick's centre: shift by this."
     )
     e_y_m: float | None = Field(None, description="The same along y.")
+    e_z_m: float | None = Field(None, description="The same along z (up).")
     e_theta_deg: float | None = Field(
         None, description="Wanted minus measured yaw, wrapped to [-180, 180): turn by this."
     )
@@ -71,7 +72,7 @@ class Refusal(_Data):
         checks = "; ".join(
             f"{c.name} = {c.value:.4g}, needs {c.relation} {c.threshold:.4g}" for c in self.failed
         )
-        parts = [f"{self.gate} failed" + (f": {checks}" if checks else "")]
+        parts = [f"{self.gate} failed: {checks}" if checks else self.gate]
         if self.note:
             parts.append(self.note)
         measured = describe(self.measured)

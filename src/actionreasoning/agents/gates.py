@@ -141,17 +141,17 @@ def _friction_margin(pads: ContactForces, tol: Tolerances) -> Check:
     grip = tol.friction_factor * pads.friction_coefficient * sum(pads.normal_n)
     load = sum(pads.tangential_n)
     noise = NOISE_SIGMAS * tol.force_noise * math.hypot(grip, load)
-    return Check("friction_margin_n", grip - load, -noise, at_most=False)
+    return Check("friction_margin_n", grip - load, 0.0 - noise, at_most=False)
 
 
 def sigma3_grasp(
     pads: ContactForces,
-    offset_m: tuple[float, float],
+    offset_m: tuple[float, float, float],
     yaw_error_deg: float,
     tol: Tolerances,
 ) -> GateVerdict:
     """Normal force f_n >= f_min on both pads, and grasp pose error <= eps_g: ``offset_m`` is
-    the brick's centre minus the tool's (world x, y), ``yaw_error_deg`` the brick's yaw
+    the brick's centre minus the tool's (world x, y, z), ``yaw_error_deg`` the brick's yaw
     minus the tool's, modulo a half turn (the pads grip a brick turned 180 deg the same)."""
     return GateVerdict(
         "sigma3_grasp",
@@ -163,6 +163,7 @@ def sigma3_grasp(
         measured=Measured(
             e_x_m=offset_m[0],
             e_y_m=offset_m[1],
+            e_z_m=offset_m[2],
             e_theta_deg=yaw_error_deg,
             pad_forces_n=pads.normal_n,
         ),
@@ -189,7 +190,7 @@ def sigma4_lift(
             Check("relative_speed_mps", slip.relative_speed_mps, tol.v_th_mps, at_most=True),
             _friction_margin(pads, tol),
             Check("set_down_reachable", float(set_down.reachable), 1.0, at_most=False),
-            Check("set_down_clearance_m", set_down.way_clearance_m, -tol.overlap_m, False),
+            Check("set_down_clearance_m", set_down.way_clearance_m, 0.0 - tol.overlap_m, False),
         ),
         measured=Measured(
             tilt_deg=slip.tilt_in_hand_deg,
@@ -273,8 +274,8 @@ def sigma6_return(
     return GateVerdict(
         "sigma6_return",
         (
-            *_path_checks(retreat, -tol.overlap_m, prefix="retreat_"),
-            *_path_checks(onward, -tol.overlap_m, prefix="return_"),
+            *_path_checks(retreat, 0.0 - tol.overlap_m, prefix="retreat_"),
+            *_path_checks(onward, 0.0 - tol.overlap_m, prefix="return_"),
         ),
         measured=_path_measured(retreat, onward),
     )

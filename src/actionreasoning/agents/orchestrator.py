@@ -6,9 +6,9 @@ unit quaternion, known ids) and verified before the world moves (its ``*_plan`` 
 choice that can be built, a pose where the stage needs it, a clear and reachable path); the
 gate sigma_i then judges what was measured afterwards. A refusal goes back to the same agent
 as feedback (:class:`Refusal`: the failed checks with the measured errors, signed, in the
-world frame), within a retry budget. sigma_4 = 0 puts the brick back where it was grasped;
-Ag5 asking for a re-grasp sets it aside on free ground near by; either way the cycle starts
-again at Ag1. sigma_5 = 0 in contact raises the brick by delta_h and asks Ag5 again. A spent
+world frame), within a retry budget. sigma_4 = 0, or Ag5 asking for a re-grasp, sets the
+brick aside on free ground near by, where it can be grasped again, and the cycle starts again
+at Ag1. sigma_5 = 0 in contact raises the brick by delta_h and asks Ag5 again. A spent
 budget ends the trial with a typed failure.
 """
 
@@ -421,11 +421,11 @@ class Orchestrator:
         pads = self.calls.measure(after, FINGER_CONTACTS, BrickQuery(brick_id=brick))
         slip = self.calls.measure(after, SLIP, BrickQuery(brick_id=brick))
         grip = Rotation.from_quat(after.robot.ee_pose.quat_xyzw)
-        dx, dy, _ = grip.apply(slip.offset_in_gripper_m)
+        dx, dy, dz = grip.apply(slip.offset_in_gripper_m)
         turn = _half_turn_deg(
             quat_yaw(after.brick(brick).pose.quat_xyzw) - quat_yaw(after.robot.ee_pose.quat_xyzw)
         )
-        verdict = self.calls.judge(gates.sigma3_grasp(pads, (dx, dy), turn, self.tol))
+        verdict = self.calls.judge(gates.sigma3_grasp(pads, (dx, dy, dz), turn, self.tol))
         if not verdict.passed:
             self.world.grip(GRIPPER_GAP_M[1])
             raise _Refused(verdict.refusal(key), FailureCode.GRASP_FAILED)
@@ -587,7 +587,7 @@ class Orchestrator:
             raise _Regrasp(
                 Refusal(
                     agent=Stage.PLACEMENT,
-                    gate="regrasp",
+                    gate="placement_regrasp",
                     measured=Measured(tilt_deg=tilt),
                     note=f"placement asked for a re-grasp: {answer.rationale}",
                 )
@@ -729,7 +729,7 @@ def _clear(report: CollisionReport, tol: Tolerances, prefix: str) -> tuple[Check
     """A path reachable and clear, no overlap beyond what sensing noise can show."""
     return (
         Check(f"{prefix}reachable", float(report.reachable), 1.0, at_most=False),
-        Check(f"{prefix}clearance_m", report.clearance_m, -tol.overlap_m, at_most=False),
+        Check(f"{prefix}clearance_m", report.clearance_m, 0.0 - tol.overlap_m, at_most=False),
     )
 
 

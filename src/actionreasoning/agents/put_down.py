@@ -1,7 +1,8 @@
 """Putting a held brick down on the ground for a re-grasp: where, and how gently.
 
-Where: back on the spot it was grasped from (after sigma_4), or, when Ag5 asks, on the
-nearest free ground within reach, so that a loose brick is not carried far. How: pressed
+Where: on the nearest free ground where it can be grasped again (inside the arm's reach
+band, clear of the other bricks and the unbuilt targets), so that a loose brick is not
+carried far; back on the spot it was grasped from if there is none. How: pressed
 onto the ground, still held, until it lies flat, then let go just past its width. A brick
 that rolled in the hand turns about the pads, which hold little torque: pressed down it
 turns back flat, where one let go on a corner falls, often onto its side.

@@ -25,7 +25,7 @@ class Outcome(StrEnum):
     PENDING = "pending"  # the trial stopped before the answer was judged
     ACCEPTED = "accepted"
     REFUSED = "refused"  # failed verification or its gate; the agent is asked again
-    REGRASP = "regrasp"  # sigma_4 = 0: the brick was put back, the cycle restarts at Ag1
+    REGRASP = "regrasp"  # the brick was set aside to be grasped again; the cycle restarts at Ag1
     RAISED = "raised"  # sigma_5 = 0 in contact: raised by delta_h, Ag5 is asked again
     EXECUTED = "executed"  # single-agent ablation: run without a gate
     FAILED = "failed"  # the model gave no valid answer, or its server failed

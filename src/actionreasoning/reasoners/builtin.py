@@ -51,7 +51,7 @@ DESCENT_SLACK_M = 0.04
 #: 40 cm/s rolled 16 bricks more than 10 deg 7, 3, 1 and 1 times).
 CARRY_SPEED_MPS = 0.20
 #: Gates whose refusal put the brick down to be grasped again.
-PUT_DOWN_GATES = ("sigma4_lift", "regrasp")
+PUT_DOWN_GATES = ("sigma4_lift", "placement_regrasp")
 #: Checks of sigma_4 that fail when the brick slips in the grip.
 SLIP_CHECKS = ("relative_speed_mps", "friction_margin_n", "normal_force_n")
 
@@ -155,18 +155,20 @@ def _grasp(briefing: Briefing) -> AgentAnswer:
     if not refusals or refusals[-1].gate != "sigma3_grasp":
         return GraspAnswer(close=True, rationale="at the grasp pose: close")
     miss = refusals[-1].measured
-    dx, dy, turn = miss.e_x_m or 0.0, miss.e_y_m or 0.0, miss.e_theta_deg or 0.0
+    dx, dy, dz = miss.e_x_m or 0.0, miss.e_y_m or 0.0, miss.e_z_m or 0.0
+    turn = miss.e_theta_deg or 0.0
     tool = briefing.view.robot.tool_pose
     x, y, z = tool.position_m
     spin = Rotation.from_euler("z", turn, degrees=True) * Rotation.from_quat(tool.quat_xyzw)
     at = Pose(
-        position_m=(x + dx, y + dy, z),
+        position_m=(x + dx, y + dy, z + dz),
         quat_xyzw=tuple(float(q) for q in spin.as_quat()),  # type: ignore[arg-type]
     )
     return GraspAnswer(
         close=True,
         waypoint=_proposal(at, path="linear"),
-        rationale=f"the last grasp missed by ({1000 * dx:+.1f}, {1000 * dy:+.1f}) mm and "
+        rationale=f"the last grasp missed by ({1000 * dx:+.1f}, {1000 * dy:+.1f}, "
+        f"{1000 * dz:+.1f}) mm and "
         f"{turn:+.2f} deg: close again there, shifted and turned by it",
     )
 

@@ -152,7 +152,8 @@ def _design(rule: SuccessRule, scene: SceneSpec) -> list[Derivation]:
             "N",
             "sigma_2: the brick is not shoved before the grip closes",
             f"the force that slides the brick over the ground: friction {GROUND_FRICTION} x "
-            f"{scene.brick_mass_kg} kg x g",
+            f"{scene.brick_mass_kg} kg x g; under noise for the lightest, least grippy brick, "
+            "read through 3 x force noise",
         ),
         Derivation(
             "grip_load_factor",
@@ -387,6 +388,10 @@ class Tolerances(BaseModel):
                 "eps_xy_m": self.eps_xy_m + position,
                 "eps_theta_deg": self.eps_theta_deg + yaw,
                 "overlap_m": self.overlap_m + math.sqrt(2.0) * position,
+                "sidewall_contact_n": self.sidewall_contact_n
+                * (1.0 - sensing.mass_tolerance)
+                * (1.0 - sensing.friction_tolerance)
+                * (1.0 + NOISE_SIGMAS * sensing.force_rel_std),
                 "grip_load_factor": grip_load_factor(sensing),
                 "force_noise": sensing.force_rel_std,
                 "friction_factor": 1.0 - sensing.friction_tolerance,
