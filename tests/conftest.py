@@ -19,11 +19,19 @@ import pytest
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
 from actionreasoning.eval.rules import Method
 from actionreasoning.eval.run import RunConfig, run_eval
+from actionreasoning.sim.collision import CollisionChecker
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.geometry import top_down_quat
 from actionreasoning.world.layout import sample_pick_poses
-from actionreasoning.world.models import READY_POSE, BrickState, Pose, RobotState, WorldState
+from actionreasoning.world.models import (
+    READY_POSE,
+    BrickState,
+    GoalPattern,
+    Pose,
+    RobotState,
+    WorldState,
+)
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PRECISE
 from actionreasoning.world.scene_spec import SceneSpec
@@ -120,6 +128,22 @@ def small_pattern(tmp_path: Path) -> Path:
     path = tmp_path / "small.json"
     path.write_text(json.dumps(SMALL_PATTERN))
     return path
+
+
+@pytest.fixture(scope="session")
+def kinematics() -> Iterator[tuple[KinematicArm, CollisionChecker]]:
+    """The arm's kinematic copy and its collision checker, shared by every fake world."""
+    arm = KinematicArm()
+    yield arm, CollisionChecker(arm)
+    arm.close()
+
+
+@pytest.fixture(scope="session")
+def wall(tmp_path_factory: pytest.TempPathFactory) -> GoalPattern:
+    """SMALL_PATTERN: two bricks side by side and one on top."""
+    path = tmp_path_factory.mktemp("patterns") / "small.json"
+    path.write_text(json.dumps(SMALL_PATTERN))
+    return load_pattern(path, SceneSpec())
 
 
 @pytest.fixture

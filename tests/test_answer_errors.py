@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import math
 import subprocess
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -37,12 +37,9 @@ from actionreasoning.reasoners.imperfect import (
     ImperfectReasoner,
     corruption,
 )
-from actionreasoning.sim.collision import CollisionChecker
-from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.world import noise
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import GoalPattern
-from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
 
 SPEC = SceneSpec()
@@ -78,21 +75,6 @@ class Exchange:
     @property
     def placed(self) -> int:
         return len(self.request.memory.placed)
-
-
-@pytest.fixture(scope="module")
-def kinematics() -> Iterator[tuple[KinematicArm, CollisionChecker]]:
-    arm = KinematicArm()
-    yield arm, CollisionChecker(arm)
-    arm.close()
-
-
-@pytest.fixture(scope="module")
-def wall(tmp_path_factory: pytest.TempPathFactory) -> GoalPattern:
-    """Two bricks side by side and one on top."""
-    path = tmp_path_factory.mktemp("patterns") / "small.json"
-    path.write_text(json.dumps(SMALL_PATTERN))
-    return load_pattern(path, SPEC)
 
 
 def recorded(runner: Callable[[FakeWorld, Reasoner], Any], world: FakeWorld) -> list[Exchange]:

@@ -9,13 +9,10 @@ what.
 
 from __future__ import annotations
 
-import json
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
-from conftest import SMALL_PATTERN
 from fake_world import FakeWorld
 
 from actionreasoning.agents.answer_errors import CorruptionKind
@@ -24,11 +21,8 @@ from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.reasoners.imperfect import corruption
-from actionreasoning.sim.collision import CollisionChecker
-from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import GoalPattern
-from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
 
 K = CorruptionKind
@@ -117,21 +111,6 @@ class CorruptOnce:
         self.done = True
         answer, record = made
         return AgentReply(answer=answer, corruption=record)
-
-
-@pytest.fixture(scope="module")
-def kinematics() -> Iterator[tuple[KinematicArm, CollisionChecker]]:
-    arm = KinematicArm()
-    yield arm, CollisionChecker(arm)
-    arm.close()
-
-
-@pytest.fixture(scope="module")
-def wall(tmp_path_factory: pytest.TempPathFactory) -> GoalPattern:
-    """Two bricks side by side and one on top."""
-    path = tmp_path_factory.mktemp("patterns") / "small.json"
-    path.write_text(json.dumps(SMALL_PATTERN))
-    return load_pattern(path, SPEC)
 
 
 def corrupted_build(

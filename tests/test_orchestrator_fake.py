@@ -3,14 +3,12 @@ re-grasps and raise-and-retry, fast. The real-scene trials are in test_orchestra
 
 from __future__ import annotations
 
-import json
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pytest
-from conftest import SMALL_PATTERN
 from fake_world import (
     Deviation,
     FakeWorld,
@@ -38,8 +36,6 @@ from actionreasoning.agents.put_down import SET_ASIDE_MARGIN_M, SET_ASIDE_SLACK_
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.reasoners.builtin import BuiltinReasoner
-from actionreasoning.sim.collision import CollisionChecker
-from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.tools.geometry import alignment_of
 from actionreasoning.tools.placement import carried_pose
 from actionreasoning.world.boxes import Box
@@ -47,7 +43,6 @@ from actionreasoning.world.geometry import quat_yaw, tilt_deg, top_down_quat, wr
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import READY_POSE, BrickState, GoalPattern, Pose
 from actionreasoning.world.motion import Motion
-from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import GRAVITY_MPS2
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M, ReachBand, SceneSpec
 from actionreasoning.world.tolerances import Tolerances
@@ -61,22 +56,6 @@ TOL = Tolerances()
 PRESSING_N = TOL.sidewall_contact_n + 1.0
 
 Change = AgentAnswer | Callable[[AgentAnswer], AgentAnswer] | None
-
-
-@pytest.fixture(scope="session")
-def kinematics() -> Iterator[tuple[KinematicArm, CollisionChecker]]:
-    """The arm's kinematic copy and its collision checker, shared by every fake world."""
-    arm = KinematicArm()
-    yield arm, CollisionChecker(arm)
-    arm.close()
-
-
-@pytest.fixture(scope="session")
-def wall(tmp_path_factory: pytest.TempPathFactory) -> GoalPattern:
-    """Two bricks side by side and one on top."""
-    path = tmp_path_factory.mktemp("patterns") / "small.json"
-    path.write_text(json.dumps(SMALL_PATTERN))
-    return load_pattern(path, SPEC)
 
 
 @pytest.fixture

@@ -215,13 +215,18 @@ def sigma5_placement(alignment: AlignmentErrors, tol: Tolerances) -> GateVerdict
             Check("offset_m", alignment.offset_m, tol.max_offset_m, at_most=True),
             Check("rotation_deg", alignment.rotation_deg, tol.max_rotation_deg, at_most=True),
         ),
-        measured=Measured(
-            e_x_m=alignment.e_xy_m[0],
-            e_y_m=alignment.e_xy_m[1],
-            e_theta_deg=alignment.e_theta_deg,
-            d_perp_m=alignment.d_perp_m,
-            tilt_deg=alignment.tilt_deg,
-        ),
+        measured=misalignment(alignment),
+    )
+
+
+def misalignment(alignment: AlignmentErrors) -> Measured:
+    """Alignment errors as feedback: the target minus the brick, to shift and turn by."""
+    return Measured(
+        e_x_m=alignment.e_xy_m[0],
+        e_y_m=alignment.e_xy_m[1],
+        e_theta_deg=alignment.e_theta_deg,
+        d_perp_m=alignment.d_perp_m,
+        tilt_deg=alignment.tilt_deg,
     )
 
 

@@ -627,13 +627,8 @@ class Orchestrator:
                 ),
                 *_clear(worst, self.tol, "way_"),
             ),
-            measured=Measured(
-                e_x_m=predicted.e_xy_m[0],
-                e_y_m=predicted.e_xy_m[1],
-                e_theta_deg=predicted.e_theta_deg,
-                d_perp_m=predicted.d_perp_m,
-                clearance_m=worst.clearance_m,
-                closest=worst.closest,
+            measured=gates.misalignment(predicted).model_copy(
+                update={"clearance_m": worst.clearance_m, "closest": worst.closest}
             ),
         )
         self._gate(verdict, Stage.PLACEMENT, _failure_of(worst, self.tol))
