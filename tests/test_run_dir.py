@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 from io import StringIO
 from pathlib import Path
@@ -228,3 +229,34 @@ def test_a_run_of_an_earlier_version_is_reported_but_not_resumed(tmp_path: Path)
     conditions = run.conditions()
     assert conditions["budget.max_steps"] == 400000 and conditions["llm.spec"] == "builtin"
     assert conditions["physics.name"] == "precise" and "tolerances.c_min_m" not in conditions
+
+
+def test_a_run_whose_configuration_this_version_reads_no_more_is_reported_not_resumed(
+    tmp_path: Path,
+) -> None:
+    """A run.json of an earlier version with a threshold since renamed (sigma_3's
+    grip_safety_factor, now grip_load_factor): a report reads it as it was recorded, a
+    resume is refused, and nothing is changed."""
+    write_run(tmp_path, 2)
+    stored = json.loads((tmp_path / "run.json").read_text())
+    stored["config"]["physics"] = PRECISE.model_dump(mode="json")  # as the lines say
+    tolerances = stored["config"]["tolerances"]
+    tolerances["grip_safety_factor"] = 2.0
+    del tolerances["grip_load_factor"]
+    recorded = json.dumps(stored["config"], sort_keys=True, separators=(",", ":"))
+    stored["config_sha256"] = hashlib.sha256(recorded.encode()).hexdigest()
+    (tmp_path / "run.json").write_text(json.dumps(stored))
+    lines = (tmp_path / "results.jsonl").read_text()
+    with pytest.raises(ConfigError, match=r"reads no more, so it cannot be resumed"):
+        open_run(tmp_path, MANIFEST)
+    assert (tmp_path / "results.jsonl").read_text() == lines
+    run = read_run(tmp_path)
+    assert [r.trial for r in run.results] == [0, 1]
+    conditions = run.conditions()
+    assert conditions["tolerances.grip_safety_factor"] == 2.0
+    assert conditions["physics.name"] == "precise"
+    # Edited by hand, it is damaged, not an earlier version.
+    stored["config"]["tolerances"]["c_min_m"] = 0.5
+    (tmp_path / "run.json").write_text(json.dumps(stored))
+    with pytest.raises(ConfigError, match=r"damaged or from an earlier version"):
+        read_run(tmp_path)

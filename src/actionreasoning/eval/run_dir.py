@@ -135,8 +135,53 @@ class EarlierManifest(BaseModel):
         return _flatten({**plain, **config})
 
 
-#: run.json of this version, or of one before the trial configuration was recorded.
-AnyManifest = RunManifest | EarlierManifest
+class RecordedManifest(BaseModel):
+    """run.json of an earlier version whose trial configuration this version reads no more
+    (a threshold renamed or added since, say): read by `report` as it was recorded, never
+    resumed."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    method: str
+    pattern: str
+    pattern_sha256: str
+    seed: int
+    config: dict[str, Any]
+    config_sha256: str
+
+    @model_validator(mode="after")
+    def _hash_matches(self) -> RecordedManifest:
+        recorded = json.dumps(self.config, sort_keys=True, separators=(",", ":"))
+        if digest(recorded) != self.config_sha256:
+            raise ValueError("config_sha256 is not the hash of config: the file was edited")
+        return self
+
+    @property
+    def llm(self) -> str:
+        backend = self.config.get("llm")
+        return "none" if backend is None else str(backend["spec"])
+
+    @property
+    def physics_name(self) -> str:
+        return str(self.config["physics"]["name"])
+
+    @property
+    def noise_name(self) -> str:
+        return str(self.config["noise"]["name"])
+
+    @property
+    def answer_errors(self) -> AnswerErrors:
+        return AnswerErrors.model_validate(self.config.get("answer_errors", {}))
+
+    def fields(self) -> dict[str, Any]:
+        """Every recorded value, named as a :class:`RunManifest` names them."""
+        plain = self.model_dump(mode="json", exclude={"config", "config_sha256"})
+        return _flatten({**plain, **self.config})
+
+
+#: run.json of this version, of one whose configuration this version reads no more, or of
+#: one before the trial configuration was recorded.
+AnyManifest = RunManifest | RecordedManifest | EarlierManifest
 
 
 def config_digest(config: TrialConfig) -> str:
@@ -219,6 +264,12 @@ def read_manifest(path: Path) -> RunManifest:
             f"{path} was written by an earlier version of actionreasoning, which did not "
             "record the trial configuration, so a resume cannot be checked against it"
         )
+    if isinstance(manifest, RecordedManifest):
+        raise ConfigError(
+            f"{path} was written by an earlier version of actionreasoning, whose trial "
+            "configuration this version reads no more, so it cannot be resumed (`report` "
+            "still reads it)"
+        )
     return manifest
 
 
@@ -229,6 +280,8 @@ def read_any_manifest(path: Path) -> AnyManifest:
     try:
         return RunManifest.model_validate_json(data)
     except ValidationError as error:
+        with contextlib.suppress(ValidationError):
+            return RecordedManifest.model_validate_json(data)
         with contextlib.suppress(ValidationError):
             return EarlierManifest.model_validate_json(data)
         first = error.errors()[0]
