@@ -63,13 +63,14 @@ def test_same_seed_same_results_with_and_without_snapshots_and_transcripts(
         check_transcript(tmp_path / "b" / "transcripts" / "trial_000.jsonl", method)
 
 
+#: The checks before each move (``*_plan``, ``*_choice``) and the gate after it, per agent.
 GATES = {
-    "pre_grasp": ["sigma1_pre_grasp"],
-    "descent": ["sigma2_descent"],
+    "pre_grasp": ["pre_grasp_choice", "pre_grasp_plan", "sigma1_pre_grasp"],
+    "descent": ["descent_plan", "sigma2_descent"],
     "grasp": ["sigma3_grasp"],
     "lift": ["lift_plan", "sigma4_lift"],
-    "placement": [],  # carried over the slot: verified, not gated
-    "release": ["sigma6_return"],
+    "placement": ["placement_plan"],  # carried over the slot: its way is checked, not gated
+    "release": ["release_plan", "sigma6_return"],
 }
 
 
@@ -87,12 +88,16 @@ def check_transcript(path: Path, method: Method) -> None:
     for brick in range(3):
         mine = calls[brick * 7 : (brick + 1) * 7]
         assert [c.agent for c in mine] == [*list(GATES)[:5], "placement", "release"]
-        expected = [*list(GATES.values())[:5], ["sigma5_placement"], ["sigma6_return"]]
+        expected = [*list(GATES.values())[:5], ["placement_plan", "sigma5_placement"]]
+        expected.append(GATES["release"])
         assert [[g.gate for g in c.gates] for c in mine] == expected
         for gate in (g for c in mine for g in c.gates):
             assert gate.passed and all(check.passed for check in gate.checks)
-    sigma5 = calls[5].gates[0]
-    assert {c.name for c in sigma5.checks} == {"d_perp_m", "e_xy_m", "e_theta_deg"}
+    sigma5 = calls[5].gates[1]
+    assert {c.name for c in sigma5.checks} == {
+        *("d_perp_m", "e_xy_m", "e_theta_deg", "tilt_deg"),
+        *("offset_m", "rotation_deg"),  # the success rule's own bounds
+    }
     assert all(math.isfinite(c.value) for c in sigma5.checks)
     assert calls[0].tool_calls and calls[0].tool_calls[0].name == "grasp_options"
 

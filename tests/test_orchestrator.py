@@ -173,7 +173,8 @@ def test_a_slip_in_the_lift_sets_the_brick_down_and_grasps_it_again_lifting_slow
     (refusal,) = pre_grasps[1].memory.refusals
     assert refusal.measured.move_speed_mps == pytest.approx(_lift_speed(slipped))
     relifted = next(c for c in others if c.brick == slipped.brick)
-    assert _lift_speed(relifted) == pytest.approx(_lift_speed(slipped) / 2)
+    # (its duration is rounded up to whole 10 ms, hence rel)
+    assert _lift_speed(relifted) == pytest.approx(_lift_speed(slipped) / 2, rel=1e-3)
     for target, brick in result.placements.items():
         assert center_offset_cm(final[brick], small_goal.targets[target].pose.position_m) < 0.1
 
@@ -279,10 +280,11 @@ def test_placement_can_ask_for_a_regrasp_and_the_brick_is_grasped_again(small_go
     # The agents know this is a re-grasp; nothing slipped, so the built-in one lifts at
     # v_lift again (it halves the speed for a slip only).
     assert [r.memory.regrasps for r in pre_grasps[:2]] == [0, 1]
-    assert [r.gate for r in pre_grasps[1].memory.refusals] == ["regrasp"]
+    assert [r.gate for r in pre_grasps[1].memory.refusals] == ["placement_regrasp"]
     lifts = [c for c in result.transcript if c.agent == "lift" and c.target == asked.target]
     speeds = [_lift_speed(c) for c in lifts[:2]]
-    assert speeds == pytest.approx([Tolerances().v_lift_mps] * 2)
+    # (durations are rounded up to whole 10 ms, hence rel)
+    assert speeds == pytest.approx([Tolerances().v_lift_mps] * 2, rel=1e-3)
     aside = pre_grasps[1].state.brick(asked.brick)
     assert aside.status == "dropped" and aside.pickable
     slot = small_goal.targets[asked.target].pose.position_m
