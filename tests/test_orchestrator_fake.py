@@ -359,6 +359,27 @@ def test_a_refused_answer_is_asked_again_with_feedback_and_then_accepted(world) 
     assert [m.stage for m in world.moves].count("pre_grasp") == 1  # the refused one never moved
 
 
+def test_a_way_sigma1_refused_is_not_answered_again_the_next_grasp_is(
+    kinematics, one_brick
+) -> None:
+    """sigma_1 found the way to the approach out of reach or not clear: the same answer would
+    be refused again, so the built-in answers the next usable grasp (the other side of the
+    brick, or the next brick)."""
+    into_ground = with_waypoint(lambda w: moved(w, z=0.0))
+    first = calls(build(FakeWorld(one_brick, BRICKS, *kinematics)), "pre_grasp")
+    world = FakeWorld(one_brick, BRICKS, *kinematics)
+    reasoner = Scripted({"pre_grasp": [into_ground, into_ground]})
+    result = build(world, reasoner)
+    assert_built(world, result)
+    *refused, accepted = calls(result, "pre_grasp")
+    assert [c.outcome for c in refused] == ["refused", "refused"]
+    assert all(c.gates[-1].gate == "sigma1_pre_grasp" for c in refused)
+    # Twice refused by sigma_1 (scripted): the third usable grasp, not the first.
+    chosen = [(c.answer["brick_id"], round(yaw_deg(c), 6)) for c in (first[0], accepted)]
+    assert chosen[0] != chosen[1]
+    assert accepted.answer["rationale"].startswith("target 0 next")
+
+
 # --- Ag2 descent: the descent plan and sigma_2 --------------------------------------------
 def test_a_descent_opening_too_narrow_is_refused_before_it_moves(world) -> None:
     width = SPEC.brick_size_m[1]

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Callable
-from itertools import pairwise
+from collections.abc import Callable, Iterator
+from itertools import islice, pairwise, takewhile
 from typing import Literal
 
 import numpy as np
@@ -94,14 +94,21 @@ def _pre_grasp(briefing: Briefing) -> AgentAnswer:
         raise ValueError("no unused brick can be picked")
     tol = briefing.tolerances
 
-    def best_grasp(brick: BrickView) -> GraspOption:
-        query = GraspOptionsQuery(
-            brick_id=brick.id,
-            target_index=target.index,
-            descent_opening_m=_descent_opening(brick),
-        )
-        options = briefing.use(GRASP_OPTIONS, query).options
-        return min(options, key=lambda o: o.wrist_deg if o.reachable else math.inf)
+    measured: dict[int, list[GraspOption]] = {}
+
+    def grasps(brick: BrickView) -> list[GraspOption]:
+        """Both grasps of ``brick``, the least wrist turn first (measured once)."""
+        if brick.id not in measured:
+            query = GraspOptionsQuery(
+                brick_id=brick.id,
+                target_index=target.index,
+                descent_opening_m=_descent_opening(brick),
+            )
+            options = briefing.use(GRASP_OPTIONS, query).options
+            measured[brick.id] = sorted(
+                options, key=lambda o: o.wrist_deg if o.reachable else math.inf
+            )
+        return measured[brick.id]
 
     def usable(option: GraspOption) -> bool:
         return (
@@ -110,24 +117,37 @@ def _pre_grasp(briefing: Briefing) -> AgentAnswer:
             and tol.clear(option.descent_clearance_m)
         )
 
-    # The first free brick with a grasp reachable at pick and place and a clear way down
-    # to it (a dropped brick may lie where none is, or beside another); else the first,
-    # for the gates to refuse with feedback.
+    # The brick the last refusal found in the way first, then by id.
     in_the_way = _in_the_way(memory)
     free.sort(key=lambda b: b.id != in_the_way)
-    seen: list[tuple[BrickView, GraspOption]] = []
-    for brick in free:
-        seen.append((brick, best_grasp(brick)))
-        if usable(seen[-1][1]):
-            break
-    brick, best = next((pair for pair in seen if usable(pair[1])), seen[0])
+
+    def candidates() -> Iterator[tuple[BrickView, GraspOption]]:
+        """Each brick's least-wrist grasp where usable, then the other side's."""
+        for side in (0, 1):
+            for brick in free:
+                if usable(option := grasps(brick)[side]):
+                    yield brick, option
+
+    # The first free brick with a grasp reachable at pick and place and a clear way down
+    # to it (a dropped brick may lie where none is, or beside another). A way that sigma_1
+    # found out of reach or not clear is not answered again: after k such refusals in a
+    # row, the (k+1)-th grasp. With none left, the first brick's, for the gates to refuse.
+    refused = _refused_in_a_row(memory, "sigma1_pre_grasp")
+    brick, best = next(islice(candidates(), refused, None), (free[0], grasps(free[0])[0]))
     return PreGraspAnswer(
         brick_id=brick.id,
         target_index=target.index,
         waypoint=_proposal(best.approach_pose),
         rationale=f"target {target.index} next; brick {brick.id} free; grasp yaw "
-        f"{best.gripper_yaw_deg:.1f} turns the wrist least",
+        f"{best.gripper_yaw_deg:.1f} turns the wrist least"
+        + (f" of the grasps sigma_1 has not refused ({refused} refused)" if refused else ""),
     )
+
+
+def _refused_in_a_row(memory: TaskMemory, gate: str) -> int:
+    """How many answers ``gate`` refused last, one after another."""
+    tail = takewhile(lambda r: r.gate == gate, reversed(memory.refusals))
+    return sum(1 for _ in tail)
 
 
 def _in_the_way(memory: TaskMemory) -> int | None:
