@@ -8,6 +8,7 @@ import pytest
 
 from actionreasoning.agents.feedback import Measured
 from actionreasoning.agents.gates import (
+    Check,
     GateVerdict,
     lift_plan,
     sigma1_pre_grasp,
@@ -516,3 +517,16 @@ def test_tolerances_for_a_goal_keep_each_brick_out_of_the_far_half_of_its_joint(
     assert narrowed.model_copy(update={"eps_xy_m": TOL.eps_xy_m}) == TOL  # only eps_xy
     one = pyramid.model_copy(update={"targets": pyramid.targets[:1]})
     assert smallest_joint_m(one) is None and TOL.for_goal(one) == TOL
+
+
+def test_a_threshold_of_minus_zero_is_zero_in_text_and_record() -> None:
+    """Minus a zero tolerance (exact sensors) is a threshold of 0, not '-0'."""
+    (clearance,) = [
+        c
+        for c in sigma6_return(path(-0.004), path(0.1), TOL).checks
+        if c.name == "retreat_clearance_m"
+    ]
+    assert TOL.overlap_m == 0.0
+    assert math.copysign(1.0, clearance.threshold) == 1.0
+    assert clearance.describe().endswith("needs >= 0")
+    assert math.copysign(1.0, Check("x", 1.0, -0.0, at_most=False).threshold) == 1.0

@@ -28,6 +28,10 @@ class Check:
     threshold: float
     at_most: bool  # True: value <= threshold passes; False: value >= threshold passes
 
+    def __post_init__(self) -> None:
+        # A threshold of -0.0 (minus a zero tolerance) is 0: shown and recorded as such.
+        object.__setattr__(self, "threshold", self.threshold + 0.0)
+
     @property
     def passed(self) -> bool:
         """Whether the inequality holds; a value or threshold that is not finite (a NaN from
@@ -141,7 +145,7 @@ def _friction_margin(pads: ContactForces, tol: Tolerances) -> Check:
     grip = tol.friction_factor * pads.friction_coefficient * sum(pads.normal_n)
     load = sum(pads.tangential_n)
     noise = NOISE_SIGMAS * tol.force_noise * math.hypot(grip, load)
-    return Check("friction_margin_n", grip - load, 0.0 - noise, at_most=False)
+    return Check("friction_margin_n", grip - load, -noise, at_most=False)
 
 
 def sigma3_grasp(
@@ -190,7 +194,7 @@ def sigma4_lift(
             Check("relative_speed_mps", slip.relative_speed_mps, tol.v_th_mps, at_most=True),
             _friction_margin(pads, tol),
             Check("set_down_reachable", float(set_down.reachable), 1.0, at_most=False),
-            Check("set_down_clearance_m", set_down.way_clearance_m, 0.0 - tol.overlap_m, False),
+            Check("set_down_clearance_m", set_down.way_clearance_m, -tol.overlap_m, False),
         ),
         measured=Measured(
             tilt_deg=slip.tilt_in_hand_deg,
@@ -258,7 +262,7 @@ def lift_plan(
             Check("sideways_m", math.hypot(*sideways_m), tol.eps_g_m, at_most=True),
             Check("turn_deg", turn_deg, tol.eps_g_deg, at_most=True),
             Check("speed_mps", speed_mps, tol.v_lift_mps, at_most=True),
-            *_path_checks(path, 0.0 - tol.overlap_m),
+            *_path_checks(path, -tol.overlap_m),
             Check("bottom_clearance_m", bottom_clearance_m, tol.c_min_m, at_most=False),
         ),
         measured=Measured(
@@ -279,8 +283,8 @@ def sigma6_return(
     return GateVerdict(
         "sigma6_return",
         (
-            *_path_checks(retreat, 0.0 - tol.overlap_m, prefix="retreat_"),
-            *_path_checks(onward, 0.0 - tol.overlap_m, prefix="return_"),
+            *_path_checks(retreat, -tol.overlap_m, prefix="retreat_"),
+            *_path_checks(onward, -tol.overlap_m, prefix="return_"),
         ),
         measured=_path_measured(retreat, onward),
     )

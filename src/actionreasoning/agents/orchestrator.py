@@ -724,7 +724,7 @@ def _clear(report: CollisionReport, tol: Tolerances, prefix: str) -> tuple[Check
     """A path reachable and clear, no overlap beyond what sensing noise can show."""
     return (
         Check(f"{prefix}reachable", float(report.reachable), 1.0, at_most=False),
-        Check(f"{prefix}clearance_m", report.clearance_m, 0.0 - tol.overlap_m, at_most=False),
+        Check(f"{prefix}clearance_m", report.clearance_m, -tol.overlap_m, at_most=False),
     )
 
 

@@ -151,8 +151,7 @@ class RecordedManifest(BaseModel):
 
     @model_validator(mode="after")
     def _hash_matches(self) -> RecordedManifest:
-        recorded = json.dumps(self.config, sort_keys=True, separators=(",", ":"))
-        if digest(recorded) != self.config_sha256:
+        if values_digest(self.config) != self.config_sha256:
             raise ValueError("config_sha256 is not the hash of config: the file was edited")
         return self
 
@@ -185,9 +184,13 @@ AnyManifest = RunManifest | RecordedManifest | EarlierManifest
 
 
 def config_digest(config: TrialConfig) -> str:
-    """SHA-256 of a configuration's recorded values as compact JSON with sorted keys."""
-    recorded = config.model_dump(mode="json")
-    return digest(json.dumps(recorded, sort_keys=True, separators=(",", ":")))
+    """SHA-256 of a configuration's recorded values (see :func:`values_digest`)."""
+    return values_digest(config.model_dump(mode="json"))
+
+
+def values_digest(values: dict[str, Any]) -> str:
+    """SHA-256 of recorded values as compact JSON with sorted keys."""
+    return digest(json.dumps(values, sort_keys=True, separators=(",", ":")))
 
 
 def _flatten(data: dict[str, Any], prefix: str = "") -> dict[str, Any]:
