@@ -57,6 +57,12 @@ def thresholds_line(tolerances: Tolerances, names: tuple[str, ...]) -> str:
     return ", ".join(f"{name}={values[name]:g}" for name in names)
 
 
+def thresholds_legend(names: tuple[str, ...]) -> str:
+    """What each of the gate thresholds ``names`` bounds, a line each."""
+    fields = Tolerances.model_fields
+    return "\n".join(f"- {name}: {fields[name].description}" for name in names)
+
+
 def _unread(spec: AgentSpec) -> set[str]:
     """Memory fields an agent's decision does not need: the step, which is the agent itself
     (the single agent reads it), and the bricks placed, for agents 2-6 (their state view
@@ -91,6 +97,7 @@ def render_prompt(
             memory.model_dump(mode="json", exclude_defaults=True, exclude=_unread(spec))
         ),
         tolerances=thresholds_line(tolerances, spec.thresholds),
+        tolerances_legend=thresholds_legend(spec.thresholds) if spec.gate else "",
         tools=tools,
         thinking=(*spec.thinking, *spec.feedback),
         answer_fields="\n".join(describe_fields(spec.output_model)),

@@ -56,12 +56,25 @@ class AgentSpec:
 def agent_specs() -> tuple[AgentSpec, ...]:
     """The six agents in pipeline order."""
     text = resources.files("actionreasoning.agents").joinpath("prompts/agents.yaml").read_text()
+    return parse_agents(text)
+
+
+def parse_agents(text: str) -> tuple[AgentSpec, ...]:
+    """The agents of an ``agents.yaml`` text, checked: known tools and thresholds, and every
+    step of a thinking chain a line of text (``- Target: ...`` in YAML is a mapping, which
+    would render as a Python dict)."""
     specs = []
     for number, entry in enumerate(yaml.safe_load(text), start=1):
         unknown = [name for name in entry["tools"] if name not in TOOLS]
         unknown += [name for name in entry["thresholds"] if name not in Tolerances.model_fields]
         if unknown:
             raise ValueError(f"agent {entry['key']} lists unknown tools or thresholds {unknown}")
+        steps = [*entry["thinking"], *entry.get("feedback", ())]
+        if not_text := [step for step in steps if not isinstance(step, str)]:
+            raise ValueError(
+                f"agent {entry['key']}: a thinking step is not a line of text: {not_text[0]!r} "
+                "(quote a step that holds ': ')"
+            )
         specs.append(
             AgentSpec(
                 number=number,

@@ -301,7 +301,7 @@ class Tolerances(BaseModel):
         ge=0.0,
         description="sigma_3, sigma_4: each pad must press with this many times "
         "required_normal_n, the force whose friction carries the brick's catalogue weight: "
-        "the heaviest, least grippy brick the noise allows, less the force noise",
+        "the heaviest, least grippy brick the noise allows, less the force noise.",
     )
     friction_factor: float = Field(
         _DEFAULTS["friction_factor"],
@@ -309,8 +309,22 @@ class Tolerances(BaseModel):
         le=1.0,
         description="sigma_4: share of the catalogue friction counted on.",
     )
-    eps_g_m: float = Field(_DEFAULTS["eps_g_m"], gt=0, description="sigma_3: tool position error.")
-    eps_g_deg: float = Field(_DEFAULTS["eps_g_deg"], gt=0, description="sigma_3: tool yaw error.")
+    eps_g_m: float = Field(
+        _DEFAULTS["eps_g_m"],
+        gt=0,
+        description=(
+            "sigma_3 and the pre-move checks: largest distance of the tool centre from the "
+            "brick's centre (grasp) or from over it (approach)."
+        ),
+    )
+    eps_g_deg: float = Field(
+        _DEFAULTS["eps_g_deg"],
+        gt=0,
+        description=(
+            "sigma_3 and the pre-move checks: largest yaw between the pads' closing axis "
+            "and the brick's width."
+        ),
+    )
     v_th_mps: float = Field(
         _DEFAULTS["v_th_mps"],
         gt=0,
@@ -345,7 +359,9 @@ class Tolerances(BaseModel):
         _DEFAULTS["max_rotation_deg"], gt=0, description="sigma_5: the success rule's rotation."
     )
     delta_h_m: float = Field(
-        _DEFAULTS["delta_h_m"], gt=0, description="sigma_5 = 0 in contact: raise by this."
+        _DEFAULTS["delta_h_m"],
+        gt=0,
+        description="sigma_5 refused a brick in contact: raise the tool this much, answer again.",
     )
     overlap_m: float = Field(
         _DEFAULTS["overlap_m"],
