@@ -16,9 +16,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from actionreasoning.agents.tiers import DEFAULT_TIER
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
 from actionreasoning.eval.rules import Method
 from actionreasoning.eval.run import RunConfig, run_eval
+from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.sim.collision import CollisionChecker
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.scene import Scene
@@ -49,7 +51,13 @@ SMALL_PATTERN = {
 
 
 def eval_lines(
-    out: Path, pattern: Path, method: Method, trials: int = 1, workers: int = 1, **outputs: bool
+    out: Path,
+    pattern: Path,
+    method: Method,
+    trials: int = 1,
+    workers: int = 1,
+    tools: str = DEFAULT_TIER,
+    **outputs: bool,
 ) -> str:
     """results.jsonl of an in-process run of ``pattern`` at seed 3, with the extra outputs
     named in ``outputs`` (``video=True``, ``rerun=True``)."""
@@ -61,6 +69,7 @@ def eval_lines(
         seed=3,
         out=out,
         workers=workers,
+        config=TrialConfig(tools=tools),
         **outputs,
     )
     run_eval(config)

@@ -26,6 +26,7 @@ from mcp import ClientSession
 from mcp.client.stdio import StdioServerParameters, stdio_client
 
 from actionreasoning.agents.spec import single_agent_spec
+from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.errors import ToolError
 from actionreasoning.eval.rules import Method
 from actionreasoning.eval.session import Conditions, TrialSession
@@ -82,10 +83,10 @@ def test_the_tools_are_listed_with_their_schemas(tmp_path: Path) -> None:
         tools.extend((await client.list_tools()).tools)
 
     run(scenario, tmp_path)
-    knowledge = list(single_agent_spec().tools)
-    registry = knowledge + list(GATE_MEASUREMENTS)
+    knowledge = list(dict.fromkeys(n for t in ToolTier for n in single_agent_spec(t).tools))
+    registry = list(dict.fromkeys(knowledge + list(GATE_MEASUREMENTS)))
     assert [tool.name for tool in tools] == DOOR_TOOLS + registry
-    assert len(knowledge) == 6 and sorted(registry) == sorted(TOOLS)  # all nine, once each
+    assert sorted(registry) == sorted(TOOLS)  # every tool, once each
     for tool in tools:
         assert tool.description and tool.input_schema["type"] == "object", tool.name
         if tool.name in registry:
@@ -93,7 +94,7 @@ def test_the_tools_are_listed_with_their_schemas(tmp_path: Path) -> None:
             assert tool.description.startswith(tool_schema(tool.name).description)
     start = next(tool for tool in tools if tool.name == "start_trial")
     assert set(start.input_schema["properties"]) == {
-        "pattern", "physics", "noise", "seed", "trial", "max_trial_s",
+        "pattern", "physics", "noise", "tools", "seed", "trial", "max_trial_s",
     }  # fmt: skip
 
 
@@ -102,16 +103,20 @@ def test_the_builtin_reasoners_answers_build_a_brick_and_give_evals_line(
 ) -> None:
     """Each answer is the built-in reasoner's, computed in this process on a twin of the
     trial (the same spec) whose tool calls go to the server; the twin is answered alike."""
-    line = json.loads(eval_lines(tmp_path / "eval", one_brick, Method.AGENTS))
-    twin = TrialSession(Conditions.load(str(one_brick)).spec(seed=3, trial=0))
+    # The solve tier, whose tools the built-in reasoner calls by name here.
+    line = json.loads(eval_lines(tmp_path / "eval", one_brick, Method.AGENTS, tools="solve"))
+    twin = TrialSession(Conditions.load(str(one_brick), tools="solve").spec(seed=3, trial=0))
     agents: list[str] = []
     tool_calls: list[str] = []
 
     async def scenario(client: ClientSession) -> None:
-        data, refused = await call(client, "start_trial", pattern=str(one_brick), seed=3)
+        data, refused = await call(
+            client, "start_trial", pattern=str(one_brick), seed=3, tools="solve"
+        )
         assert not refused and data["previous_result"] is None
         assert data["trial"] == {
-            "pattern": str(one_brick), "physics": "paper", "noise": "none", "seed": 3, "trial": 0,
+            "pattern": str(one_brick), "physics": "paper", "noise": "none", "tools": "solve",
+            "seed": 3, "trial": 0,
         }  # fmt: skip
 
         def call_tool(name: str, arguments: Mapping[str, Any]) -> ToolModel:
@@ -239,11 +244,12 @@ def test_hostile_calls_get_typed_refusals_and_nothing_moves(tmp_path: Path) -> N
             ({"physics": "moon"}, "moon"),
             ({"max_trial_s": math.inf}, "max_trial_s"),
             ({"trials": 2}, "trials: Extra inputs are not permitted"),
+            ({"tools": "all"}, "not a tier (tiers: solve, check, none)"),
         ):
             data, refused = await call(client, "start_trial", **arguments)
             assert refused and data["refusal"]["code"] == "invalid_action", arguments
             assert detail in data["refusal"]["detail"], data
-        start, _ = await call(client, "start_trial", pattern="pyramid", seed=0)
+        start, _ = await call(client, "start_trial", pattern="pyramid", seed=0, tools="solve")
         state = start["turn"]["state"]
         far = {"position_m": [2.5, -0.1, 0.2], "quat_xyzw": [1, 0, 0, 0]}
         for tool, arguments, code, detail in (
@@ -326,7 +332,7 @@ def test_stdout_holds_only_protocol_messages_whatever_comes_in() -> None:
         (request(1, "initialize", **initialize), None),
         ('{"jsonrpc": "2.0", "method": "notifications/initialized"}', None),
         ("this is not JSON {", None),
-        (tool(2, "start_trial", {"seed": 0}), "result"),
+        (tool(2, "start_trial", {"seed": 0, "tools": "solve"}), "result"),
         (tool(3, "grasp_options", {}).replace("{}", nan_args), "result"),
         (tool(4, "grasp_options", [1]), "error"),
         (tool(5, "finish_trial", {}), "result"),

@@ -34,6 +34,7 @@ from actionreasoning.agents.outputs import (
 )
 from actionreasoning.agents.put_down import SET_ASIDE_MARGIN_M, SET_ASIDE_SLACK_M
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
+from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.tools.geometry import alignment_of
@@ -93,9 +94,12 @@ class Scripted:
 
 
 def build(
-    world: FakeWorld, reasoner: Scripted | None = None, budgets: Budgets = Budgets()
+    world: FakeWorld,
+    reasoner: Scripted | None = None,
+    budgets: Budgets = Budgets(),
+    tier: ToolTier = DEFAULT_TIER,
 ) -> BuildResult:
-    return Orchestrator(world, reasoner or Scripted(), budgets=budgets).build(world.goal)
+    return Orchestrator(world, reasoner or Scripted(), budgets=budgets, tier=tier).build(world.goal)
 
 
 def calls(result: BuildResult, agent: str) -> list[AgentCall]:
@@ -700,12 +704,30 @@ def test_a_brick_rolled_in_the_hand_is_set_down_level_by_tilting_the_tool(world)
     assert tilt_deg(set_down.waypoint.quat_xyzw) == pytest.approx(30.0)  # the tool tilted by it
 
 
+@pytest.mark.parametrize("tier", [ToolTier.CHECK, ToolTier.NONE])
+def test_without_placement_pose_the_plans_refusal_of_the_way_asks_for_the_regrasp(
+    world, one_brick, tier: ToolTier
+) -> None:
+    """In the check and none tiers Ag5 composes the slot itself: the placement plan refuses
+    its way, and the next answer asks for the re-grasp; then the brick is built."""
+    world.script("placement", rolls(85.0))
+    reasoner = Scripted()
+    result = build(world, reasoner, tier=tier)
+    assert_built(world, result)
+    placement = calls(result, "placement")
+    refused = next(c for c in placement if c.outcome == "refused")
+    assert refused.feedback.startswith("placement_plan") and "way_" in refused.feedback
+    (asked,) = [c for c in result.transcript if c.outcome == "regrasp"]
+    assert asked.answer["regrasp"] is True and asked.call > refused.call
+
+
 def test_a_brick_rolled_too_far_to_set_down_is_set_aside_and_grasped_again(
     world, one_brick
 ) -> None:
+    """In the solve tier placement_pose finds no clear way: Ag5 asks for a re-grasp."""
     world.script("placement", rolls(85.0))  # on the carry over the slot
     reasoner = Scripted()
-    result = build(world, reasoner)
+    result = build(world, reasoner, tier=ToolTier.SOLVE)
     assert_built(world, result)
     (asked,) = [c for c in result.transcript if c.outcome == "regrasp"]
     assert asked.agent == "placement" and asked.answer["regrasp"] is True

@@ -1,20 +1,26 @@
-"""Prompt lint: every agent's prompt, on every built-in pattern, read as a model reads it.
+"""Prompt lint: every agent's prompt, in every reasoning tier, on every built-in pattern,
+read as a model reads it.
 
-No Python repr where text or JSON belongs, and every threshold a prompt names is explained
-in that prompt."""
+No Python repr where text or JSON belongs; every threshold a prompt names is explained in
+it; every answer field a thinking chain names is in the agent's answer schema; every
+decimal number in the prose carries its unit; every frame used is defined; and the single
+agent's prompt is free of the contradictions issue 26 found (one test each)."""
 
 from __future__ import annotations
 
 import re
 from dataclasses import replace
 from importlib import resources
+from typing import get_args
 
 import pytest
 from conftest import built_state
 
 from actionreasoning.agents.memory import PlacedBrick, TaskMemory
+from actionreasoning.agents.outputs import SingleAgentAnswer
 from actionreasoning.agents.prompt import THRESHOLDS_HEADING, render_prompt
 from actionreasoning.agents.spec import AgentSpec, agent_specs, parse_agents, single_agent_spec
+from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.agents.view import StateView
 from actionreasoning.world.patterns import builtin_pattern_names
 from actionreasoning.world.tolerances import Tolerances
@@ -23,12 +29,28 @@ AGENTS_YAML = resources.files("actionreasoning.agents").joinpath("prompts/agents
 MEMORY = TaskMemory(
     placed=(PlacedBrick(brick_id=0, target_index=0),), current_brick=1, current_target=1
 )
-SPECS = {spec.number: spec for spec in (*agent_specs(), single_agent_spec())}
-CASES = [(n, pattern) for n in sorted(SPECS) for pattern in builtin_pattern_names()]
+
+
+def specs(tier: ToolTier) -> dict[int, AgentSpec]:
+    return {spec.number: spec for spec in (*agent_specs(tier), single_agent_spec(tier))}
+
+
+CASES = [
+    (tier, number, pattern)
+    for tier in ToolTier
+    for number in range(7)
+    for pattern in builtin_pattern_names()
+]
 
 #: What Python's repr of a dict, string, None or a boolean leaves in text: never a
 #: model-facing form (JSON says null, true, false, and quotes with ").
 PYTHON_REPR = re.compile(r"\{'|'\s*:\s*['\[{]|\bNone\b|\bTrue\b|\bFalse\b|<\w+[ .]\w+")
+#: The fields a thinking step tells the agent to answer: names (a list of them) right after
+#: "answer", ended by ':', '=', ',', '.' or ' and'.
+ANSWERED = re.compile(r"\b[Aa]nswer ([a-z][a-z_]*(?:(?:, | and )[a-z][a-z_]*)*)(?=:| =|,|\.| and)")
+#: A decimal number in prose and what follows it.
+DECIMAL = re.compile(r"(?<![\w.\[,-])(\d+\.\d+)(\s*\S*)")
+UNITS = ("m", "m/s", "m,", "m)", "m;", "m.", "s", "s,", "s.", "deg", "N", "m/s,", "m/s.", "m/s)")
 
 
 def rendered(spec: AgentSpec, pattern: str) -> str:
@@ -37,39 +59,171 @@ def rendered(spec: AgentSpec, pattern: str) -> str:
     return render_prompt(spec, view, MEMORY, Tolerances())
 
 
+def prose(spec: AgentSpec) -> str:
+    """What an agent's prompt says in words: role, gate, thinking chain, formulas' text
+    (without their worked examples, whose vectors are data)."""
+    return "\n".join([spec.role, spec.gate, *spec.thinking, *spec.feedback])
+
+
 def thresholds_named(prompt: str) -> list[str]:
     line = prompt.split(THRESHOLDS_HEADING + "\n", 1)[1].split("\n", 1)[0]
     return [pair.split("=", 1)[0] for pair in line.split(", ")]
 
 
-@pytest.mark.parametrize(("number", "pattern"), CASES)
-def test_no_python_repr_in_a_prompt(number: int, pattern: str) -> None:
-    prompt = rendered(SPECS[number], pattern)
+@pytest.mark.parametrize(("tier", "number", "pattern"), CASES)
+def test_no_python_repr_in_a_prompt(tier: ToolTier, number: int, pattern: str) -> None:
+    prompt = rendered(specs(tier)[number], pattern)
     found = [m.group(0) for m in PYTHON_REPR.finditer(prompt)]
     assert not found, found
 
 
-@pytest.mark.parametrize(("number", "pattern"), [c for c in CASES if c[0] != 0])
-def test_every_threshold_a_prompt_names_is_explained_there(number: int, pattern: str) -> None:
-    prompt = rendered(SPECS[number], pattern)
+@pytest.mark.parametrize(("tier", "number", "pattern"), CASES)
+def test_every_threshold_a_prompt_names_is_explained_there(
+    tier: ToolTier, number: int, pattern: str
+) -> None:
+    spec = specs(tier)[number]
+    prompt = rendered(spec, pattern)
     names = thresholds_named(prompt)
-    assert names == list(SPECS[number].thresholds)
+    assert names == list(spec.thresholds)
     for name in names:
         explained = re.search(rf"^- {name}: (.+)$", prompt, re.M)
         assert explained, f"{name} is named but not explained"
         assert explained.group(1) == Tolerances.model_fields[name].description
+    used = set(re.findall(r"\b([a-z]+(?:_[a-z]+)*_(?:m|deg|n|mps|factor))\b", prose(spec)))
+    unexplained = {n for n in used & set(Tolerances.model_fields) if n not in names}
+    assert not unexplained, f"the prose uses thresholds it does not list: {unexplained}"
+
+
+@pytest.mark.parametrize(("tier", "number"), [(t, n) for t in ToolTier for n in range(7)])
+def test_every_answer_field_a_thinking_chain_names_is_in_the_schema(
+    tier: ToolTier, number: int
+) -> None:
+    spec = specs(tier)[number]
+    fields = set(spec.output_model.model_fields)
+    named = set()
+    for step in (*spec.thinking, *spec.feedback):
+        # "Answer brick_id, target_index and waypoint: ...", "answer regrasp.", "close = true"
+        for listed in ANSWERED.findall(step):
+            named |= set(re.split(r", | and ", listed))
+        named |= set(re.findall(r"\b(gripper) \"\w+\"", step))
+    assert named, "the thinking chain names no answer field"
+    assert named <= fields, f"not fields of {spec.output_model.__name__}: {named - fields}"
+
+
+@pytest.mark.parametrize(("tier", "number"), [(t, n) for t in ToolTier for n in range(7)])
+def test_every_decimal_number_in_the_prose_carries_its_unit(tier: ToolTier, number: int) -> None:
+    spec = specs(tier)[number]
+    bare = [
+        number + after
+        for number, after in DECIMAL.findall(prose(spec))
+        if not after.strip().startswith(UNITS)
+    ]
+    assert not bare, f"numbers without a unit: {bare}"
+
+
+@pytest.mark.parametrize(("tier", "number"), [(t, n) for t in ToolTier for n in range(7)])
+def test_every_frame_a_prompt_uses_is_defined_in_it(tier: ToolTier, number: int) -> None:
+    prompt = rendered(specs(tier)[number], "pyramid")
+    if "tool frame" in prompt:
+        assert "The tool pose is the point between the pads" in prompt, "tool frame undefined"
+    assert "World frame: origin at the arm's base" in prompt
+
+
+def test_no_prompt_speaks_of_speeds_in_cm_per_s() -> None:
+    """Agent 4 gave the lift speed in cm/s but computed durations with metres."""
+    for tier in ToolTier:
+        for spec in specs(tier).values():
+            assert "cm/s" not in rendered(spec, "pyramid"), spec.name
+
+
+def test_a_duration_says_distance_from_what() -> None:
+    """'duration_s = its distance / 0.1 m/s' did not say distance from what."""
+    for tier in ToolTier:
+        for spec in specs(tier).values():
+            for step in (*spec.thinking, *spec.feedback):
+                if "duration_s =" in step:
+                    assert re.search(r"distance \(m\) from the tool's position|the tool's z", step)
+
+
+# --- the single agent's contradictions, one test each ------------------------------------
+SINGLE = {tier: single_agent_spec(tier) for tier in ToolTier}
+
+
+@pytest.mark.parametrize("tier", list(ToolTier))
+def test_single_agent_closes_with_its_own_schema(tier: ToolTier) -> None:
+    """Its step said 'Answer close = true'; its schema has gripper "close"."""
+    text = prose(SINGLE[tier])
+    assert "close = true" not in text
+    assert 'gripper "close"' in text
+    gripper = set(get_args(SingleAgentAnswer.model_fields["gripper"].annotation))
+    assert set(re.findall(r'gripper "(\w+)"', text)) <= gripper
+
+
+@pytest.mark.parametrize("tier", list(ToolTier))
+def test_single_agent_does_not_carry_the_brick_to_the_ready_pose(tier: ToolTier) -> None:
+    """Its release step said to answer robot.ready_pose: it would drop the brick there."""
+    release = next(s for s in SINGLE[tier].thinking if s.startswith("release:"))
+    assert "ready_pose" not in release
+    assert "no waypoint" in release
+
+
+@pytest.mark.parametrize("tier", list(ToolTier))
+def test_single_agent_opens_the_gripper_once_per_pick(tier: ToolTier) -> None:
+    """The gripper opened at pre-grasp and again at descent."""
+    steps = SINGLE[tier].thinking
+    opens = [s.split(":", 1)[0] for s in steps if 'gripper "open"' in s]
+    assert opens == ["pre_grasp", "release"]
+
+
+@pytest.mark.parametrize("tier", list(ToolTier))
+def test_single_agent_refers_to_no_step_it_lacks(tier: ToolTier) -> None:
+    """'when hovering over the slot' referred to a step that does not exist."""
+    text = prose(SINGLE[tier]).lower()
+    assert "hover" not in text
+    steps = set(get_args(SingleAgentAnswer.model_fields["step"].annotation))
+    named = {s.split(":", 1)[0] for s in SINGLE[tier].thinking}
+    assert named <= {str(s) for s in steps}
+    assert {str(s) for s in steps} <= named
+
+
+@pytest.mark.parametrize("tier", list(ToolTier))
+def test_single_agent_is_given_the_transfer_height(tier: ToolTier) -> None:
+    """The transfer height was not given."""
+    transfer = next(s for s in SINGLE[tier].thinking if s.startswith("transfer:"))
+    assert "z raised to the tool's present z (the lift height)" in transfer
+    lift = next(s for s in SINGLE[tier].thinking if s.startswith("lift:"))
+    assert "max(0.3 m" in lift
+
+
+@pytest.mark.parametrize("tier", list(ToolTier))
+def test_single_agent_explains_every_threshold_without_a_gate(tier: ToolTier) -> None:
+    """10 of its 13 thresholds were listed but never explained; it has no gate."""
+    prompt = rendered(SINGLE[tier], "pyramid")
+    for name in SINGLE[tier].thresholds:
+        line = re.search(rf"^- {name}: (.+)$", prompt, re.M)
+        assert line, name
+        assert "sigma" not in line.group(1)
+    assert "sigma_" not in prose(SINGLE[tier])
 
 
 def test_the_lint_finds_a_python_dict_in_a_thinking_step() -> None:
     """The defect the issue found: a YAML step parsed as a mapping rendered as a dict."""
-    broken = replace(SPECS[1], thinking=({"Target": "the first not built"},))  # type: ignore[arg-type]
+    spec = specs(ToolTier.CHECK)[1]
+    broken = replace(spec, thinking=({"Target": "the first not built"},))  # type: ignore[arg-type]
     assert PYTHON_REPR.search(rendered(broken, "pyramid"))
 
 
 def test_agents_yaml_with_a_step_that_is_a_mapping_is_refused_naming_it() -> None:
     text = AGENTS_YAML.replace(
-        "    - >-\n      Target: the first not built", "    - Target: the first not built", 1
+        "      - >-\n        Target: the first not built", "      - Target: the first not built", 1
     )
     assert text != AGENTS_YAML
     with pytest.raises(ValueError, match=r"agent pre_grasp: a thinking step is not a line"):
-        parse_agents(text)
+        parse_agents(text, ToolTier.CHECK)
+
+
+def test_agents_yaml_with_an_unknown_tier_is_refused_naming_it() -> None:
+    text = AGENTS_YAML.replace("    check: [collision_check, reachability]", "    chek: []", 1)
+    assert text != AGENTS_YAML
+    with pytest.raises(ValueError, match=r"agent pre_grasp.*unknown tiers \['chek'\]"):
+        parse_agents(text, ToolTier.CHECK)

@@ -15,9 +15,11 @@ from jsonschema import Draft202012Validator
 from actionreasoning.agents.memory import PlacedBrick, TaskMemory
 from actionreasoning.agents.prompt import _ENVIRONMENT, DIGITS, render_prompt
 from actionreasoning.agents.spec import AgentSpec, agent_specs, single_agent_spec
+from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.agents.view import StateView
 from actionreasoning.tools.registry import TOOLS
 from actionreasoning.world.geometry import round_floats, top_down_quat, yaw_quat
+from actionreasoning.world.stages import Stage
 from actionreasoning.world.tolerances import Tolerances
 
 STATE = built_state("grid")
@@ -73,7 +75,7 @@ def test_every_agent_renders_its_parts_and_its_state_reads_back(spec: AgentSpec)
 
 
 def test_tool_results_are_described_field_by_field() -> None:
-    placement = _prompt(agent_specs()[4])
+    placement = _prompt(agent_specs(ToolTier.SOLVE)[4])
     result = placement.split("### held_pose: ", 1)[1].split("Result:\n", 1)[1]
     assert "- offset_in_hand_m: [number x3]  # Centre, tool frame." in result
     assert "- slot_pose: Pose" in placement
@@ -93,20 +95,23 @@ def test_the_worked_example_is_what_the_conventions_say() -> None:
 
 
 def test_the_single_agent_is_told_nothing_checks_it() -> None:
-    merged, specs = single_agent_spec(), agent_specs()
-    prompt = _prompt(merged)
-    assert "Nothing checks your waypoints" in prompt
-    for spec in specs:
-        assert spec.role in merged.role and spec.gate not in prompt
-    assert "asked again" not in prompt
-    assert set(merged.tools) == {tool for spec in specs for tool in spec.tools}
-    assert len(merged.thinking) == sum(len(spec.thinking) for spec in specs)
+    for tier in ToolTier:
+        merged, specs = single_agent_spec(tier), agent_specs(tier)
+        prompt = _prompt(merged)
+        assert "Nothing checks a waypoint before it runs" in prompt
+        for spec in specs:
+            assert spec.gate not in prompt
+        assert "asked again" not in prompt
+        assert set(merged.tools) == {tool for spec in specs for tool in spec.tools}
+        steps = [step.split(":", 1)[0] for step in merged.thinking]
+        assert steps == [*(str(stage) for stage in Stage), "done"]
 
 
 def test_the_single_agent_is_told_of_no_gate_and_no_refusal() -> None:
-    prompt = _prompt(single_agent_spec())
-    assert "sigma_" not in prompt and "sigma" not in prompt.lower()
-    assert "refusal" not in prompt
+    for tier in ToolTier:
+        prompt = _prompt(single_agent_spec(tier))
+        assert "sigma_" not in prompt and "sigma" not in prompt.lower()
+        assert "refusal" not in prompt
 
 
 def test_a_missing_template_variable_fails_loudly() -> None:

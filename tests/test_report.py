@@ -53,7 +53,8 @@ def test_the_tables_hold_each_runs_figures(runs: list[Path], report: Path) -> No
     rows = list(csv.DictReader((report / "table.csv").open()))
     assert [(r["method"], r["pattern"]) for r in rows] == [
         ("classical, precise", "small"), ("classical, precise", "Average"),
-        ("agents (builtin), precise", "small"), ("agents (builtin), precise", "Average"),
+        ("agents (builtin, tools check), precise", "small"),
+        ("agents (builtin, tools check), precise", "Average"),
     ]  # fmt: skip
     for run, row in zip(runs, rows[::2], strict=True):
         summary = summary_of(run)
@@ -66,7 +67,8 @@ def test_the_tables_hold_each_runs_figures(runs: list[Path], report: Path) -> No
                 summary["successful"][metric]["mean"]
             )
     markdown = (report / "table.md").read_text()
-    assert "| small: Rot. Err ↓ |" in markdown and "| agents (builtin), precise |" in markdown
+    assert "| small: Rot. Err ↓ |" in markdown
+    assert "| agents (builtin, tools check), precise |" in markdown
     assert "| classical, precise | 2/2 | 2/2 |" in markdown
     latex = (report / "table.tex").read_text()
     assert r"\multicolumn{3}{c}{\textbf{small}}" in latex and latex.count(r"\\") == 4
@@ -79,7 +81,7 @@ def test_plots_grids_and_gifs_are_real_pictures(report: Path) -> None:
         assert image.shape[0] > 200 and image.shape[1] > 300 and image.std() > 10
     gifs = sorted((report / "gifs").glob("*.gif"))
     assert [g.name for g in gifs] == [
-        "agents_builtin_precise_small_trial_000.gif",
+        "agents_builtin_tools_check_precise_small_trial_000.gif",
         "classical_precise_small_trial_000.gif",
         "classical_precise_small_trial_001.gif",
     ]
@@ -123,7 +125,10 @@ def test_the_html_page_renders_in_chromium(runs: list[Path], report: Path) -> No
         )
         browser.close()
     classical = summary_of(runs[0])["successful"]
-    assert [row[0] for row in cells] == ["classical, precise", "agents (builtin), precise"]
+    assert [row[0] for row in cells] == [
+        "classical, precise",
+        "agents (builtin, tools check), precise",
+    ]
     assert cells[0][1:4] == [
         f"{classical['rotation_error_deg']['mean']:.3f}",
         f"{classical['center_offset_cm']['mean']:.3f}",
@@ -136,7 +141,7 @@ def test_the_html_page_renders_in_chromium(runs: list[Path], report: Path) -> No
     assert videos == [
         "videos/classical_precise_small_trial_000.mp4",
         "videos/classical_precise_small_trial_001.mp4",
-        "videos/agents_builtin_precise_small_trial_000.mp4",
+        "videos/agents_builtin_tools_check_precise_small_trial_000.mp4",
     ]  # copied beside the page; all succeeded, so in table order
     ready, played_s, no_error = played
     assert ready >= 2 and played_s > 0.5 and no_error  # Chromium decodes and plays the MP4
@@ -175,9 +180,12 @@ def test_llm_cost_and_the_failure_taxonomy_are_reported(tmp_path: Path) -> None:
     image = iio.imread(tmp_path / "report" / "llm_cost.png")
     assert image.shape[1] > 500 and image.std() > 10
     table = (tmp_path / "report" / "table.md").read_text()
-    assert "| agents (openai:gemma), precise | 1/3 | 1/3 |" in table
+    assert "| agents (openai:gemma, tools check), precise | 1/3 | 1/3 |" in table
     meaning = FailureCode.MISPLACED.meaning
-    row = f"| agents (openai:gemma), precise | pyramid | `misplaced` | {meaning} | 2 | trial 1: "
+    row = (
+        f"| agents (openai:gemma, tools check), precise | pyramid | `misplaced` | {meaning} | 2 "
+        "| trial 1: "
+    )
     assert row + "brick 3 |" in table
     html = (tmp_path / "report" / "report.html").read_text()
     assert f"<code>misplaced</code></td><td>{meaning}</td><td>2</td><td>trial 1: brick 3" in html

@@ -21,7 +21,7 @@ from actionreasoning.tools.grasp_plan import GraspOptions
 from actionreasoning.tools.reach import ReachReport
 from actionreasoning.tools.registry import GATE_MEASUREMENTS
 
-SPEC = Conditions.load("pyramid").spec(seed=0, trial=0)
+SPEC = Conditions.load("pyramid", tools="solve").spec(seed=0, trial=0)  # grasp_options
 
 
 def trial_threads() -> list[threading.Thread]:

@@ -16,6 +16,7 @@ from actionreasoning.agents.outputs import SingleAgentStep
 from actionreasoning.agents.prompt import render_prompt
 from actionreasoning.agents.reasoner import Briefing
 from actionreasoning.agents.spec import SINGLE_AGENT, SINGLE_AGENT_START, agent_specs
+from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.agents.view import StateView
 from actionreasoning.reasoners import reference_model
 from actionreasoning.reasoners.builtin import NEXT_STEP, POLICIES
@@ -24,7 +25,7 @@ from actionreasoning.world.stages import Stage
 from actionreasoning.world.tolerances import Tolerances
 
 STATE = built_state("grid")
-PLACEMENT = agent_specs()[4]
+PLACEMENT = agent_specs(ToolTier.SOLVE)[4]  # placement_pose is a solve-tier tool
 
 
 def test_the_six_agents_are_the_stages_but_transfer_and_retreat_in_order() -> None:
@@ -57,7 +58,7 @@ def _placement_prompt(phase: PlacementPhase | None) -> str:
 )
 def test_ag5_reads_its_phase_from_the_prompt(phase: PlacementPhase, approach: str) -> None:
     """The phase is in Ag5's memory block; read from the text, it decides how the
-    placement_pose tool is asked (joint to carry, linear when hovering over the slot)."""
+    placement_pose tool is asked (joint to carry, linear once over the slot)."""
     prompt = _placement_prompt(phase)
     assert f'"phase":"{phase}"' in prompt
     answer = json.loads(reference_model.reply([{"role": "user", "content": prompt}]))

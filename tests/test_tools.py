@@ -73,6 +73,7 @@ def test_every_tool_is_described_for_the_prompts() -> None:
         "grasp_options",
         "held_pose",
         "placement_pose",
+        "placement_check",
         "support_contact",
         "reachability",
         "collision_check",

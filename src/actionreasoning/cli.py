@@ -18,6 +18,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from actionreasoning.agents.tiers import DEFAULT_TIER, TIER_HELP, ToolTier
 from actionreasoning.errors import ActionReasoningError, ConfigError
 from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.rules import Method
@@ -68,6 +69,15 @@ NoiseOption = Annotated[
     typer.Option(
         help="Perturbations drawn from each trial's seed: none, low, medium, high (perception "
         "noise and per-brick friction, mass and size; see README) or a noise file."
+    ),
+]
+
+ToolsOption = Annotated[
+    ToolTier,
+    typer.Option(
+        help="Reasoning tier, the tools the agents get: "
+        + "; ".join(f"{tier}: {text}" for tier, text in TIER_HELP.items())
+        + ". Figures of different tiers are never pooled."
     ),
 ]
 
@@ -188,6 +198,7 @@ def eval_command(
     llm: LLMOption = "builtin",
     physics: PhysicsOption = "paper",
     noise: NoiseOption = "none",
+    tools: ToolsOption = DEFAULT_TIER,
     base_url: BaseUrlOption = None,
     record: Annotated[
         Path | None,
@@ -304,6 +315,7 @@ def eval_command(
         physics=physics,
         noise=noise,
         answer_errors=answer_errors,
+        tools=tools,
     )
 
 
@@ -316,6 +328,7 @@ def demo(
     seed: Annotated[int, typer.Option(min=0, help="Seed of the demo trial.")] = 0,
     physics: PhysicsOption = "paper",
     noise: NoiseOption = "none",
+    tools: ToolsOption = DEFAULT_TIER,
 ) -> None:
     """Build a pattern once with the six agents and write a report with pictures of every stage.
 
@@ -340,6 +353,7 @@ def demo(
                 video=True,
                 physics=physics,
                 noise=noise,
+                tools=tools,
             )
             pages = write_demo_pages(RunDir(out))
             console.print(
@@ -367,6 +381,7 @@ def _evaluate(
     physics: str = "paper",
     noise: str = "none",
     answer_errors: float = 0.0,
+    tools: ToolTier = DEFAULT_TIER,
 ) -> RunSummary:
     """Load the pattern and conditions, run the trials with progress, print the table; errors
     end the command."""
@@ -385,6 +400,7 @@ def _evaluate(
             physics=load_physics(physics),
             noise=load_noise(noise),
             answer_errors=AnswerErrors(rate=answer_errors),
+            tools=tools,
         )
         config = RunConfig(
             method=method,
@@ -403,6 +419,8 @@ def _evaluate(
         )
         physics_name, noise_name = trials_under.physics.name, trials_under.noise.name
         title = f"{method} / {pattern} / {physics_name} / noise {noise_name}"
+        if method is not Method.CLASSICAL:
+            title += f" / tools {tools}"
         if answer_errors:
             title += f" / answer errors {answer_errors:g}"
         with ConsoleProgress(console, title) as progress:
@@ -487,6 +505,7 @@ def prompt_command(
     seed: Annotated[int, typer.Option(min=0, help="Run seed; the scene is that of trial 0.")] = 0,
     physics: PhysicsOption = "paper",
     noise: NoiseOption = "none",
+    tools: ToolsOption = DEFAULT_TIER,
 ) -> None:
     """Print the prompt agent N is first sent in trial 0 (the built-in reasoner answers
     the agents before it), to read and tune it."""
@@ -496,11 +515,11 @@ def prompt_command(
     from actionreasoning.eval.trial_config import TrialConfig
 
     try:
-        config = TrialConfig(physics=load_physics(physics), noise=load_noise(noise))
+        config = TrialConfig(physics=load_physics(physics), noise=load_noise(noise), tools=tools)
         goal = load_pattern(pattern, config.scene)
     except ActionReasoningError as error:
         _fail(error)
-    spec = agent_specs()[agent - 1] if agent else single_agent_spec()
+    spec = agent_specs(tools)[agent - 1] if agent else single_agent_spec(tools)
     trial = TrialSpec(
         method=Method.AGENTS, pattern_name=pattern, goal=goal, run_seed=seed, trial=0, config=config
     )

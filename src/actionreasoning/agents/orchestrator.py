@@ -50,6 +50,7 @@ from actionreasoning.agents.outputs import (
 from actionreasoning.agents.put_down import PutDown
 from actionreasoning.agents.reasoner import Reasoner
 from actionreasoning.agents.spec import agent_specs
+from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
 from actionreasoning.agents.transcript import Outcome
 from actionreasoning.agents.validation import OutputError, check_answer
 from actionreasoning.agents.view import target_supports
@@ -115,7 +116,8 @@ class Orchestrator:
     """Runs the six agents over a goal, brick by brick, against a :class:`World`.
 
     ``tolerances`` are the design thresholds; a build runs under them as widened for the
-    world's sensing noise and narrowed for the goal's joints (:class:`Tolerances`)."""
+    world's sensing noise and narrowed for the goal's joints (:class:`Tolerances`). ``tier``
+    is the reasoning tier: which tools and formulas the agents get."""
 
     def __init__(
         self,
@@ -125,6 +127,7 @@ class Orchestrator:
         budgets: Budgets = Budgets(),
         on_stage: StageHook | None = None,
         on_call: CallHook | None = None,
+        tier: ToolTier = DEFAULT_TIER,
     ) -> None:
         self.world = world
         self.reasoner = reasoner
@@ -132,7 +135,7 @@ class Orchestrator:
         self.tol = tolerances.under(world.sensing)
         self.budgets = budgets
         self.on_stage = on_stage
-        self.specs = {spec.key: spec for spec in agent_specs()}
+        self.specs = {spec.key: spec for spec in agent_specs(tier)}
         self.result = BuildResult()
         self.calls = AgentCaller(world, reasoner, self.tol, self.result, on_call)
         self.put_down = PutDown(world, self.calls)

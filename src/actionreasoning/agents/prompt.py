@@ -15,9 +15,11 @@ from typing import Any
 
 from jinja2 import Environment, PackageLoader, StrictUndefined
 
+from actionreasoning.agents.knowledge import formula_text
 from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.schema_text import describe_fields
 from actionreasoning.agents.spec import AgentSpec
+from actionreasoning.agents.tiers import TIER_HELP
 from actionreasoning.agents.view import Scope, StateView
 from actionreasoning.tools.registry import TOOLS
 from actionreasoning.world.geometry import round_floats
@@ -58,7 +60,9 @@ def thresholds_line(tolerances: Tolerances, names: tuple[str, ...]) -> str:
 
 
 def thresholds_legend(names: tuple[str, ...]) -> str:
-    """What each of the gate thresholds ``names`` bounds, a line each."""
+    """What each of the thresholds ``names`` bounds, a line each (the role and gate text say
+    which gate compares it; the single agent, which nothing checks, reads them as design
+    values)."""
     fields = Tolerances.model_fields
     return "\n".join(f"- {name}: {fields[name].description}" for name in names)
 
@@ -97,8 +101,11 @@ def render_prompt(
             memory.model_dump(mode="json", exclude_defaults=True, exclude=_unread(spec))
         ),
         tolerances=thresholds_line(tolerances, spec.thresholds),
-        tolerances_legend=thresholds_legend(spec.thresholds) if spec.gate else "",
+        tolerances_legend=thresholds_legend(spec.thresholds),
+        tier=spec.tier,
+        tier_help=TIER_HELP[spec.tier],
         tools=tools,
+        formulas=[formula_text(name) for name in spec.formulas],
         thinking=(*spec.thinking, *spec.feedback),
         answer_fields="\n".join(describe_fields(spec.output_model)),
     )

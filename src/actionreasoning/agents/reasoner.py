@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
+
+from pydantic import BaseModel
 
 from actionreasoning.agents.answer_errors import AnswerCorruption
 from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.outputs import AgentAnswer
 from actionreasoning.agents.spec import AgentKey, AgentSpec
+from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
 from actionreasoning.agents.view import StateView
 from actionreasoning.records import LLMUsage
 from actionreasoning.tools.base import In, Out, Tool, ToolModel
@@ -17,6 +20,8 @@ from actionreasoning.world.models import WorldState
 from actionreasoning.world.tolerances import Tolerances
 
 ToolRunner = Callable[[str, Mapping[str, Any]], ToolModel]
+#: Runs several tool calls of one turn, (name, arguments) each, and returns their results.
+BatchRunner = Callable[[Sequence[tuple[str, Mapping[str, Any]]]], list[ToolModel]]
 
 
 @dataclass(frozen=True)
@@ -46,21 +51,40 @@ class AgentRequest:
 @dataclass(frozen=True)
 class Briefing:
     """What a prompt tells an agent, in structured form, and the agent's tools: all a
-    policy may read, whether it gets it as objects or parses it from the prompt's text."""
+    policy may read, whether it gets it as objects or parses it from the prompt's text.
+
+    ``tier`` is the reasoning tier the prompt is written for; ``call_tools``, if given,
+    runs the calls of one turn together (a model lists them in one answer), else they run
+    one by one through ``call_tool``."""
 
     agent: AgentKey
     view: StateView
     memory: TaskMemory
     tolerances: Tolerances
     call_tool: ToolRunner
+    tier: ToolTier = DEFAULT_TIER
+    call_tools: BatchRunner | None = None
 
     def use(self, tool: Tool[In, Out], arguments: In) -> Out:
         """Run one of the agent's tools as a language model calls it: by name, with the
         arguments given as JSON."""
-        result = self.call_tool(tool.name, arguments.model_dump(mode="json", exclude_unset=True))
-        if not isinstance(result, tool.output_model):
-            raise TypeError(f"{tool.name} answered a {type(result).__name__}")
+        result: Out = self.use_all((tool, arguments))[0]
         return result
+
+    def use_all(self, *calls: tuple[Tool[Any, Any], BaseModel]) -> list[Any]:
+        """Run the (tool, arguments) ``calls`` in one turn of tool calls; their results in
+        order."""
+        named = [
+            (tool.name, args.model_dump(mode="json", exclude_unset=True)) for tool, args in calls
+        ]
+        if self.call_tools is None:
+            results = [self.call_tool(name, args) for name, args in named]
+        else:
+            results = self.call_tools(named)
+        for (tool, _), result in zip(calls, results, strict=True):
+            if not isinstance(result, tool.output_model):
+                raise TypeError(f"{tool.name} answered a {type(result).__name__}")
+        return results
 
 
 @dataclass(frozen=True)

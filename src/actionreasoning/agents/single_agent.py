@@ -25,6 +25,7 @@ from actionreasoning.agents.memory import PlacedBrick, TaskMemory
 from actionreasoning.agents.outputs import SingleAgentAnswer
 from actionreasoning.agents.reasoner import Reasoner
 from actionreasoning.agents.spec import SINGLE_AGENT_START, single_agent_spec
+from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
 from actionreasoning.agents.transcript import Outcome
 from actionreasoning.agents.validation import OutputError, check_answer
 from actionreasoning.agents.world import World
@@ -49,9 +50,10 @@ class SingleAgent:
         tolerances: Tolerances = Tolerances(),
         on_stage: StageHook | None = None,
         on_call: CallHook | None = None,
+        tier: ToolTier = DEFAULT_TIER,
     ) -> None:
         self.world = world
-        self.spec = single_agent_spec()
+        self.spec = single_agent_spec(tier)
         self.on_stage = on_stage
         self.result = BuildResult()
         self.calls = AgentCaller(

@@ -1,8 +1,9 @@
-"""The six agents as data, loaded from ``prompts/agents.yaml``, and their merger.
+"""The six agents as data, loaded from ``prompts/agents.yaml``, and the single agent.
 
-Each agent is a role R_i, the names of its tools K_i (all in the tool whitelist), a thinking
-chain Gamma_i and an output schema Omega_i. No class hierarchy: an agent is this record.
-The single-agent ablation merges all six into one (number 0).
+Each agent is a role R_i, its knowledge K_i (names of tools in the whitelist, and of the
+knowledge base's formulas), a thinking chain Gamma_i and an output schema Omega_i, as a
+reasoning tier gives them. No class hierarchy: an agent is this record. The single-agent
+ablation (number 0, ``prompts/single_agent.yaml``) holds all six roles, without gates.
 """
 
 from __future__ import annotations
@@ -10,12 +11,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import cache
 from importlib import resources
-from typing import Final, Literal
+from typing import Any, Final, Literal
 
 import yaml
 
 from actionreasoning.agents import outputs
+from actionreasoning.agents.knowledge import FORMULAS
 from actionreasoning.agents.outputs import AgentAnswer, SingleAgentAnswer
+from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
 from actionreasoning.agents.view import Scope
 from actionreasoning.tools.registry import TOOLS
 from actionreasoning.world.stages import Stage
@@ -35,6 +38,7 @@ class AgentSpec:
     only a gated agent gets); ``scope`` which bricks it is shown, ``thresholds`` the gate
     thresholds it reads and ``frames`` whether its prompt explains the brick and tool
     frames, ``robot_extras`` the robot fields beyond the tool pose and opening it is shown.
+    ``tier`` is the reasoning tier, ``formulas`` the knowledge base's formulas it is given.
     """
 
     number: int
@@ -50,31 +54,67 @@ class AgentSpec:
     thinking: tuple[str, ...]
     output_model: type[AgentAnswer]
     feedback: tuple[str, ...] = ()
+    tier: ToolTier = DEFAULT_TIER
+    formulas: tuple[str, ...] = ()
 
 
 @cache
-def agent_specs() -> tuple[AgentSpec, ...]:
-    """The six agents in pipeline order."""
-    text = resources.files("actionreasoning.agents").joinpath("prompts/agents.yaml").read_text()
-    return parse_agents(text)
+def agent_specs(tier: ToolTier = DEFAULT_TIER) -> tuple[AgentSpec, ...]:
+    """The six agents in pipeline order, as the reasoning tier ``tier`` gives them."""
+    return parse_agents(_text("agents.yaml"), tier)
 
 
-def parse_agents(text: str) -> tuple[AgentSpec, ...]:
-    """The agents of an ``agents.yaml`` text, checked: known tools and thresholds, and every
-    step of a thinking chain a line of text (``- Target: ...`` in YAML is a mapping, which
+def _text(name: str) -> str:
+    return resources.files("actionreasoning.agents").joinpath(f"prompts/{name}").read_text()
+
+
+def _of_tier(value: object, tier: ToolTier, what: str) -> list[Any]:
+    """A list given for every tier, or the list of ``tier`` in a mapping by tier."""
+    if isinstance(value, dict):
+        unknown = [key for key in value if key not in ToolTier.__members__.values()]
+        if unknown:
+            raise ValueError(f"{what}: unknown tiers {unknown} (tiers: solve, check, none)")
+        value = value.get(tier, [])
+    if not isinstance(value, list):
+        raise ValueError(f"{what}: give a list, or a list per tier")
+    return value
+
+
+def _lines(steps: list[Any], what: str) -> tuple[str, ...]:
+    """Thinking steps, each a line of text (``- Target: ...`` in YAML is a mapping, which
     would render as a Python dict)."""
+    if not_text := [step for step in steps if not isinstance(step, str)]:
+        raise ValueError(
+            f"{what}: a thinking step is not a line of text: {not_text[0]!r} "
+            "(quote a step that holds ': ')"
+        )
+    return tuple(steps)
+
+
+def _knowledge(entry: dict[str, Any], tier: ToolTier, what: str) -> tuple[tuple[str, ...], ...]:
+    """The tools and formulas of an agent entry in ``tier``, checked against the whitelist
+    and the formula files."""
+    tools = () if tier is ToolTier.NONE else tuple(_of_tier(entry.get("tools", []), tier, what))
+    formulas: tuple[str, ...] = ()
+    if tier is not ToolTier.SOLVE:
+        formulas = tuple(entry.get("formulas", ()))
+    unknown = [name for name in tools if name not in TOOLS]
+    unknown += [name for name in formulas if name not in FORMULAS]
+    unknown += [name for name in entry["thresholds"] if name not in Tolerances.model_fields]
+    if unknown:
+        raise ValueError(f"{what} lists unknown tools, formulas or thresholds {unknown}")
+    return tools, formulas
+
+
+def parse_agents(text: str, tier: ToolTier = DEFAULT_TIER) -> tuple[AgentSpec, ...]:
+    """The agents of an ``agents.yaml`` text in ``tier``, checked: known tools, formulas and
+    thresholds, and every step of a thinking chain a line of text."""
     specs = []
     for number, entry in enumerate(yaml.safe_load(text), start=1):
-        unknown = [name for name in entry["tools"] if name not in TOOLS]
-        unknown += [name for name in entry["thresholds"] if name not in Tolerances.model_fields]
-        if unknown:
-            raise ValueError(f"agent {entry['key']} lists unknown tools or thresholds {unknown}")
-        steps = [*entry["thinking"], *entry.get("feedback", ())]
-        if not_text := [step for step in steps if not isinstance(step, str)]:
-            raise ValueError(
-                f"agent {entry['key']}: a thinking step is not a line of text: {not_text[0]!r} "
-                "(quote a step that holds ': ')"
-            )
+        what = f"agent {entry['key']}"
+        tools, formulas = _knowledge(entry, tier, what)
+        for other in ToolTier:  # a defect in any tier's chain is refused in every tier
+            _lines(_of_tier(entry["thinking"], other, what), what)
         specs.append(
             AgentSpec(
                 number=number,
@@ -86,10 +126,12 @@ def parse_agents(text: str) -> tuple[AgentSpec, ...]:
                 thresholds=tuple(entry["thresholds"]),
                 frames=entry["frames"],
                 robot_extras=tuple(entry.get("robot_extras", ())),
-                tools=tuple(entry["tools"]),
-                thinking=tuple(entry["thinking"]),
+                tools=tools,
+                thinking=_lines(_of_tier(entry["thinking"], tier, what), what),
                 output_model=getattr(outputs, entry["output"]),
-                feedback=tuple(entry.get("feedback", ())),
+                feedback=_lines(entry.get("feedback", []), what),
+                tier=tier,
+                formulas=formulas,
             )
         )
     return tuple(specs)
@@ -97,36 +139,29 @@ def parse_agents(text: str) -> tuple[AgentSpec, ...]:
 
 #: The single agent's task-memory step before its first waypoint.
 SINGLE_AGENT_START: Final = "start"
-SINGLE_AGENT_CYCLE = (
-    "Per brick, answer one waypoint per call in this order: pre_grasp (name brick_id and "
-    "target_index; the approach pose above the brick, then open the gripper), descent (straight "
-    "down to the grasp pose), grasp (close), lift (straight up), transfer (above the target "
-    "slot), placement (down onto the slot), release (open), retreat (straight up). After the "
-    "last brick answer done, with the ready pose as waypoint. Memory's step is the step "
-    "executed last. Nothing checks your waypoints before they run and nothing is retried: "
-    "each answer runs as given, a brick that slips stays where it falls, and a pose the arm "
-    "cannot reach ends the build."
-)
 
 
 @cache
-def single_agent_spec() -> AgentSpec:
-    """All six roles, tools and thinking chains merged into one agent (the ablation)."""
-    specs = agent_specs()
-    tools = tuple(dict.fromkeys(name for spec in specs for name in spec.tools))
-    role = "\n\n".join([SINGLE_AGENT_CYCLE, *(f"{s.name}: {s.role}" for s in specs)])
-    thinking = tuple(f"{spec.name}: {step}" for spec in specs for step in spec.thinking)
+def single_agent_spec(tier: ToolTier = DEFAULT_TIER) -> AgentSpec:
+    """The single-agent ablation: all six roles in one agent (``prompts/single_agent.yaml``)
+    with the tools and formulas of all six in ``tier``, and no gate."""
+    entry = yaml.safe_load(_text("single_agent.yaml"))
+    what = "the single agent"
+    specs = agent_specs(tier)
+    _, formulas = _knowledge(entry, tier, what)
     return AgentSpec(
         number=0,
         key=SINGLE_AGENT,
-        name="Single agent (all six roles merged)",
-        role=role,
+        name=entry["name"],
+        role=entry["role"],
         gate="",
         scope=Scope.ALL,
-        thresholds=tuple(dict.fromkeys(name for spec in specs for name in spec.thresholds)),
+        thresholds=tuple(entry["thresholds"]),
         frames=True,
         robot_extras=("pad_forces_n", "ready_pose"),
-        tools=tools,
-        thinking=thinking,
+        tools=tuple(dict.fromkeys(name for spec in specs for name in spec.tools)),
+        thinking=_lines(_of_tier(entry["thinking"], tier, what), what),
         output_model=SingleAgentAnswer,
+        tier=tier,
+        formulas=formulas,
     )

@@ -42,9 +42,9 @@ def first_prompt(spec: TrialSpec, agent: AgentKey) -> str:
         sim = SimWorld(world.controller, spec.goal, world.sensor)
         catcher, config = _Catcher(agent), spec.config
         runner = (
-            SingleAgent(sim, catcher, config.tolerances)
+            SingleAgent(sim, catcher, config.tolerances, tier=config.tools)
             if agent == SINGLE_AGENT
-            else Orchestrator(sim, catcher, config.tolerances, config.retries)
+            else Orchestrator(sim, catcher, config.tolerances, config.retries, tier=config.tools)
         )
         try:
             result = runner.build(spec.goal)

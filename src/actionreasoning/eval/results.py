@@ -104,6 +104,9 @@ class TrialResult(Provenance):
     #: written before conditions existed ran under today's "precise" without noise.
     physics: str = "precise"
     noise: str = "none"
+    #: The reasoning tier (agents/tiers.py). Lines written before tiers existed ran with
+    #: today's "solve" tools.
+    tools: str = "solve"
     seed: int
     trial: int
     trial_seed: int

@@ -145,6 +145,7 @@ def _run_locked(config: RunConfig, observer: RunObserver | None) -> RunSummary:
         physics=trials.physics,
         noise=trials.noise,
         answer_errors=trials.answer_errors,
+        tools=trials.tools,
     )
     summary, kept = stamp(summary, provenance), _kept(len(results))
     write_file(run.summary, (summary.model_dump_json(indent=2) + "\n").encode(), kept)

@@ -82,6 +82,11 @@ class RunManifest(BaseModel):
     def answer_errors(self) -> AnswerErrors:
         return self.config.answer_errors
 
+    @property
+    def tier(self) -> str:
+        """The reasoning tier its agents ran in."""
+        return str(self.config.tools)
+
     def fields(self) -> dict[str, Any]:
         """Every recorded value, nested ones dotted and those of the config by their path
         in it (``tolerances.c_min_m``); the hash, which only sums them up, left out."""
@@ -119,6 +124,11 @@ class EarlierManifest(BaseModel):
     def answer_errors(self) -> AnswerErrors:
         """Rate 0: answer errors did not exist yet."""
         return AnswerErrors()
+
+    @property
+    def tier(self) -> str:
+        """Tiers did not exist yet: the agents had today's solve tools."""
+        return "solve"
 
     def fields(self) -> dict[str, Any]:
         """What it recorded, by the names a :class:`RunManifest` gives the same values."""
@@ -171,6 +181,11 @@ class RecordedManifest(BaseModel):
     @property
     def answer_errors(self) -> AnswerErrors:
         return AnswerErrors.model_validate(self.config.get("answer_errors", {}))
+
+    @property
+    def tier(self) -> str:
+        """The reasoning tier; solve where it was recorded before tiers existed."""
+        return str(self.config.get("tools", "solve"))
 
     def fields(self) -> dict[str, Any]:
         """Every recorded value, named as a :class:`RunManifest` names them."""

@@ -32,6 +32,7 @@ from typing import Any, TypeVar
 from pydantic import BaseModel, Field
 
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest, ToolRunner
+from actionreasoning.agents.tiers import DEFAULT_TIER, load_tier
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.agents.validation import OutputError, parse_answer
 from actionreasoning.errors import ActionReasoningError, ConfigError, LLMError, ToolError
@@ -110,7 +111,8 @@ class Turn(BaseModel):
 @dataclass(frozen=True)
 class Conditions:
     """What ``eval --method agents`` runs a pattern under, loaded as the command loads it
-    (a pattern name or file, a physics profile, a noise level, the trial's budget)."""
+    (a pattern name or file, a physics profile, a noise level, the trial's budget, the
+    reasoning tier)."""
 
     pattern_name: str
     goal: GoalPattern
@@ -123,11 +125,17 @@ class Conditions:
         physics: str = "paper",
         noise: str = "none",
         budget: TrialBudget = TrialBudget(),
+        tools: str = DEFAULT_TIER,
     ) -> Conditions:
         """The conditions named as on the command line; a bad name or file is refused."""
         if Path(pattern).is_file():  # as eval names it: ./x.json is x.json
             pattern = os.path.normpath(pattern)
-        config = TrialConfig(budget=budget, physics=load_physics(physics), noise=load_noise(noise))
+        config = TrialConfig(
+            budget=budget,
+            physics=load_physics(physics),
+            noise=load_noise(noise),
+            tools=load_tier(tools),
+        )
         return cls(pattern_name=pattern, goal=load_pattern(pattern, config.scene), config=config)
 
     def spec(self, seed: int, trial: int) -> TrialSpec:

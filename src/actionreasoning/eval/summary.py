@@ -45,6 +45,8 @@ class RunSummary(Provenance):
     llm: str
     physics: PhysicsProfile | None = None
     noise: NoiseLevel | None = None
+    #: The reasoning tier; None in summaries written before tiers existed (solve).
+    tools: str | None = None
     seed: int
     trials: int
     successes: int
@@ -92,6 +94,7 @@ def summarize(
     physics: PhysicsProfile | None = None,
     noise: NoiseLevel | None = None,
     answer_errors: AnswerErrors | None = None,
+    tools: str | None = None,
 ) -> RunSummary:
     """Means and standard deviations over successful trials (the paper's protocol) and all;
     with ``answer_errors`` at a rate above 0, what they corrupted and what caught it."""
@@ -110,6 +113,7 @@ def summarize(
         llm=first.llm,
         physics=physics,
         noise=noise,
+        tools=tools,
         seed=first.seed,
         trials=len(results),
         successes=len(ok),
@@ -157,6 +161,7 @@ def summary_markdown(summary: RunSummary) -> str:
         f"# {summary.method} on {summary.pattern}"
         + (f" under {summary.physics.name} physics" if summary.physics else "")
         + (f", noise {summary.noise.name}" if summary.noise else "")
+        + (f", tools {summary.tools}" if summary.tools and summary.llm != "none" else "")
         + (f", answer errors {summary.answer_errors.rate:g}" if summary.answer_errors else ""),
         "",
         f"Reasoning backend: `{summary.llm}` · seed {summary.seed} · {summary.trials} trials · "

@@ -207,10 +207,23 @@ def _run_agents(
         seed = trial_seed(spec.run_seed, spec.trial)
         reasoner = ImperfectReasoner(reasoner, config.answer_errors, seed)
     runner = (
-        SingleAgent(world, reasoner, config.tolerances, on_stage=stage, on_call=on_call)
+        SingleAgent(
+            world,
+            reasoner,
+            config.tolerances,
+            on_stage=stage,
+            on_call=on_call,
+            tier=config.tools,
+        )
         if spec.method is Method.SINGLE_AGENT
         else Orchestrator(
-            world, reasoner, config.tolerances, config.retries, on_stage=stage, on_call=on_call
+            world,
+            reasoner,
+            config.tolerances,
+            config.retries,
+            on_stage=stage,
+            on_call=on_call,
+            tier=config.tools,
         )
     )
     return runner.build(spec.goal)
@@ -266,6 +279,7 @@ def _measure(
         pattern=spec.pattern_name,
         physics=config.physics.name,
         noise=config.noise.name,
+        tools=config.tools,
         seed=spec.run_seed,
         trial=spec.trial,
         trial_seed=seed,

@@ -14,6 +14,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_serializer
 
 from actionreasoning.agents.answer_errors import AnswerErrors
 from actionreasoning.agents.orchestrator import Budgets
+from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
 from actionreasoning.control.limits import ControllerLimits
 from actionreasoning.control.safety import SafetyLimits
 from actionreasoning.reasoners.backend import LLMConfig
@@ -46,7 +47,9 @@ class Backend(BaseModel):
 
 class TrialConfig(BaseModel):
     """The scene, physics, perturbations, gate tolerances, budgets, controller and safety
-    limits, success rule, reasoning backend and answer errors of every trial of a run.
+    limits, success rule, reasoning backend, answer errors and reasoning tier (``tools``:
+    which tools the agents get, :mod:`~actionreasoning.agents.tiers`) of every trial of a
+    run.
 
     ``llm`` is None for the classical script, which asks no reasoner. Of a backend only
     what defines it is recorded (:class:`Backend`): where its server is and how patiently
@@ -69,6 +72,7 @@ class TrialConfig(BaseModel):
     success_rule: SuccessRule = SuccessRule()
     llm: LLMConfig | None = LLMConfig()
     answer_errors: AnswerErrors = AnswerErrors()
+    tools: ToolTier = DEFAULT_TIER
 
     @field_serializer("llm")
     def _backend(self, llm: LLMConfig | None) -> Backend | None:

@@ -20,6 +20,7 @@ from typing import Any
 import gymnasium
 import numpy as np
 
+from actionreasoning.agents.tiers import DEFAULT_TIER
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.control.classical import StageEvent
 from actionreasoning.errors import ConfigError
@@ -63,12 +64,13 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
         noise: str = "none",
         render_mode: str | None = None,
         max_trial_s: float = TrialBudget().max_wall_s,
+        tools: str = DEFAULT_TIER.value,
     ) -> None:
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ConfigError(f"render_mode {render_mode!r}: use 'rgb_array' or None")
         self.render_mode = render_mode
         self.conditions = Conditions.load(
-            pattern, physics, noise, TrialBudget(max_wall_s=max_trial_s)
+            pattern, physics, noise, TrialBudget(max_wall_s=max_trial_s), tools
         )
         self.observation_space = observation_space(len(self.conditions.goal.targets))
         self.action_space = action_space()

@@ -23,6 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from pydantic_core import to_json
 
 from actionreasoning.agents.spec import single_agent_spec
+from actionreasoning.agents.tiers import DEFAULT_TIER, TIER_HELP, ToolTier
 from actionreasoning.errors import ActionReasoningError
 from actionreasoning.eval.provenance import current_provenance, stamp
 from actionreasoning.eval.results import TrialResult
@@ -32,10 +33,13 @@ from actionreasoning.world.budget import TrialBudget
 
 #: What the results line calls the agent that answered.
 AGENT_LABEL = "mcp"
-#: The tools of the six agents' knowledge bases together, in pipeline order.
-KNOWLEDGE_TOOLS: tuple[str, ...] = single_agent_spec().tools
+#: The tools of the six agents' knowledge bases together, in pipeline order, in any tier
+#: (an agent is served only those of its own knowledge base in the trial's tier).
+KNOWLEDGE_TOOLS: tuple[str, ...] = tuple(
+    dict.fromkeys(name for tier in ToolTier for name in single_agent_spec(tier).tools)
+)
 #: Every registry tool the door serves: the knowledge bases', then the gates' measurements.
-REGISTRY_TOOLS: tuple[str, ...] = KNOWLEDGE_TOOLS + GATE_MEASUREMENTS
+REGISTRY_TOOLS: tuple[str, ...] = tuple(dict.fromkeys(KNOWLEDGE_TOOLS + GATE_MEASUREMENTS))
 
 
 class _Arguments(BaseModel):
@@ -49,6 +53,12 @@ class StartTrial(_Arguments):
     pattern: str = Field("pyramid", description="'pyramid', 'grid' or a pattern file's path.")
     physics: str = Field("paper", description="'paper', 'precise' or a profile file's path.")
     noise: str = Field("none", description="'none', 'low', 'medium', 'high' or a noise file.")
+    tools: str = Field(
+        DEFAULT_TIER.value,
+        description="The reasoning tier: "
+        + "; ".join(f"'{tier}': {text}" for tier, text in TIER_HELP.items())
+        + ".",
+    )
     seed: int = Field(0, ge=0, description="The run seed, as eval's --seed.")
     trial: int = Field(0, ge=0, description="The trial's index in that run.")
     max_trial_s: float = Field(
@@ -160,7 +170,9 @@ class Door:
     def _start(self, start: StartTrial) -> Reply:
         try:
             budget = TrialBudget(max_wall_s=start.max_trial_s)
-            conditions = Conditions.load(start.pattern, start.physics, start.noise, budget)
+            conditions = Conditions.load(
+                start.pattern, start.physics, start.noise, budget, start.tools
+            )
             spec = conditions.spec(start.seed, start.trial)
         except ActionReasoningError as error:
             return Reply.refusal(RefusalCode.INVALID_ACTION, f"start_trial: {error}")

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
+from dataclasses import dataclass
 from itertools import islice, pairwise, takewhile
 from typing import Literal
 
@@ -31,10 +32,19 @@ from actionreasoning.agents.outputs import (
 )
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest, Briefing
 from actionreasoning.agents.spec import SINGLE_AGENT, SINGLE_AGENT_START, AgentKey
-from actionreasoning.agents.view import BrickView
-from actionreasoning.tools.grasp_plan import GRASP_OPTIONS, GraspOption, GraspOptionsQuery
-from actionreasoning.tools.placement import PLACEMENT_POSE, PlacementPose, PlacementQuery
-from actionreasoning.world.geometry import quat_yaw, top_down_quat
+from actionreasoning.agents.tiers import ToolTier
+from actionreasoning.agents.view import BrickView, TargetView
+from actionreasoning.tools import formulas
+from actionreasoning.tools.collision import COLLISION, CollisionQuery
+from actionreasoning.tools.grasp_plan import (
+    GRASP_OPTIONS,
+    PLACE_CHECK_ABOVE_M,
+    GraspOption,
+    GraspOptionsQuery,
+)
+from actionreasoning.tools.placement import PLACEMENT_POSE, PlacementQuery
+from actionreasoning.tools.reach import REACHABILITY, ReachQuery
+from actionreasoning.world.geometry import axis_angle_deg, quat_yaw, top_down_quat
 from actionreasoning.world.models import Pose
 from actionreasoning.world.motion import MAX_MOVE_S
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M, RETREAT_M
@@ -75,6 +85,7 @@ class BuiltinReasoner:
             memory=request.memory,
             tolerances=request.tolerances,
             call_tool=request.call_tool,
+            tier=request.spec.tier,
         )
         return AgentReply(answer=answer(briefing))
 
@@ -82,6 +93,16 @@ class BuiltinReasoner:
 def answer(briefing: Briefing) -> AgentAnswer:
     """The policy's answer to one agent's briefing."""
     return POLICIES[briefing.agent](briefing)
+
+
+@dataclass(frozen=True)
+class _Grasp:
+    """One top-down grasp of a brick: the tool's yaw and the approach pose above it."""
+
+    brick: BrickView
+    yaw_deg: float
+    approach: Pose
+    option: GraspOption | None = None  # grasp_options' report of it (solve tier)
 
 
 def _pre_grasp(briefing: Briefing) -> AgentAnswer:
@@ -92,56 +113,127 @@ def _pre_grasp(briefing: Briefing) -> AgentAnswer:
     free = [b for b in view.bricks if b.id not in used and b.pickable]
     if not free:
         raise ValueError("no unused brick can be picked")
-    tol = briefing.tolerances
-
-    measured: dict[int, list[GraspOption]] = {}
-
-    def grasps(brick: BrickView) -> list[GraspOption]:
-        """Both grasps of ``brick``, the least wrist turn first (measured once)."""
-        if brick.id not in measured:
-            query = GraspOptionsQuery(
-                brick_id=brick.id,
-                target_index=target.index,
-                descent_opening_m=_descent_opening(brick),
-            )
-            options = briefing.use(GRASP_OPTIONS, query).options
-            measured[brick.id] = sorted(
-                options, key=lambda o: o.wrist_deg if o.reachable else math.inf
-            )
-        return measured[brick.id]
-
-    def usable(option: GraspOption) -> bool:
-        return (
-            option.reachable
-            and option.approach_clearance_m >= tol.c_min_m
-            and tol.clear(option.descent_clearance_m)
-        )
-
     # The brick the last refusal found in the way first, then by id.
     in_the_way = _in_the_way(memory)
     free.sort(key=lambda b: b.id != in_the_way)
+    usable = _USABLE[briefing.tier]
+    measured: dict[int, list[_Grasp]] = {}
 
-    def candidates() -> Iterator[tuple[BrickView, GraspOption]]:
-        """Each brick's least-wrist grasp where usable, then the other side's."""
-        for side in (0, 1):
-            for brick in free:
-                if usable(option := grasps(brick)[side]):
-                    yield brick, option
+    def grasps(brick: BrickView) -> list[_Grasp]:
+        """Both grasps of ``brick`` (measured once)."""
+        if brick.id not in measured:
+            measured[brick.id] = _grasps(briefing, target, brick)
+        return measured[brick.id]
 
-    # The first free brick with a grasp reachable at pick and place and a clear way down
-    # to it (a dropped brick may lie where none is, or beside another). A way that sigma_1
-    # found out of reach or not clear is not answered again: after k such refusals in a
-    # row, the (k+1)-th grasp. With none left, the first brick's, for the gates to refuse.
+    ordered = (grasps(brick)[side] for side in (0, 1) for brick in free)
+    # Each brick's grasp of the smaller wrist turn where usable, then the other side's. A
+    # way that sigma_1 found out of reach or not clear is not answered again: after k such
+    # refusals in a row, the (k+1)-th grasp. With none left, the first, for the gates to
+    # refuse.
     refused = _refused_in_a_row(memory, "sigma1_pre_grasp")
-    brick, best = next(islice(candidates(), refused, None), (free[0], grasps(free[0])[0]))
+    candidates = (grasp for grasp in ordered if usable(briefing, target, grasp))
+    best = next(islice(candidates, refused, None), grasps(free[0])[0])
     return PreGraspAnswer(
-        brick_id=brick.id,
+        brick_id=best.brick.id,
         target_index=target.index,
-        waypoint=_proposal(best.approach_pose),
-        rationale=f"target {target.index} next; brick {brick.id} free; grasp yaw "
-        f"{best.gripper_yaw_deg:.1f} turns the wrist least"
+        waypoint=_proposal(best.approach),
+        rationale=f"target {target.index} next; brick {best.brick.id} free; grasp yaw "
+        f"{best.yaw_deg:.1f} turns the wrist least"
         + (f" of the grasps sigma_1 has not refused ({refused} refused)" if refused else ""),
     )
+
+
+def _grasps(briefing: Briefing, target: TargetView, brick: BrickView) -> list[_Grasp]:
+    """A brick's two grasps, the one that turns the wrist less first: in the solve tier as
+    grasp_options measures the wrist (an unreachable grasp last), else by the formula."""
+    if briefing.tier is ToolTier.SOLVE:
+        options = sorted(
+            _grasp_options(briefing, target, brick),
+            key=lambda o: o.wrist_deg if o.reachable else math.inf,
+        )
+        return [_Grasp(brick, o.gripper_yaw_deg, o.approach_pose, o) for o in options]
+    yaws = sorted(
+        formulas.grasp_yaws_deg(brick.pose.quat_xyzw),
+        key=lambda yaw: formulas.wrist_turn_deg(brick.pose, target.pose, yaw),
+    )
+    return [
+        _Grasp(
+            brick, yaw, formulas.approach_pose(formulas.grasp_pose(brick.pose, brick.size_m, yaw))
+        )
+        for yaw in yaws
+    ]
+
+
+def _grasp_options(briefing: Briefing, target: TargetView, brick: BrickView) -> list[GraspOption]:
+    """grasp_options' report for ``brick`` and ``target``."""
+    query = GraspOptionsQuery(
+        brick_id=brick.id, target_index=target.index, descent_opening_m=_descent_opening(brick)
+    )
+    return list(briefing.use(GRASP_OPTIONS, query).options)
+
+
+def _usable_solved(briefing: Briefing, target: TargetView, grasp: _Grasp) -> bool:
+    """Reachable at pick and place, a clear joint move to the approach and a clear way down,
+    as grasp_options reports them."""
+    tol, option = briefing.tolerances, grasp.option
+    assert option is not None
+    return (
+        option.reachable
+        and option.approach_clearance_m >= tol.c_min_m
+        and tol.clear(option.descent_clearance_m)
+    )
+
+
+def _usable_checked(briefing: Briefing, target: TargetView, grasp: _Grasp) -> bool:
+    """The same, measured by three checks in one turn: the joint move to the approach, the
+    way down to the grasp pose, and the arm's reach of the place pose over the target."""
+    tol, brick = briefing.tolerances, grasp.brick
+    approach = grasp.approach
+    down = formulas.grasp_pose(brick.pose, brick.size_m, grasp.yaw_deg)
+    place_yaw = formulas.place_yaw_deg(grasp.yaw_deg, brick.pose.quat_xyzw, target.pose.quat_xyzw)
+    x, y, z = target.pose.position_m
+    place = Pose(
+        position_m=(x, y, z + PLACE_CHECK_ABOVE_M),
+        quat_xyzw=top_down_quat(math.radians(place_yaw)),
+    )
+    to_approach, descent, reach = briefing.use_all(
+        (
+            COLLISION,
+            CollisionQuery(
+                pose=approach, path="joint", gripper_opening_m=briefing.view.robot.gripper_width_m
+            ),
+        ),
+        (
+            COLLISION,
+            CollisionQuery(
+                pose=down,
+                start_pose=approach,
+                path="linear",
+                gripper_opening_m=_descent_opening(brick),
+                ignore_brick_id=brick.id,
+            ),
+        ),
+        (REACHABILITY, ReachQuery(pose=place)),
+    )
+    return (
+        to_approach.reachable
+        and descent.reachable
+        and reach.reachable
+        and to_approach.clearance_m >= tol.c_min_m
+        and tol.clear(descent.clearance_m)
+    )
+
+
+def _usable_unchecked(briefing: Briefing, target: TargetView, grasp: _Grasp) -> bool:
+    """Without tools every grasp is answered in order; sigma_1 refuses what is not clear."""
+    return True
+
+
+_USABLE: dict[ToolTier, Callable[[Briefing, TargetView, _Grasp], bool]] = {
+    ToolTier.SOLVE: _usable_solved,
+    ToolTier.CHECK: _usable_checked,
+    ToolTier.NONE: _usable_unchecked,
+}
 
 
 def _refused_in_a_row(memory: TaskMemory, gate: str) -> int:
@@ -208,7 +300,7 @@ def _lift(briefing: Briefing) -> AgentAnswer:
     speed = max(tol.v_lift_mps / 2**slips, rise / MAX_MOVE_S)
     return LiftAnswer(
         waypoint=_proposal(lift, path="linear", duration_s=_seconds(rise / speed)),
-        rationale=f"straight up over every brick at {100 * speed:.2g} cm/s, at most v_lift"
+        rationale=f"straight up over every brick at {speed:.3g} m/s, at most v_lift_mps"
         + (f", halved for each of {slips} slips" if slips else ""),
     )
 
@@ -217,13 +309,13 @@ def _placement(briefing: Briefing) -> AgentAnswer:
     phase, tol = briefing.memory.phase, briefing.tolerances
     if phase is None:
         raise ValueError("memory shows no placement phase")
-    placement = _placement_pose(briefing, "linear" if phase == PlacementPhase.SET_DOWN else "joint")
-    tilt = placement.tilt_in_hand_deg
-    if not tol.clear(placement.way_clearance_m, placement.reachable):
+    plan = _slot_plan(briefing, "linear" if phase == PlacementPhase.SET_DOWN else "joint")
+    if not plan.clear:
         return PlacementAnswer(
             regrasp=True,
-            rationale=f"set level as it sits in the hand (rolled {tilt:.1f} deg), the brick's "
-            f"way to the slot collides or is out of reach ({placement.closest}): grasp it again",
+            rationale=f"set level as it sits in the hand (rolled {plan.tilt_deg:.1f} deg), the "
+            f"brick's way to the slot collides or is out of reach ({plan.closest}): grasp it "
+            "again",
         )
     dx, dy, turn, misses = _misses(briefing)
     if math.hypot(dx, dy) > tol.max_offset_m or abs(turn) > tol.max_rotation_deg:
@@ -233,7 +325,7 @@ def _placement(briefing: Briefing) -> AgentAnswer:
             f"{turn:+.2f} deg in all: more than a correction within the success rule: grasp "
             "it again",
         )
-    slot = _corrected(briefing, placement.slot_pose, dx, dy, turn)
+    slot = _corrected(briefing, plan.pose, dx, dy, turn)
     note = (
         f"; shifted by ({1000 * dx:+.1f}, {1000 * dy:+.1f}) mm and turned by {turn:+.2f} deg: "
         f"the sum of the {misses} seated misses sigma_5 measured"
@@ -242,9 +334,58 @@ def _placement(briefing: Briefing) -> AgentAnswer:
     )
     return PlacementAnswer(
         waypoint=_slot(briefing, slot),
-        rationale=f"the slot pose for the brick as it sits in the hand, rolled {tilt:.1f} deg "
-        "and set level by tilting the tool" + note,
+        rationale=f"the slot pose for the brick as it sits in the hand, rolled "
+        f"{plan.tilt_deg:.1f} deg and set level by tilting the tool" + note,
     )
+
+
+@dataclass(frozen=True)
+class _SlotPlan:
+    """The slot pose for the held brick, its roll in the hand, and whether its way is clear
+    (and if not, the two things that close)."""
+
+    pose: Pose
+    tilt_deg: float
+    clear: bool
+    closest: str
+
+
+def _slot_plan(briefing: Briefing, approach: Literal["joint", "linear"]) -> _SlotPlan:
+    """The slot pose and its way: placement_pose's report in the solve tier; else the
+    formulas' pose, its way clear unless the gate's last refusal found it not (a
+    placement_plan refusal of the way of a slot that was right: the plan's check measures
+    what a collision_check of the way would, so asking the tool first would only repeat
+    it)."""
+    tol, memory = briefing.tolerances, briefing.memory
+    if briefing.tier is ToolTier.SOLVE:
+        query = PlacementQuery(
+            brick_id=_current(memory), target_index=memory.current_target or 0, approach=approach
+        )
+        report = briefing.use(PLACEMENT_POSE, query)
+        clear = tol.clear(report.way_clearance_m, report.reachable)
+        return _SlotPlan(report.slot_pose, report.tilt_in_hand_deg, clear, report.closest)
+    slot, tilt = _slot_by_formula(briefing)
+    last = memory.refusals[-1] if memory.refusals else None
+    failed = {c.name for c in last.failed} if last is not None else set()
+    refused = (
+        last is not None
+        and last.gate == f"{Stage.PLACEMENT}_plan"
+        and bool(failed & {"way_reachable", "way_clearance_m"})
+        # the slot itself was right (a wrong one is answered again, right this time)
+        and not any(name.startswith("predicted_") for name in failed)
+    )
+    closest = (last.measured.closest or "") if refused and last else ""
+    return _SlotPlan(slot, tilt, not refused, closest)
+
+
+def _slot_by_formula(briefing: Briefing) -> tuple[Pose, float]:
+    """The slot pose that sets the held brick, as it sits in the hand, on its target (the
+    knowledge base's formulas), and its roll in the hand (deg)."""
+    view, memory = briefing.view, briefing.memory
+    brick, tool = view.brick(_current(memory)), view.robot.tool_pose
+    target = next(t for t in view.targets if t.index == memory.current_target)
+    slot = formulas.slot_pose(target.pose, *formulas.in_hand(tool, brick.pose))
+    return slot, axis_angle_deg(brick.pose.quat_xyzw, tool.quat_xyzw)
 
 
 def _misses(briefing: Briefing) -> tuple[float, float, float, int]:
@@ -278,15 +419,6 @@ def _corrected(briefing: Briefing, slot: Pose, dx: float, dy: float, turn: float
         position_m=(float(x + dx), float(y + dy), float(z)),
         quat_xyzw=tuple(float(q) for q in (spin * Rotation.from_quat(slot.quat_xyzw)).as_quat()),  # type: ignore[arg-type]
     )
-
-
-def _placement_pose(briefing: Briefing, approach: Literal["joint", "linear"]) -> PlacementPose:
-    """The placement_pose tool's report for the held brick and its target."""
-    memory = briefing.memory
-    query = PlacementQuery(
-        brick_id=_current(memory), target_index=memory.current_target or 0, approach=approach
-    )
-    return briefing.use(PLACEMENT_POSE, query)
 
 
 def _slot(briefing: Briefing, slot: Pose) -> WaypointProposal:
@@ -337,7 +469,12 @@ def _single_agent(briefing: Briefing) -> AgentAnswer:
     if step == Stage.GRASP:
         return SingleAgentAnswer(step=step, gripper="close", rationale="close on the brick")
     if step in (Stage.TRANSFER, Stage.PLACEMENT):
-        slot = _slot(briefing, _placement_pose(briefing, "joint").slot_pose)
+        solved = (
+            _slot_plan(briefing, "joint").pose
+            if briefing.tier is ToolTier.SOLVE
+            else _slot_by_formula(briefing)[0]
+        )
+        slot = _slot(briefing, solved)
         x, y, z = slot.position_m
         if step == Stage.TRANSFER:
             above = (x, y, max(z, here.position_m[2]))

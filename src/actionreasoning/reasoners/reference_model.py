@@ -5,9 +5,10 @@ any object of the run: everything it knows is parsed from the messages a chat se
 receives. From the first message, the agent's prompt, it reads which agent it is, the
 state S_t, the memory M_t and the thresholds; from its own earlier answers and the
 ``Tool results`` messages after them, what each tool call returned. It then runs the
-built-in policy on that :class:`Briefing`, whose tools answer from those results. When the
-policy needs a tool result the conversation does not hold yet, the model answers with
-that one tool call, as a language model does, and is asked again with the result.
+built-in policy on that :class:`Briefing`, in the reasoning tier the prompt names, whose
+tools answer from those results. When the policy needs tool results the conversation does
+not hold yet, the model answers with those tool calls (one turn's together), as a language
+model does, and is asked again with the results.
 
 A prompt missing a fact the policy needs (the state block, a field of it, a tool result
 field) cannot be answered: :class:`UnreadableConversation` says which.
@@ -29,6 +30,7 @@ from actionreasoning.agents.outputs import AgentAnswer, ToolCall
 from actionreasoning.agents.prompt import MEMORY_HEADING, STATE_HEADING, THRESHOLDS_HEADING
 from actionreasoning.agents.reasoner import Briefing
 from actionreasoning.agents.spec import AgentSpec, agent_specs, single_agent_spec
+from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.agents.view import StateView
 from actionreasoning.reasoners import builtin
 from actionreasoning.reasoners.llm import NO_MORE_TOOLS, TOOL_RESULTS
@@ -39,18 +41,19 @@ from actionreasoning.world.tolerances import Tolerances
 Message = Mapping[str, Any]
 _AGENT_HEADING = re.compile(r"# Agent ([1-6]) of 6: ")
 _SINGLE_HEADING = "# Single agent"
+_TIER_LINE = re.compile(r"^Reasoning tier: (solve|check|none) ", re.M)
 
 
 class UnreadableConversation(ValueError):
     """A conversation the reference model cannot answer; the message says why."""
 
 
-class _NeedTool(Exception):
-    """The policy asked for a tool result the conversation does not hold."""
+class _NeedTools(Exception):
+    """The policy asked for tool results the conversation does not hold (one turn's)."""
 
-    def __init__(self, call: ToolCall) -> None:
-        super().__init__(call.name)
-        self.call = call
+    def __init__(self, calls: list[ToolCall]) -> None:
+        super().__init__(", ".join(call.name for call in calls))
+        self.calls = calls
 
 
 def reply(messages: Sequence[Message]) -> str:
@@ -64,15 +67,19 @@ def reply(messages: Sequence[Message]) -> str:
     results = _tool_results(messages)
     exhausted = NO_MORE_TOOLS in _text(messages[-1])
 
-    def call_tool(name: str, arguments: Mapping[str, Any]) -> ToolModel:
-        key = _key(name, arguments)
-        if key not in results:
-            if exhausted:
-                raise UnreadableConversation(
-                    f"needs {name} {_args(arguments)} but may call no more tools"
-                )
-            raise _NeedTool(ToolCall(name=name, arguments=dict(arguments)))
-        outcome = results[key]
+    def call_tools(calls: Sequence[tuple[str, Mapping[str, Any]]]) -> list[ToolModel]:
+        missing = [(name, args) for name, args in calls if _key(name, args) not in results]
+        if missing and exhausted:
+            name, arguments = missing[0]
+            raise UnreadableConversation(
+                f"needs {name} {_args(arguments)} but may call no more tools"
+            )
+        if missing:
+            raise _NeedTools([ToolCall(name=name, arguments=dict(args)) for name, args in missing])
+        return [_result(name, args) for name, args in calls]
+
+    def _result(name: str, arguments: Mapping[str, Any]) -> ToolModel:
+        outcome = results[_key(name, arguments)]
         if "error" in outcome:
             raise UnreadableConversation(f"{name} failed: {outcome['error']}")
         try:
@@ -87,14 +94,14 @@ def reply(messages: Sequence[Message]) -> str:
         view=_block(prompt, STATE_HEADING, StateView),
         memory=_block(prompt, MEMORY_HEADING, TaskMemory),
         tolerances=_thresholds(prompt),
-        call_tool=call_tool,
+        call_tool=lambda name, arguments: call_tools([(name, arguments)])[0],
+        tier=spec.tier,
+        call_tools=call_tools,
     )
     try:
         answer: AgentAnswer = builtin.answer(briefing)
-    except _NeedTool as need:
-        answer = spec.output_model(
-            tool_calls=[need.call], rationale=f"measure with {need.call.name} first"
-        )
+    except _NeedTools as need:
+        answer = spec.output_model(tool_calls=need.calls, rationale=f"measure with {need} first")
     except UnreadableConversation:
         raise
     except (KeyError, ValueError, StopIteration) as error:
@@ -109,11 +116,16 @@ def _text(message: Message) -> str:
 
 
 def _spec_of(prompt: str) -> AgentSpec | None:
-    """The agent a prompt is written for, or None for a message that is no agent prompt."""
-    if prompt.startswith(_SINGLE_HEADING):
-        return single_agent_spec()
+    """The agent a prompt is written for, in the tier it names, or None for a message that
+    is no agent prompt."""
     found = _AGENT_HEADING.match(prompt)
-    return None if found is None else agent_specs()[int(found.group(1)) - 1]
+    if found is None and not prompt.startswith(_SINGLE_HEADING):
+        return None
+    named = _TIER_LINE.search(prompt)
+    if named is None:
+        raise UnreadableConversation("the prompt names no reasoning tier")
+    tier = ToolTier(named.group(1))
+    return single_agent_spec(tier) if found is None else agent_specs(tier)[int(found.group(1)) - 1]
 
 
 def _block(prompt: str, heading: str, model: type[BaseModel]) -> Any:

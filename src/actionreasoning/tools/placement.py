@@ -1,5 +1,6 @@
-"""Placement tools: where the held brick sits in the hand, and the tool pose that sets it
-on a target as it sits there.
+"""Placement tools: where the held brick sits in the hand, the tool pose that sets it on a
+target as it sits there (``solve`` tier), and the alignment errors a proposed tool pose
+would give (``check`` tier).
 
 The pose in the hand is the brick's measured pose in the tool frame (x along the pads'
 faces, y the axis the pads close along, z pointing down out of the gripper). The slot
@@ -13,11 +14,17 @@ from typing import Literal
 
 import numpy as np
 from pydantic import Field
-from scipy.spatial.transform import Rotation
 
 from actionreasoning.tools.base import ToolContext, ToolModel, tool
 from actionreasoning.tools.collision import CollisionQuery, collision_check
-from actionreasoning.tools.geometry import BrickQuery, brick_state, target_of
+from actionreasoning.tools.formulas import carried, in_hand, slot_pose
+from actionreasoning.tools.geometry import (
+    AlignmentErrors,
+    BrickQuery,
+    alignment_of,
+    brick_state,
+    target_of,
+)
 from actionreasoning.world.geometry import axis_angle_deg
 from actionreasoning.world.models import Pose, WorldState
 
@@ -61,11 +68,11 @@ def held_pose(context: ToolContext, query: BrickQuery) -> HeldPose:
     state = context.state
     brick = brick_state(state, query.brick_id)
     tool_pose = state.robot.ee_pose
-    offset, turn = _in_hand(state, query.brick_id)
+    offset, turn = in_hand(tool_pose, brick.pose)
     return HeldPose(
         held=brick.status == "grasped",
-        offset_in_hand_m=tuple(float(v) for v in offset),  # type: ignore[arg-type]
-        quat_in_hand_xyzw=tuple(float(q) for q in turn.as_quat()),  # type: ignore[arg-type]
+        offset_in_hand_m=offset,
+        quat_in_hand_xyzw=turn,
         tilt_in_hand_deg=axis_angle_deg(brick.pose.quat_xyzw, tool_pose.quat_xyzw),
     )
 
@@ -74,13 +81,9 @@ def placement_pose(context: ToolContext, query: PlacementQuery) -> PlacementPose
     """The tool pose that sets the held brick, as it sits in the hand, level on a target."""
     state = context.state
     brick = brick_state(state, query.brick_id)
-    offset, turn = _in_hand(state, brick.id)
-    goal = target_of(state, query.target_index)
-    slot_rot = Rotation.from_quat(goal.pose.quat_xyzw) * turn.inv()
-    position = np.asarray(goal.pose.position_m) - slot_rot.apply(offset)
-    quat = tuple(float(q) for q in slot_rot.as_quat())
-    slot = Pose(position_m=tuple(float(v) for v in position), quat_xyzw=quat)  # type: ignore[arg-type]
     tool_pose = state.robot.ee_pose
+    slot = slot_pose(target_of(state, query.target_index).pose, *in_hand(tool_pose, brick.pose))
+    quat = slot.quat_xyzw
     x, y, z = slot.position_m
     above = Pose(position_m=(x, y, max(z, tool_pose.position_m[2])), quat_xyzw=quat)  # type: ignore[arg-type]
     seat = Pose(position_m=(x, y, z + SEAT_CLEARANCE_M), quat_xyzw=quat)  # type: ignore[arg-type]
@@ -102,26 +105,29 @@ def placement_pose(context: ToolContext, query: PlacementQuery) -> PlacementPose
     )
 
 
+class PlacementCheckQuery(ToolModel):
+    """The held brick, its target and a tool pose to set it down at."""
+
+    brick_id: int = Field(ge=0)
+    target_index: int = Field(ge=0)
+    pose: Pose = Field(description="The tool pose proposed for the set-down.")
+
+
+def placement_check(context: ToolContext, query: PlacementCheckQuery) -> AlignmentErrors:
+    """The alignment errors of the held brick against its target were it set down, as it
+    sits in the hand now, with the tool at ``pose``."""
+    state = context.state
+    brick = brick_state(state, query.brick_id)
+    goal = target_of(state, query.target_index)
+    return alignment_of(carried_pose(state, brick.id, query.pose), brick.size_m, goal)
+
+
 def carried_pose(state: WorldState, brick_id: int, tool: Pose) -> Pose:
     """Where brick ``brick_id`` would be with the tool at ``tool`` and the brick as it sits
     in the hand now (measured)."""
-    offset, turn = _in_hand(state, brick_id)
-    grip = Rotation.from_quat(tool.quat_xyzw)
-    position = np.add(tool.position_m, grip.apply(offset))
-    quat = (grip * turn).as_quat()
-    return Pose(
-        position_m=tuple(float(v) for v in position),  # type: ignore[arg-type]
-        quat_xyzw=tuple(float(q) for q in quat),  # type: ignore[arg-type]
-    )
-
-
-def _in_hand(state: WorldState, brick_id: int) -> tuple[np.ndarray, Rotation]:
-    """The brick's centre and orientation in the tool frame, as measured."""
-    tool_pose, brick = state.robot.ee_pose, state.brick(brick_id)
-    grip = Rotation.from_quat(tool_pose.quat_xyzw)
-    offset = grip.inv().apply(np.subtract(brick.pose.position_m, tool_pose.position_m))
-    return offset, grip.inv() * Rotation.from_quat(brick.pose.quat_xyzw)
+    return carried(tool, *in_hand(state.robot.ee_pose, state.brick(brick_id).pose))
 
 
 HELD_POSE = tool("held_pose", held_pose)
 PLACEMENT_POSE = tool("placement_pose", placement_pose)
+PLACEMENT_CHECK = tool("placement_check", placement_check)

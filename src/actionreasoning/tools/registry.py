@@ -14,7 +14,7 @@ from actionreasoning.tools.collision import COLLISION
 from actionreasoning.tools.contact import FINGER_CONTACTS, SLIP
 from actionreasoning.tools.geometry import ALIGNMENT, SUPPORT
 from actionreasoning.tools.grasp_plan import GRASP_OPTIONS
-from actionreasoning.tools.placement import HELD_POSE, PLACEMENT_POSE
+from actionreasoning.tools.placement import HELD_POSE, PLACEMENT_CHECK, PLACEMENT_POSE
 from actionreasoning.tools.reach import REACHABILITY
 from actionreasoning.world.geometry import QUAT_NORM_TOLERANCE
 from actionreasoning.world.models import Pose
@@ -35,6 +35,7 @@ TOOLS: Mapping[str, Tool] = {
         SLIP,
         HELD_POSE,
         PLACEMENT_POSE,
+        PLACEMENT_CHECK,
     )
 }
 

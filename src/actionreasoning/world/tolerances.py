@@ -284,90 +284,91 @@ class Tolerances(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     c_min_m: float = Field(
-        _DEFAULTS["c_min_m"], gt=0, description="sigma_1, lift: least clearance of a path."
+        _DEFAULTS["c_min_m"],
+        gt=0,
+        description="least clearance (m) of arm, gripper and held brick along a path.",
     )
     delta_m: float = Field(
         _DEFAULTS["delta_m"],
         gt=0,
-        description="sigma_2: opening beyond the brick's width (both sides together).",
+        description="least opening (m) beyond the brick's width for the descent.",
     )
     sidewall_contact_n: float = Field(
         _DEFAULTS["sidewall_contact_n"],
         gt=0,
-        description="sigma_2: a pad force above this is contact with a side wall.",
+        description="a pad force (N) above this on the way down touches a side wall.",
     )
     grip_load_factor: float = Field(
         _DEFAULTS["grip_load_factor"],
         ge=0.0,
-        description="sigma_3, sigma_4: each pad must press with this many times "
-        "required_normal_n, the force whose friction carries the brick's catalogue weight: "
-        "the heaviest, least grippy brick the noise allows, less the force noise.",
+        description="each pad presses with at least this many times the force (N) whose "
+        "friction carries the brick's weight.",
     )
     friction_factor: float = Field(
         _DEFAULTS["friction_factor"],
         gt=0,
         le=1.0,
-        description="sigma_4: share of the catalogue friction counted on.",
+        description="share of the catalogue friction counted on.",
     )
     eps_g_m: float = Field(
         _DEFAULTS["eps_g_m"],
         gt=0,
-        description=(
-            "sigma_3 and the pre-move checks: largest distance of the tool centre from the "
-            "brick's centre (grasp) or from over it (approach)."
-        ),
+        description="largest distance (m) of the tool from the brick's centre (or from over it).",
     )
     eps_g_deg: float = Field(
         _DEFAULTS["eps_g_deg"],
         gt=0,
-        description=(
-            "sigma_3 and the pre-move checks: largest yaw between the pads' closing axis "
-            "and the brick's width."
-        ),
+        description="largest yaw (deg) between the pads' closing axis and the brick's width.",
     )
     v_th_mps: float = Field(
         _DEFAULTS["v_th_mps"],
         gt=0,
-        description="sigma_4: largest brick speed relative to the gripper.",
+        description="largest speed (m/s) of the brick in the gripper.",
     )
     v_lift_mps: float = Field(
         _DEFAULTS["v_lift_mps"],
         gt=0,
-        description="Lift: largest mean speed of a lift from the ground.",
+        description="largest mean speed (m/s) of a lift.",
     )
     force_noise: float = Field(
-        0.0, ge=0.0, description="Relative noise (std) of a pad force reading."
+        0.0, ge=0.0, description="relative noise (std) of a pad force reading."
     )
     eps_perp_m: float = Field(
         _DEFAULTS["eps_perp_m"],
         gt=0,
-        description="sigma_5: largest height of the brick's bottom above its seat.",
+        description="largest height (m) of a set brick's bottom above its seat.",
     )
     eps_xy_m: float = Field(
-        _DEFAULTS["eps_xy_m"], gt=0, description="sigma_5: largest planar offset."
+        _DEFAULTS["eps_xy_m"],
+        gt=0,
+        description="largest planar offset (m) of a set brick from its target.",
     )
     eps_theta_deg: float = Field(
-        _DEFAULTS["eps_theta_deg"], gt=0, description="sigma_5: largest yaw error."
+        _DEFAULTS["eps_theta_deg"], gt=0, description="largest yaw error (deg) of a set brick."
     )
     eps_tilt_deg: float = Field(
-        _DEFAULTS["eps_tilt_deg"], gt=0, description="sigma_5: largest tilt of the set brick."
+        _DEFAULTS["eps_tilt_deg"], gt=0, description="largest tilt (deg) of a set brick."
     )
     max_offset_m: float = Field(
-        _DEFAULTS["max_offset_m"], gt=0, description="sigma_5: the success rule's centre offset."
+        _DEFAULTS["max_offset_m"],
+        gt=0,
+        description="success rule: largest distance (m) of a brick's centre from its target's.",
     )
     max_rotation_deg: float = Field(
-        _DEFAULTS["max_rotation_deg"], gt=0, description="sigma_5: the success rule's rotation."
+        _DEFAULTS["max_rotation_deg"],
+        gt=0,
+        description="success rule: largest rotation (deg) of a brick from its target.",
     )
     delta_h_m: float = Field(
         _DEFAULTS["delta_h_m"],
         gt=0,
-        description="sigma_5 refused a brick in contact: raise the tool this much, answer again.",
+        description="how far (m) the tool is raised after a missed set-down.",
     )
     overlap_m: float = Field(
         _DEFAULTS["overlap_m"],
         ge=0,
-        description="Largest overlap of two measured bodies a path check still calls clear: "
-        "none for exact sensors; under noise, what the noise of two positions can show.",
+        description="largest overlap (m) of two measured bodies still counted as clear (what "
+        "sensing noise can show).",
     )
 
     @classmethod

@@ -61,9 +61,13 @@ def pattern_title(pattern: str) -> str:
 
 
 def method_label(manifest: AnyManifest) -> str:
-    """How a row names a method: with its reasoning backend where it has one, its physics
-    profile and, where there are any, its noise level and answer error rate."""
-    name = manifest.method if manifest.llm == "none" else f"{manifest.method} ({manifest.llm})"
+    """How a row names a method: with its reasoning backend and tier where it has one, its
+    physics profile and, where there are any, its noise level and answer error rate."""
+    name = (
+        manifest.method
+        if manifest.llm == "none"
+        else f"{manifest.method} ({manifest.llm}, tools {manifest.tier})"
+    )
     noise = "" if manifest.noise_name == "none" else f", noise {manifest.noise_name}"
     rate = manifest.answer_errors.rate
     errors = f", answer errors {rate:g}" if rate else ""

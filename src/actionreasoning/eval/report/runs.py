@@ -69,6 +69,7 @@ def read_run(directory: Path) -> Run:
         "llm": manifest.llm,
         "physics": manifest.physics_name,
         "noise": manifest.noise_name,
+        "tools": manifest.tier,
     }
     for number, result in enumerate(results, start=1):
         for name, value in expected.items():

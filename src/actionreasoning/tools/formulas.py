@@ -1,0 +1,112 @@
+"""The knowledge base's formulas: what an agent computes itself in the ``check`` and
+``none`` tiers, where no tool returns a pose to answer with.
+
+Each is a pure function of poses a prompt shows. The prompts state them in words and
+symbols with worked examples rendered by these same functions
+(``agents/prompts/formulas/``), the built-in reasoner computes with them, and the
+``solve`` tier's tools (``grasp_options``, ``placement_pose``) call them, so a formula, its
+worked example and the tool that solves it cannot disagree.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from actionreasoning.world.geometry import QuatXYZW, Vec3, quat_yaw, top_down_quat, wrap_angle
+from actionreasoning.world.models import Pose
+
+#: The approach pose is this far straight above the grasp pose (m).
+APPROACH_HEIGHT_M = 0.12
+#: The wrist joint of the arm turns at most this far either way (deg; the iiwa's A7).
+WRIST_LIMIT_DEG = 175.0
+
+
+def _vec(values: np.ndarray) -> Vec3:
+    return (float(values[0]), float(values[1]), float(values[2]))
+
+
+def _quat(rotation: Rotation) -> QuatXYZW:
+    x, y, z, w = rotation.as_quat()
+    return (float(x), float(y), float(z), float(w))
+
+
+def grasp_yaws_deg(brick_quat: QuatXYZW) -> tuple[float, float]:
+    """The two tool yaws (deg, in [-180, 180)) whose pads close across a brick's width: the
+    brick's yaw and the yaw half a turn from it."""
+    yaw = quat_yaw(brick_quat)
+    return (
+        math.degrees(wrap_angle(yaw)),
+        math.degrees(wrap_angle(yaw + math.pi)),
+    )
+
+
+def grasp_pose(brick: Pose, size_m: Vec3, yaw_deg: float) -> Pose:
+    """The tool pointing down at yaw ``yaw_deg`` at a brick's centre: x, y its centre's, z
+    half its height (a brick lies on the ground when it is picked)."""
+    x, y, _ = brick.position_m
+    return Pose(position_m=(x, y, size_m[2] / 2.0), quat_xyzw=top_down_quat(math.radians(yaw_deg)))
+
+
+def approach_pose(grasp: Pose) -> Pose:
+    """The pose APPROACH_HEIGHT_M straight above ``grasp``."""
+    x, y, z = grasp.position_m
+    return Pose(position_m=(x, y, z + APPROACH_HEIGHT_M), quat_xyzw=grasp.quat_xyzw)
+
+
+def wrist_deg(position_m: Vec3, yaw_deg: float) -> float:
+    """The wrist joint's angle (deg) with the tool pointing down at yaw ``yaw_deg`` at
+    ``position_m``: the heading of the position from the base, minus the yaw, plus a half
+    turn, wrapped to [-180, 180). Within 5 deg of the arm's inverse kinematics over the
+    workspace (``tests/test_formulas.py`` checks it against the inverse kinematics)."""
+    heading = math.atan2(position_m[1], position_m[0])
+    return math.degrees(wrap_angle(heading - math.radians(yaw_deg) + math.pi))
+
+
+def place_yaw_deg(grasp_yaw_deg: float, brick_quat: QuatXYZW, target_quat: QuatXYZW) -> float:
+    """The tool's yaw (deg) over the target for a brick grasped at ``grasp_yaw_deg``: the
+    grasp yaw turned by the target's yaw minus the brick's."""
+    turn = quat_yaw(target_quat) - quat_yaw(brick_quat)
+    return math.degrees(wrap_angle(math.radians(grasp_yaw_deg) + turn))
+
+
+def wrist_turn_deg(brick: Pose, target: Pose, grasp_yaw_deg: float) -> float:
+    """The larger wrist turn (deg, absolute) of a grasp at ``grasp_yaw_deg``: at the brick
+    and, carried there, over the target. The grasp yaw with the smaller one is taken."""
+    place = place_yaw_deg(grasp_yaw_deg, brick.quat_xyzw, target.quat_xyzw)
+    return max(
+        abs(wrist_deg(brick.position_m, grasp_yaw_deg)),
+        abs(wrist_deg(target.position_m, place)),
+    )
+
+
+def in_hand(tool: Pose, brick: Pose) -> tuple[Vec3, QuatXYZW]:
+    """A brick's pose in the tool frame: its centre's offset o = R(q_tool)^T (p_brick -
+    p_tool) and its orientation q_h = q_tool* (x) q_brick."""
+    grip = Rotation.from_quat(tool.quat_xyzw)
+    offset = grip.inv().apply(np.subtract(brick.position_m, tool.position_m))
+    return _vec(offset), _quat(grip.inv() * Rotation.from_quat(brick.quat_xyzw))
+
+
+def slot_pose(target: Pose, offset_m: Vec3, quat_in_hand: QuatXYZW) -> Pose:
+    """The tool pose that sets a brick held at (``offset_m``, ``quat_in_hand``) exactly on
+    ``target``: q_slot = q_target (x) q_h*, p_slot = p_target - R(q_slot) o. A brick rolled
+    in the hand makes q_slot tilt the tool, which sets the brick level."""
+    turn = Rotation.from_quat(target.quat_xyzw) * Rotation.from_quat(quat_in_hand).inv()
+    position = np.asarray(target.position_m) - turn.apply(offset_m)
+    return Pose(position_m=_vec(position), quat_xyzw=_quat(turn))
+
+
+def carried(tool: Pose, offset_m: Vec3, quat_in_hand: QuatXYZW) -> Pose:
+    """Where a brick held at (``offset_m``, ``quat_in_hand``) is with the tool at ``tool``."""
+    grip = Rotation.from_quat(tool.quat_xyzw)
+    position = np.add(tool.position_m, grip.apply(offset_m))
+    return Pose(position_m=_vec(position), quat_xyzw=_quat(grip * Rotation.from_quat(quat_in_hand)))
+
+
+def move_duration_s(start_m: Vec3, end_m: Vec3, speed_mps: float) -> float:
+    """How long a move takes at ``speed_mps``: the straight distance (m) from its start
+    position to its end position over the speed (m/s)."""
+    return math.dist(start_m, end_m) / speed_mps
