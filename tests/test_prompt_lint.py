@@ -60,8 +60,8 @@ def rendered(spec: AgentSpec, pattern: str) -> str:
 
 
 def prose(spec: AgentSpec) -> str:
-    """What an agent's prompt says in words: role, gate, thinking chain, formulas' text
-    (without their worked examples, whose vectors are data)."""
+    """What an agent's prompt says in words: role, gate and thinking chain (the formulas'
+    numbers are the worked examples' data, rendered from code)."""
     return "\n".join([spec.role, spec.gate, *spec.thinking, *spec.feedback])
 
 

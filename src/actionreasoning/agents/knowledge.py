@@ -71,7 +71,7 @@ def _grasp_yaws() -> dict[str, str]:
         for a in yaws
     ]
     best = min(yaws, key=lambda a: f.wrist_turn_deg(BRICK, TARGET, a))
-    grasp = f.grasp_pose(BRICK, BRICK_SIZE_M, best)
+    grasp = f.grasp_pose(BRICK, BRICK_SIZE_M, top_down_quat(math.radians(best)))
     return {
         "brick_xy": _show(BRICK.position_m[:2]),
         "brick_yaw": _deg(math.degrees(quat_yaw(BRICK.quat_xyzw))),

@@ -18,7 +18,7 @@ import yaml
 from actionreasoning.agents import outputs
 from actionreasoning.agents.knowledge import FORMULAS
 from actionreasoning.agents.outputs import AgentAnswer, SingleAgentAnswer
-from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
+from actionreasoning.agents.tiers import DEFAULT_TIER, TIERS, ToolTier
 from actionreasoning.agents.view import Scope
 from actionreasoning.tools.registry import TOOLS
 from actionreasoning.world.stages import Stage
@@ -73,7 +73,7 @@ def _of_tier(value: object, tier: ToolTier, what: str) -> list[Any]:
     if isinstance(value, dict):
         unknown = [key for key in value if key not in ToolTier.__members__.values()]
         if unknown:
-            raise ValueError(f"{what}: unknown tiers {unknown} (tiers: solve, check, none)")
+            raise ValueError(f"{what}: unknown tiers {unknown} (tiers: {TIERS})")
         value = value.get(tier, [])
     if not isinstance(value, list):
         raise ValueError(f"{what}: give a list, or a list per tier")

@@ -28,7 +28,11 @@ class ToolTier(StrEnum):
 
 
 DEFAULT_TIER: Final = ToolTier.CHECK
+#: What runs recorded before tiers existed had: today's solve tools.
+BEFORE_TIERS: Final = ToolTier.SOLVE
 
+#: The tiers' names, for messages.
+TIERS: Final = ", ".join(tier.value for tier in ToolTier)
 #: One line per tier, for help texts and prompts.
 TIER_HELP: Final[dict[ToolTier, str]] = {
     ToolTier.SOLVE: "tools also return the poses to answer with: grasp_options, placement_pose",
@@ -42,5 +46,4 @@ def load_tier(name: str) -> ToolTier:
     try:
         return ToolTier(name)
     except ValueError:
-        tiers = ", ".join(tier.value for tier in ToolTier)
-        raise ConfigError(f"tools {str(name)[:40]!r}: not a tier (tiers: {tiers})") from None
+        raise ConfigError(f"tools {str(name)[:40]!r}: not a tier (tiers: {TIERS})") from None

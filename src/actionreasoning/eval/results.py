@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.agents.answer_errors import CorruptionKind
+from actionreasoning.agents.tiers import BEFORE_TIERS
 from actionreasoning.eval.provenance import Provenance
 from actionreasoning.records import Failure, LLMUsage
 from actionreasoning.world.geometry import QuatXYZW, Vec3
@@ -106,7 +107,7 @@ class TrialResult(Provenance):
     noise: str = "none"
     #: The reasoning tier (agents/tiers.py). Lines written before tiers existed ran with
     #: today's "solve" tools.
-    tools: str = "solve"
+    tools: str = BEFORE_TIERS
     seed: int
     trial: int
     trial_seed: int

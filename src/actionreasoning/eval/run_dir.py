@@ -22,6 +22,7 @@ from typing import IO, Any
 from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
 
 from actionreasoning.agents.answer_errors import AnswerErrors
+from actionreasoning.agents.tiers import BEFORE_TIERS
 from actionreasoning.errors import ConfigError, StorageError
 from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.results import TrialResult
@@ -128,7 +129,7 @@ class EarlierManifest(BaseModel):
     @property
     def tier(self) -> str:
         """Tiers did not exist yet: the agents had today's solve tools."""
-        return "solve"
+        return BEFORE_TIERS
 
     def fields(self) -> dict[str, Any]:
         """What it recorded, by the names a :class:`RunManifest` gives the same values."""
@@ -185,7 +186,7 @@ class RecordedManifest(BaseModel):
     @property
     def tier(self) -> str:
         """The reasoning tier; solve where it was recorded before tiers existed."""
-        return str(self.config.get("tools", "solve"))
+        return str(self.config.get("tools", BEFORE_TIERS))
 
     def fields(self) -> dict[str, Any]:
         """Every recorded value, named as a :class:`RunManifest` names them."""

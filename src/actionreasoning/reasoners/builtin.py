@@ -158,7 +158,11 @@ def _grasps(briefing: Briefing, target: TargetView, brick: BrickView) -> list[_G
     )
     return [
         _Grasp(
-            brick, yaw, formulas.approach_pose(formulas.grasp_pose(brick.pose, brick.size_m, yaw))
+            brick,
+            yaw,
+            formulas.approach_pose(
+                formulas.grasp_pose(brick.pose, brick.size_m, top_down_quat(math.radians(yaw)))
+            ),
         )
         for yaw in yaws
     ]
@@ -189,7 +193,7 @@ def _usable_checked(briefing: Briefing, target: TargetView, grasp: _Grasp) -> bo
     way down to the grasp pose, and the arm's reach of the place pose over the target."""
     tol, brick = briefing.tolerances, grasp.brick
     approach = grasp.approach
-    down = formulas.grasp_pose(brick.pose, brick.size_m, grasp.yaw_deg)
+    down = formulas.grasp_pose(brick.pose, brick.size_m, approach.quat_xyzw)
     place_yaw = formulas.place_yaw_deg(grasp.yaw_deg, brick.pose.quat_xyzw, target.pose.quat_xyzw)
     x, y, z = target.pose.position_m
     place = Pose(
@@ -254,7 +258,8 @@ def _in_the_way(memory: TaskMemory) -> int | None:
 def _descent(briefing: Briefing) -> AgentAnswer:
     view = briefing.view
     brick = view.brick(_current(briefing.memory))
-    grasp = _grasp_pose(brick, top_down_quat(quat_yaw(view.robot.tool_pose.quat_xyzw)))
+    down = top_down_quat(quat_yaw(view.robot.tool_pose.quat_xyzw))  # at its present yaw
+    grasp = formulas.grasp_pose(brick.pose, brick.size_m, down)
     return DescentAnswer(
         gripper_opening_m=_descent_opening(brick),
         waypoint=_proposal(grasp, path="linear"),
@@ -366,16 +371,14 @@ def _slot_plan(briefing: Briefing, approach: Literal["joint", "linear"]) -> _Slo
         return _SlotPlan(report.slot_pose, report.tilt_in_hand_deg, clear, report.closest)
     slot, tilt = _slot_by_formula(briefing)
     last = memory.refusals[-1] if memory.refusals else None
-    failed = {c.name for c in last.failed} if last is not None else set()
-    refused = (
-        last is not None
-        and last.gate == f"{Stage.PLACEMENT}_plan"
-        and bool(failed & {"way_reachable", "way_clearance_m"})
-        # the slot itself was right (a wrong one is answered again, right this time)
-        and not any(name.startswith("predicted_") for name in failed)
+    if last is None or last.gate != f"{Stage.PLACEMENT}_plan":
+        return _SlotPlan(slot, tilt, True, "")
+    failed = {check.name for check in last.failed}
+    # Refused for its way, the slot itself right (a wrong slot is answered again, right).
+    way_refused = bool(failed & {"way_reachable", "way_clearance_m"}) and not any(
+        name.startswith("predicted_") for name in failed
     )
-    closest = (last.measured.closest or "") if refused and last else ""
-    return _SlotPlan(slot, tilt, not refused, closest)
+    return _SlotPlan(slot, tilt, not way_refused, last.measured.closest or "")
 
 
 def _slot_by_formula(briefing: Briefing) -> tuple[Pose, float]:
@@ -469,12 +472,7 @@ def _single_agent(briefing: Briefing) -> AgentAnswer:
     if step == Stage.GRASP:
         return SingleAgentAnswer(step=step, gripper="close", rationale="close on the brick")
     if step in (Stage.TRANSFER, Stage.PLACEMENT):
-        solved = (
-            _slot_plan(briefing, "joint").pose
-            if briefing.tier is ToolTier.SOLVE
-            else _slot_by_formula(briefing)[0]
-        )
-        slot = _slot(briefing, solved)
+        slot = _slot(briefing, _slot_plan(briefing, "joint").pose)
         x, y, z = slot.position_m
         if step == Stage.TRANSFER:
             above = (x, y, max(z, here.position_m[2]))
@@ -517,13 +515,6 @@ POLICIES: dict[AgentKey, Callable[[Briefing], AgentAnswer]] = {
     Stage.RELEASE: _release,
     SINGLE_AGENT: _single_agent,
 }
-
-
-def _grasp_pose(brick: BrickView, quat_xyzw: tuple[float, ...]) -> Pose:
-    """The tool at the brick's centre. A brick lying on the ground has its centre at half its
-    height, whatever the noisy measurement of that height says."""
-    x, y, _ = brick.pose.position_m
-    return Pose(position_m=(x, y, brick.size_m[2] / 2.0), quat_xyzw=quat_xyzw)
 
 
 def _descent_opening(brick: BrickView) -> float:

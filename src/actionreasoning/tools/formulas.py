@@ -15,7 +15,7 @@ import math
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from actionreasoning.world.geometry import QuatXYZW, Vec3, quat_yaw, top_down_quat, wrap_angle
+from actionreasoning.world.geometry import QuatXYZW, Vec3, quat_yaw, wrap_angle
 from actionreasoning.world.models import Pose
 
 #: The approach pose is this far straight above the grasp pose (m).
@@ -43,11 +43,12 @@ def grasp_yaws_deg(brick_quat: QuatXYZW) -> tuple[float, float]:
     )
 
 
-def grasp_pose(brick: Pose, size_m: Vec3, yaw_deg: float) -> Pose:
-    """The tool pointing down at yaw ``yaw_deg`` at a brick's centre: x, y its centre's, z
-    half its height (a brick lies on the ground when it is picked)."""
+def grasp_pose(brick: Pose, size_m: Vec3, quat_xyzw: QuatXYZW) -> Pose:
+    """The tool at orientation ``quat_xyzw`` (pointing down at a grasp yaw) at a brick's
+    centre: x, y its centre's, z half its height (a brick lies on the ground when it is
+    picked, whatever a noisy measurement of its height says)."""
     x, y, _ = brick.position_m
-    return Pose(position_m=(x, y, size_m[2] / 2.0), quat_xyzw=top_down_quat(math.radians(yaw_deg)))
+    return Pose(position_m=(x, y, size_m[2] / 2.0), quat_xyzw=quat_xyzw)
 
 
 def approach_pose(grasp: Pose) -> Pose:

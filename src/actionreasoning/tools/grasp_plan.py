@@ -11,8 +11,8 @@ from __future__ import annotations
 import math
 
 from pydantic import Field
-from scipy.spatial.transform import Rotation
 
+from actionreasoning.tools import formulas
 from actionreasoning.tools.base import ToolContext, ToolModel, tool
 from actionreasoning.tools.collision import CollisionQuery, collision_check
 from actionreasoning.tools.geometry import GraspQuery, brick_state, grasp_candidates, target_of
@@ -64,18 +64,13 @@ def grasp_options(context: ToolContext, query: GraspOptionsQuery) -> GraspOption
     options = []
     for candidate in candidates:
         approach = candidate.approach_pose
-        gx, gy, _ = candidate.grasp_pose.position_m
-        grasp = Pose(position_m=(gx, gy, brick.size_m[2] / 2.0), quat_xyzw=approach.quat_xyzw)
+        grasp = formulas.grasp_pose(brick.pose, brick.size_m, approach.quat_xyzw)
         # The brick as it lies, held by this grasp, set on the target: the tool turns as the
-        # brick must (a brick lying upside down would need the tool pointing up).
-        in_hand = Rotation.from_quat(approach.quat_xyzw).inv() * Rotation.from_quat(
-            brick.pose.quat_xyzw
-        )
-        place_rot = Rotation.from_quat(goal.pose.quat_xyzw) * in_hand.inv()
-        place = Pose(
-            position_m=(x, y, z + PLACE_CHECK_ABOVE_M),
-            quat_xyzw=tuple(float(q) for q in place_rot.as_quat()),  # type: ignore[arg-type]
-        )
+        # brick must (a brick lying upside down would need the tool pointing up). The slot
+        # pose's orientation; the place pose checked is PLACE_CHECK_ABOVE_M over the target.
+        _, held = formulas.in_hand(approach, brick.pose)
+        turn = formulas.slot_pose(goal.pose, (0.0, 0.0, 0.0), held).quat_xyzw
+        place = Pose(position_m=(x, y, z + PLACE_CHECK_ABOVE_M), quat_xyzw=turn)
         solutions = [
             context.arm.solve(pose.position_m, pose.quat_xyzw)
             for pose in (approach, candidate.grasp_pose, place)
