@@ -704,6 +704,24 @@ def test_a_brick_rolled_in_the_hand_is_set_down_level_by_tilting_the_tool(world)
     assert tilt_deg(set_down.waypoint.quat_xyzw) == pytest.approx(30.0)  # the tool tilted by it
 
 
+def test_the_check_tiers_grasp_checks_leave_the_brick_out_as_sigma1_does(
+    world, one_brick
+) -> None:
+    """Agent 1's checks in the check tier measure what grasp_options and sigma_1 measure:
+    the brick to be grasped is no obstacle to the approach or to the way down."""
+    result = build(world, Scripted(), tier=ToolTier.CHECK)
+    assert_built(world, result)
+    pick = calls(result, "pre_grasp")[0]
+    approach, descent, place = pick.tool_calls
+    assert (approach.name, descent.name, place.name) == (
+        "collision_check",
+        "collision_check",
+        "reachability",
+    )
+    brick = pick.answer["brick_id"]
+    assert approach.arguments["ignore_brick_id"] == descent.arguments["ignore_brick_id"] == brick
+
+
 @pytest.mark.parametrize("tier", [ToolTier.CHECK, ToolTier.NONE])
 def test_without_placement_pose_the_plans_refusal_of_the_way_asks_for_the_regrasp(
     world, one_brick, tier: ToolTier

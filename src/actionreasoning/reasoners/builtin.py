@@ -204,7 +204,10 @@ def _usable_checked(briefing: Briefing, target: TargetView, grasp: _Grasp) -> bo
         (
             COLLISION,
             CollisionQuery(
-                pose=approach, path="joint", gripper_opening_m=briefing.view.robot.gripper_width_m
+                pose=approach,
+                path="joint",
+                gripper_opening_m=briefing.view.robot.gripper_width_m,
+                ignore_brick_id=brick.id,
             ),
         ),
         (
