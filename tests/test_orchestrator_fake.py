@@ -704,9 +704,7 @@ def test_a_brick_rolled_in_the_hand_is_set_down_level_by_tilting_the_tool(world)
     assert tilt_deg(set_down.waypoint.quat_xyzw) == pytest.approx(30.0)  # the tool tilted by it
 
 
-def test_the_check_tiers_grasp_checks_leave_the_brick_out_as_sigma1_does(
-    world, one_brick
-) -> None:
+def test_the_check_tiers_grasp_checks_leave_the_brick_out_as_sigma1_does(world, one_brick) -> None:
     """Agent 1's checks in the check tier measure what grasp_options and sigma_1 measure:
     the brick to be grasped is no obstacle to the approach or to the way down."""
     result = build(world, Scripted(), tier=ToolTier.CHECK)
