@@ -61,7 +61,7 @@ def wrist_deg(position_m: Vec3, yaw_deg: float) -> float:
     """The wrist joint's angle (deg) with the tool pointing down at yaw ``yaw_deg`` at
     ``position_m``: the heading of the position from the base, minus the yaw, plus a half
     turn, wrapped to [-180, 180). Within 5 deg of the arm's inverse kinematics over the
-    workspace (``tests/test_formulas.py`` checks it against the inverse kinematics)."""
+    workspace (``bench/wrist_estimate.py``; ``tests/test_formulas.py`` checks the bound)."""
     heading = math.atan2(position_m[1], position_m[0])
     return math.degrees(wrap_angle(heading - math.radians(yaw_deg) + math.pi))
 
