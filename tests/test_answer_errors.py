@@ -640,5 +640,5 @@ def test_eval_with_answer_errors_is_the_same_run_to_run_and_resumed(tmp_path: Pa
     shown = cli("report", str(tmp_path / "a"), "--out", str(tmp_path / "report"))
     assert shown.returncode == 0, shown.stderr
     table = (tmp_path / "report" / "table.md").read_text()
-    assert "| agents (builtin), paper, answer errors 0.2 | two | 0.2 |" in table
+    assert "| agents (builtin, tools check), paper, answer errors 0.2 | two | 0.2 |" in table
     assert 'id="answer-errors"' in (tmp_path / "report" / "report.html").read_text()

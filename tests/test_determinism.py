@@ -99,7 +99,12 @@ def check_transcript(path: Path, method: Method) -> None:
         *("offset_m", "rotation_deg"),  # the success rule's own bounds
     }
     assert all(math.isfinite(c.value) for c in sigma5.checks)
-    assert calls[0].tool_calls and calls[0].tool_calls[0].name == "grasp_options"
+    # Agent 1's checks of its grasp in the default (check) tier, in one turn.
+    assert [t.name for t in calls[0].tool_calls] == [
+        "collision_check",
+        "collision_check",
+        "reachability",
+    ]
 
 
 CYCLE = ["pre_grasp", "descent", "grasp", "lift", "transfer", "placement", "release", "retreat"]

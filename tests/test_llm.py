@@ -15,6 +15,7 @@ from conftest import cli as in_process
 from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.reasoner import AgentRequest
 from actionreasoning.agents.spec import agent_specs
+from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.agents.view import StateView
 from actionreasoning.control.waypoint import WaypointController
@@ -167,7 +168,7 @@ def test_a_tool_call_goes_to_the_world_and_its_result_back_to_the_model(
 ) -> None:
     goal = load_pattern("pyramid", SceneSpec())
     spec = TrialSpec(method=Method.AGENTS, pattern_name="pyramid", goal=goal, run_seed=0, trial=0)
-    pre_grasp = agent_specs()[0]
+    pre_grasp = agent_specs(ToolTier.SOLVE)[0]  # TOOL_PROMPT asks for grasp_options
     chat = OpenAIChat(MODEL, ServerOptions(base_url=llama_server, timeout_s=SLOW_S))
     mode = chat.negotiate()
     recording = tmp_path / "exchanges.jsonl"

@@ -16,6 +16,7 @@ from conftest import SMALL_PATTERN, cli
 
 from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
+from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.eval.rules import Method
@@ -84,9 +85,9 @@ def _numbers(answer) -> list:
     return leaves
 
 
-@pytest.fixture(scope="module")
-def wall_run(tmp_path_factory: pytest.TempPathFactory) -> Both:
-    """The small three-brick wall built by the reference model, the built-in asked alongside."""
+def build_wall(tmp_path_factory: pytest.TempPathFactory, tier: ToolTier) -> Both:
+    """The small three-brick wall built by the reference model in ``tier``, the built-in
+    asked alongside."""
     pattern = tmp_path_factory.mktemp("pattern") / "small.json"
     pattern.write_text(json.dumps(SMALL_PATTERN))
     goal = load_pattern(str(pattern), SceneSpec())
@@ -94,26 +95,53 @@ def wall_run(tmp_path_factory: pytest.TempPathFactory) -> Both:
     both = Both()
     with trial_world(spec) as made:
         world = SimWorld(WaypointController(made.scene, made.arm), goal, made.sensor)
-        result = Orchestrator(world, both).build(goal)
+        result = Orchestrator(world, both, tier=tier).build(goal)
     assert result.failure is None and sorted(result.placements) == [0, 1, 2]
     return both
 
 
+@pytest.fixture(scope="module")
+def wall_run(tmp_path_factory: pytest.TempPathFactory) -> Both:
+    """The wall in the solve tier, whose tools return what these tests cut."""
+    return build_wall(tmp_path_factory, ToolTier.SOLVE)
+
+
+#: The tool calls of one brick in each tier: the solve tier's tools answer Ag1 and Ag5;
+#: in the check tier Ag1 checks its grasp (Ag5 composes the slot, the gate checks its way);
+#: without tools, none.
+TOOL_CALLS = {
+    ToolTier.SOLVE: ["grasp_options", "placement_pose", "placement_pose"],
+    ToolTier.CHECK: ["collision_check", "collision_check", "reachability"],
+    ToolTier.NONE: [],
+}
+
+
 @pytest.mark.slow
-def test_read_from_the_text_the_answers_are_the_built_in_reasoners(wall_run: Both) -> None:
-    agents = [agent for agent, _, _ in wall_run.pairs]
+@pytest.mark.parametrize("tier", list(ToolTier))
+def test_read_from_the_text_the_answers_are_the_built_in_reasoners(
+    tmp_path_factory: pytest.TempPathFactory, wall_run: Both, tier: ToolTier
+) -> None:
+    run = wall_run if tier is ToolTier.SOLVE else build_wall(tmp_path_factory, tier)
+    agents = [agent for agent, _, _ in run.pairs]
     cycle = ["pre_grasp", "descent", "grasp", "lift", "placement", "placement", "release"]
     assert agents == cycle * 3
-    for agent, builtin, read in wall_run.pairs:
+    for agent, builtin, read in run.pairs:
         # The prompt rounds to 0.01 mm and 1e-5: the same decisions to within that.
         assert read == pytest.approx(builtin, abs=1e-3), agent
+    asked = [
+        call["name"]
+        for conversation in run.model.conversations
+        if len(conversation) > 1
+        for call in json.loads(conversation[1]["content"])["tool_calls"]
+    ]
+    assert asked == TOOL_CALLS[tier] * 3
 
 
 @pytest.mark.slow
 def test_it_calls_tools_as_a_language_model_does(wall_run: Both) -> None:
     tool_turns = [c for c in wall_run.model.conversations if len(c) > 1]
     asked = [json.loads(c[1]["content"])["tool_calls"][0]["name"] for c in tool_turns]
-    assert asked == ["grasp_options", "placement_pose", "placement_pose"] * 3
+    assert asked == TOOL_CALLS[ToolTier.SOLVE] * 3
     assert all(c[2]["content"].startswith("Tool results: [") for c in tool_turns)
 
 
@@ -173,13 +201,16 @@ def server() -> Iterator[str]:
 
 
 @pytest.mark.slow
-def test_over_http_it_builds_a_brick_with_tool_calls_and_usage(server: str, tmp_path: Path) -> None:
+@pytest.mark.parametrize("tier", list(ToolTier))
+def test_over_http_it_builds_a_brick_with_tool_calls_and_usage(
+    server: str, tmp_path: Path, tier: ToolTier
+) -> None:
     pattern = tmp_path / "one.json"
     pattern.write_text(json.dumps(ONE_BRICK))
     out = tmp_path / "run"
     result = cli(
         "eval", "--pattern", str(pattern), "--trials", "1", "--seed", "0", "--out", str(out),
-        "--llm", "openai:reference", "--base-url", server, "--transcripts",
+        "--llm", "openai:reference", "--base-url", server, "--transcripts", "--tools", tier,
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
     line = json.loads((out / "results.jsonl").read_text())
@@ -190,10 +221,7 @@ def test_over_http_it_builds_a_brick_with_tool_calls_and_usage(server: str, tmp_
         AgentCall.model_validate_json(text)
         for text in (out / "transcripts" / "trial_000.jsonl").read_text().splitlines()
     ]
-    assert [c.tool_turns for c in calls] == [1, 0, 0, 0, 1, 1, 0]
-    assert [t.name for c in calls for t in c.tool_calls] == [
-        "grasp_options",
-        "placement_pose",
-        "placement_pose",
-    ]
+    turns = {ToolTier.SOLVE: [1, 0, 0, 0, 1, 1, 0], ToolTier.CHECK: [1, 0, 0, 0, 0, 0, 0]}
+    assert [c.tool_turns for c in calls] == turns.get(tier, [0] * 7)
+    assert [t.name for c in calls for t in c.tool_calls] == TOOL_CALLS[tier]
     assert all(c.usage.prompt_tokens > 0 and not c.fallback for c in calls)

@@ -99,8 +99,8 @@ def test_runs_with_and_without_the_fallback_are_two_rows_in_either_order(tmp_pat
         no_fallback = agents(tmp_path / "r_nofb", server)
         fallback = agents(tmp_path / "r_fb", server, "--fallback", "builtin")
     expected = {
-        ("agents (openai:fault), paper [llm.fallback=false]", "one"): "0/1",
-        ("agents (openai:fault), paper [llm.fallback=true]", "one"): "1/1",
+        ("agents (openai:fault, tools check), paper [llm.fallback=false]", "one"): "0/1",
+        ("agents (openai:fault, tools check), paper [llm.fallback=true]", "one"): "1/1",
     }
     for order, out in (((no_fallback, fallback), "one"), ((fallback, no_fallback), "two")):
         rows, printed, markdown = report(*order, out=tmp_path / out)
