@@ -18,7 +18,7 @@ from conftest import built_state
 
 from actionreasoning.agents.memory import PlacedBrick, TaskMemory
 from actionreasoning.agents.outputs import SingleAgentAnswer
-from actionreasoning.agents.prompt import THRESHOLDS_HEADING, render_prompt
+from actionreasoning.agents.prompt import THRESHOLD_LINE, THRESHOLDS_HEADING, render_prompt
 from actionreasoning.agents.spec import AgentSpec, agent_specs, parse_agents, single_agent_spec
 from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.agents.view import StateView
@@ -65,9 +65,10 @@ def prose(spec: AgentSpec) -> str:
     return "\n".join([spec.role, spec.gate, *spec.thinking, *spec.feedback])
 
 
-def thresholds_named(prompt: str) -> list[str]:
-    line = prompt.split(THRESHOLDS_HEADING + "\n", 1)[1].split("\n", 1)[0]
-    return [pair.split("=", 1)[0] for pair in line.split(", ")]
+def thresholds_explained(prompt: str) -> dict[str, str]:
+    """Each threshold under the thresholds heading, with what the prompt says it bounds."""
+    section = prompt.split(THRESHOLDS_HEADING + "\n", 1)[1].split("\n\n", 1)[0]
+    return {name: text for name, _, text in THRESHOLD_LINE.findall(section)}
 
 
 @pytest.mark.parametrize(("tier", "number", "pattern"), CASES)
@@ -83,12 +84,11 @@ def test_every_threshold_a_prompt_names_is_explained_there(
 ) -> None:
     spec = specs(tier)[number]
     prompt = rendered(spec, pattern)
-    names = thresholds_named(prompt)
+    explained = thresholds_explained(prompt)
+    names = list(explained)
     assert names == list(spec.thresholds)
-    for name in names:
-        explained = re.search(rf"^- {name}: (.+)$", prompt, re.M)
-        assert explained, f"{name} is named but not explained"
-        assert explained.group(1) == Tolerances.model_fields[name].description
+    for name, text in explained.items():
+        assert text == Tolerances.model_fields[name].description, f"{name} is not explained"
     used = set(re.findall(r"\b([a-z]+(?:_[a-z]+)*_(?:m|deg|n|mps|factor))\b", prose(spec)))
     unexplained = {n for n in used & set(Tolerances.model_fields) if n not in names}
     assert not unexplained, f"the prose uses thresholds it does not list: {unexplained}"
@@ -198,11 +198,10 @@ def test_single_agent_is_given_the_transfer_height(tier: ToolTier) -> None:
 @pytest.mark.parametrize("tier", list(ToolTier))
 def test_single_agent_explains_every_threshold_without_a_gate(tier: ToolTier) -> None:
     """10 of its 13 thresholds were listed but never explained; it has no gate."""
-    prompt = rendered(SINGLE[tier], "pyramid")
-    for name in SINGLE[tier].thresholds:
-        line = re.search(rf"^- {name}: (.+)$", prompt, re.M)
-        assert line, name
-        assert "sigma" not in line.group(1)
+    explained = thresholds_explained(rendered(SINGLE[tier], "pyramid"))
+    assert list(explained) == list(SINGLE[tier].thresholds)
+    for text in explained.values():
+        assert text and "sigma" not in text
     assert "sigma_" not in prose(SINGLE[tier])
 
 

@@ -12,13 +12,14 @@ from conftest import built_state, cli
 from jinja2 import UndefinedError
 from jsonschema import Draft202012Validator
 
+from actionreasoning.agents.feedback import Refusal
 from actionreasoning.agents.memory import PlacedBrick, TaskMemory
-from actionreasoning.agents.prompt import _ENVIRONMENT, DIGITS, render_prompt
+from actionreasoning.agents.prompt import _ENVIRONMENT, DIGITS, THRESHOLD_LINE, render_prompt
 from actionreasoning.agents.spec import AgentSpec, agent_specs, single_agent_spec
 from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.agents.view import StateView
 from actionreasoning.tools.registry import TOOLS
-from actionreasoning.world.geometry import round_floats, top_down_quat, yaw_quat
+from actionreasoning.world.geometry import round_floats, top_down_quat
 from actionreasoning.world.stages import Stage
 from actionreasoning.world.tolerances import Tolerances
 
@@ -70,8 +71,8 @@ def test_every_agent_renders_its_parts_and_its_state_reads_back(spec: AgentSpec)
     unread = {"placed", "step"} if spec.number > 1 else {"step"} if spec.number else set()
     defaults = {name: TaskMemory.model_fields[name].default for name in unread}
     assert shown_memory == MEMORY.model_copy(update=defaults)
-    line = prompt.split("## Thresholds\n", 1)[1].split("\n", 1)[0]
-    assert [pair.split("=")[0] for pair in line.split(", ")] == list(spec.thresholds)
+    section = prompt.split("## Thresholds\n", 1)[1].split("\n\n", 1)[0]
+    assert [name for name, _, _ in THRESHOLD_LINE.findall(section)] == list(spec.thresholds)
 
 
 def test_tool_results_are_described_field_by_field() -> None:
@@ -82,16 +83,14 @@ def test_tool_results_are_described_field_by_field() -> None:
     assert '"$defs"' not in placement  # no raw JSON schema
 
 
-def test_the_worked_example_is_what_the_conventions_say() -> None:
+def test_the_tool_quaternion_the_conventions_give_is_the_codes() -> None:
     prompt = _prompt(agent_specs()[1])
-    assert "[cos(a/2), sin(a/2), 0, 0]" in prompt
-    example = prompt.split("Example: ", 1)[1]
-    brick = [float(v) for v in re.findall(r"quaternion \[(.*?)\]", example)[0].split(", ")]
-    tool = [float(v) for v in re.findall(r"\], \[(.*?)\]\.", example)[0].split(", ")]
-    yaw = math.radians(30.0)
-    assert brick == pytest.approx(yaw_quat(yaw), abs=1e-4)
-    assert tool == pytest.approx(top_down_quat(yaw), abs=1e-4)
-    assert [math.cos(yaw / 2), math.sin(yaw / 2), 0, 0] == pytest.approx(tool, abs=1e-4)
+    assert "Pointing down at yaw a, its quaternion is\n  [cos(a/2), sin(a/2), 0, 0]" in prompt
+    for degrees in (-150.0, 0.0, 30.0, 96.7):
+        yaw = math.radians(degrees)
+        assert top_down_quat(yaw) == pytest.approx(
+            [math.cos(yaw / 2), math.sin(yaw / 2), 0, 0], abs=1e-12
+        )
 
 
 def test_the_single_agent_is_told_nothing_checks_it() -> None:
@@ -126,6 +125,21 @@ def test_prompt_command_prints_what_an_agent_is_sent_in_trial_zero() -> None:
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("# Agent 6 of 6: Release and return")
     memory = re.findall(r"```json\n(.*?)\n```", result.stdout, flags=re.S)[1]
-    earlier = [answer.agent for answer in TaskMemory.model_validate_json(memory).this_brick]
-    assert earlier == ["pre_grasp", "descent", "grasp", "lift", "placement", "placement"]
+    done = TaskMemory.model_validate_json(memory).steps_done
+    assert done == ("pre_grasp", "descent", "grasp", "lift", "placement", "placement")
     assert '"ready_pose":{"position_m":[0.45,-0.25,0.4]' in result.stdout
+
+
+@pytest.mark.parametrize("tier", list(ToolTier))
+def test_the_steps_that_correct_by_refusals_come_with_the_first_refusal(tier: ToolTier) -> None:
+    spec = agent_specs(tier)[4]  # placement: two feedback steps
+    refused = MEMORY.model_copy(
+        update={"refusals": (Refusal(agent="placement", gate="sigma5_placement"),)}
+    )
+    view = StateView.of(STATE, MEMORY, spec.scope, spec.robot_extras)
+    before = render_prompt(spec, view, MEMORY, Tolerances())
+    after = render_prompt(spec, view, refused, Tolerances())
+    assert spec.feedback
+    for step in spec.feedback:
+        assert step not in before
+        assert step in after

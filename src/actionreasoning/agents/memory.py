@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 from enum import StrEnum
-from typing import Any, Literal
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.agents.feedback import Refusal
-from actionreasoning.world.geometry import round_floats
 from actionreasoning.world.stages import Stage
 
 
@@ -19,32 +18,6 @@ class PlacedBrick(BaseModel):
 
     brick_id: int
     target_index: int
-
-
-#: Earlier answers are history, shown to millimetres and thousandths.
-HISTORY_DIGITS = 3
-
-
-class EarlierAnswer(BaseModel):
-    """An accepted answer of an earlier agent for the current brick: its decision and why."""
-
-    model_config = ConfigDict(frozen=True, extra="forbid")
-
-    agent: str
-    decision: dict[str, Any]
-    rationale: str
-
-    @classmethod
-    def of(cls, agent: str, answer: BaseModel) -> EarlierAnswer:
-        """The record of ``agent``'s accepted ``answer`` (its tool calls left out)."""
-        decision = answer.model_dump(
-            mode="json", exclude={"tool_calls", "rationale"}, exclude_defaults=True
-        )
-        return cls(
-            agent=agent,
-            decision=round_floats(decision, HISTORY_DIGITS),
-            rationale=getattr(answer, "rationale", ""),
-        )
 
 
 class PlacementPhase(StrEnum):
@@ -75,6 +48,8 @@ class TaskMemory(BaseModel):
     regrasps: int = Field(
         0, description="Times the current target's brick was put down to be grasped again."
     )
-    this_brick: tuple[EarlierAnswer, ...] = Field(
-        (), description="The accepted answers of this brick's cycle so far, in order."
+    steps_done: tuple[Stage, ...] = Field(
+        (),
+        description="The steps of this brick's cycle whose answers were accepted, in order "
+        "(the paper's step completion flags; the state shows where they left the arm).",
     )

@@ -35,7 +35,7 @@ from actionreasoning.agents.calls import (
 )
 from actionreasoning.agents.feedback import Measured, Refusal
 from actionreasoning.agents.gates import Check, GateVerdict
-from actionreasoning.agents.memory import EarlierAnswer, PlacedBrick, PlacementPhase, TaskMemory
+from actionreasoning.agents.memory import PlacedBrick, PlacementPhase, TaskMemory
 from actionreasoning.agents.outputs import (
     AgentAnswer,
     DescentAnswer,
@@ -156,7 +156,7 @@ class Orchestrator:
     def _place_one(self, supports: Mapping[int, tuple[int, ...]]) -> None:
         for regrasps in range(self.budgets.regrasps + 1):
             self.memory = self.memory.model_copy(
-                update={"retries": {}, "regrasps": regrasps, "this_brick": (), "phase": None}
+                update={"retries": {}, "regrasps": regrasps, "steps_done": (), "phase": None}
             )
             self._check_bricks_left()
             brick, target = self._stage(
@@ -232,10 +232,8 @@ class Orchestrator:
                 self.calls.conclude(Outcome.REGRASP, regrasp.refusal.text())
                 raise
             self.calls.conclude(Outcome.ACCEPTED)
-            earlier = (*self.memory.this_brick, EarlierAnswer.of(key, answer))
-            self.memory = self.memory.model_copy(
-                update={"last_feedback": "", "this_brick": earlier}
-            )
+            done = (*self.memory.steps_done, key)
+            self.memory = self.memory.model_copy(update={"last_feedback": "", "steps_done": done})
             if self.on_stage is not None and self.memory.current_brick is not None:
                 self.on_stage(self.memory.current_brick, label or key)
             return outcome

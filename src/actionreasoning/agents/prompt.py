@@ -9,6 +9,7 @@ measure. Tools and the answer are described field by field (``schema_text.py``).
 from __future__ import annotations
 
 import json
+import re
 from functools import cache
 from importlib import resources
 from typing import Any
@@ -53,18 +54,16 @@ def conventions(frames: bool) -> str:
     return _text("conventions.md") + (_text("frames.md") if frames else "")
 
 
-def thresholds_line(tolerances: Tolerances, names: tuple[str, ...]) -> str:
-    """The gate thresholds ``names`` as one line of ``name=value`` pairs."""
-    values = tolerances.model_dump()
-    return ", ".join(f"{name}={values[name]:g}" for name in names)
+def thresholds_text(tolerances: Tolerances, names: tuple[str, ...]) -> str:
+    """The thresholds ``names``, a line each: ``- name = value: what it bounds`` (the role
+    and gate text say which gate compares it; the single agent, which nothing checks, reads
+    them as design values)."""
+    values, fields = tolerances.model_dump(), Tolerances.model_fields
+    return "\n".join(f"- {name} = {values[name]:g}: {fields[name].description}" for name in names)
 
 
-def thresholds_legend(names: tuple[str, ...]) -> str:
-    """What each of the thresholds ``names`` bounds, a line each (the role and gate text say
-    which gate compares it; the single agent, which nothing checks, reads them as design
-    values)."""
-    fields = Tolerances.model_fields
-    return "\n".join(f"- {name}: {fields[name].description}" for name in names)
+#: One line of :func:`thresholds_text`: name, value, description.
+THRESHOLD_LINE = re.compile(r"^- ([a-z_]+) = (\S+): (.+)$", re.M)
 
 
 def _unread(spec: AgentSpec) -> set[str]:
@@ -100,12 +99,12 @@ def render_prompt(
         memory_json=compact_json(
             memory.model_dump(mode="json", exclude_defaults=True, exclude=_unread(spec))
         ),
-        tolerances=thresholds_line(tolerances, spec.thresholds),
-        tolerances_legend=thresholds_legend(spec.thresholds),
+        thresholds=thresholds_text(tolerances, spec.thresholds),
         tier=spec.tier,
         tier_help=TIER_HELP[spec.tier],
         tools=tools,
         formulas=[formula_text(name) for name in spec.formulas],
-        thinking=(*spec.thinking, *spec.feedback),
+        # How to correct by refusals, once there is one to correct by.
+        thinking=(*spec.thinking, *(spec.feedback if memory.refusals else ())),
         answer_fields="\n".join(describe_fields(spec.output_model)),
     )

@@ -35,9 +35,10 @@ class AgentSpec:
 
     ``role`` is the task, ``gate`` what checks the answer and what follows a refusal,
     ``feedback`` the steps of the thinking chain that correct by earlier refusals (which
-    only a gated agent gets); ``scope`` which bricks it is shown, ``thresholds`` the gate
-    thresholds it reads and ``frames`` whether its prompt explains the brick and tool
-    frames, ``robot_extras`` the robot fields beyond the tool pose and opening it is shown.
+    only a gated agent gets, once its memory holds a refusal); ``scope`` which bricks it is
+    shown, ``thresholds`` the gate thresholds it reads and ``frames`` whether its prompt
+    explains the brick and tool frames, ``robot_extras`` the robot fields beyond the tool
+    pose and opening it is shown.
     ``tier`` is the reasoning tier, ``formulas`` the knowledge base's formulas it is given.
     """
 

@@ -35,9 +35,9 @@ BEFORE_TIERS: Final = ToolTier.SOLVE
 TIERS: Final = ", ".join(tier.value for tier in ToolTier)
 #: One line per tier, for help texts and prompts.
 TIER_HELP: Final[dict[ToolTier, str]] = {
-    ToolTier.SOLVE: "tools also return the poses to answer with: grasp_options, placement_pose",
-    ToolTier.CHECK: "tools only check or estimate, and you compose each pose by the formulas",
-    ToolTier.NONE: "no tools: you compose each pose from the state by the formulas",
+    ToolTier.SOLVE: "grasp_options and placement_pose return the poses to answer with",
+    ToolTier.CHECK: "tools only check or estimate; you compose each pose by the formulas",
+    ToolTier.NONE: "no tools; you compose each pose from the state by the formulas",
 }
 
 

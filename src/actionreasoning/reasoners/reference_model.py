@@ -27,7 +27,12 @@ from pydantic import BaseModel, ValidationError
 
 from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.outputs import AgentAnswer, ToolCall
-from actionreasoning.agents.prompt import MEMORY_HEADING, STATE_HEADING, THRESHOLDS_HEADING
+from actionreasoning.agents.prompt import (
+    MEMORY_HEADING,
+    STATE_HEADING,
+    THRESHOLD_LINE,
+    THRESHOLDS_HEADING,
+)
 from actionreasoning.agents.reasoner import Briefing
 from actionreasoning.agents.spec import AgentSpec, agent_specs, single_agent_spec
 from actionreasoning.agents.tiers import ToolTier
@@ -140,11 +145,11 @@ def _block(prompt: str, heading: str, model: type[BaseModel]) -> Any:
 
 
 def _thresholds(prompt: str) -> Tolerances:
-    """The gate thresholds, from the ``name=value`` line under the thresholds heading."""
-    found = re.search(re.escape(THRESHOLDS_HEADING) + r"\n(.*)\n", prompt)
-    if found is None:
-        raise UnreadableConversation(f"the prompt has no {THRESHOLDS_HEADING!r} line")
-    pairs = dict(part.split("=", 1) for part in found.group(1).split(", ") if "=" in part)
+    """The gate thresholds, from the ``- name = value: ...`` lines under their heading."""
+    section = prompt.partition(THRESHOLDS_HEADING + "\n")[2].partition("\n\n")[0]
+    pairs = {name: value for name, value, _ in THRESHOLD_LINE.findall(section)}
+    if not pairs:
+        raise UnreadableConversation(f"the prompt has no {THRESHOLDS_HEADING!r} lines")
     try:
         shown = {name: float(value) for name, value in pairs.items()}
         Tolerances.model_validate(shown)  # each shown value within its bounds

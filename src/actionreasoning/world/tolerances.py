@@ -286,22 +286,22 @@ class Tolerances(BaseModel):
     c_min_m: float = Field(
         _DEFAULTS["c_min_m"],
         gt=0,
-        description="least clearance (m) of arm, gripper and held brick along a path.",
+        description="least clearance of arm, gripper and held brick along a path.",
     )
     delta_m: float = Field(
         _DEFAULTS["delta_m"],
         gt=0,
-        description="least opening (m) beyond the brick's width for the descent.",
+        description="least opening beyond the brick's width for the descent.",
     )
     sidewall_contact_n: float = Field(
         _DEFAULTS["sidewall_contact_n"],
         gt=0,
-        description="a pad force (N) above this on the way down touches a side wall.",
+        description="a pad force above this on the way down touches a side wall.",
     )
     grip_load_factor: float = Field(
         _DEFAULTS["grip_load_factor"],
         ge=0.0,
-        description="each pad presses with at least this many times the force (N) whose "
+        description="each pad presses with at least this many times the force whose "
         "friction carries the brick's weight.",
     )
     friction_factor: float = Field(
@@ -313,22 +313,22 @@ class Tolerances(BaseModel):
     eps_g_m: float = Field(
         _DEFAULTS["eps_g_m"],
         gt=0,
-        description="largest distance (m) of the tool from the brick's centre (or from over it).",
+        description="largest distance of the tool from the brick's centre (or from over it).",
     )
     eps_g_deg: float = Field(
         _DEFAULTS["eps_g_deg"],
         gt=0,
-        description="largest yaw (deg) between the pads' closing axis and the brick's width.",
+        description="largest yaw between the pads' closing axis and the brick's width.",
     )
     v_th_mps: float = Field(
         _DEFAULTS["v_th_mps"],
         gt=0,
-        description="largest speed (m/s) of the brick in the gripper.",
+        description="largest speed of the brick in the gripper.",
     )
     v_lift_mps: float = Field(
         _DEFAULTS["v_lift_mps"],
         gt=0,
-        description="largest mean speed (m/s) of a lift.",
+        description="largest mean speed of a lift.",
     )
     force_noise: float = Field(
         0.0, ge=0.0, description="relative noise (std) of a pad force reading."
@@ -336,39 +336,39 @@ class Tolerances(BaseModel):
     eps_perp_m: float = Field(
         _DEFAULTS["eps_perp_m"],
         gt=0,
-        description="largest height (m) of a set brick's bottom above its seat.",
+        description="largest height of a set brick's bottom above its seat.",
     )
     eps_xy_m: float = Field(
         _DEFAULTS["eps_xy_m"],
         gt=0,
-        description="largest planar offset (m) of a set brick from its target.",
+        description="largest planar offset of a set brick from its target.",
     )
     eps_theta_deg: float = Field(
-        _DEFAULTS["eps_theta_deg"], gt=0, description="largest yaw error (deg) of a set brick."
+        _DEFAULTS["eps_theta_deg"], gt=0, description="largest yaw error of a set brick."
     )
     eps_tilt_deg: float = Field(
-        _DEFAULTS["eps_tilt_deg"], gt=0, description="largest tilt (deg) of a set brick."
+        _DEFAULTS["eps_tilt_deg"], gt=0, description="largest tilt of a set brick."
     )
     max_offset_m: float = Field(
         _DEFAULTS["max_offset_m"],
         gt=0,
-        description="success rule: largest distance (m) of a brick's centre from its target's.",
+        description="success rule: largest distance of a brick's centre from its target's.",
     )
     max_rotation_deg: float = Field(
         _DEFAULTS["max_rotation_deg"],
         gt=0,
-        description="success rule: largest rotation (deg) of a brick from its target.",
+        description="success rule: largest rotation of a brick from its target.",
     )
     delta_h_m: float = Field(
         _DEFAULTS["delta_h_m"],
         gt=0,
-        description="how far (m) the tool is raised after a missed set-down.",
+        description="how far the tool is raised after a missed set-down.",
     )
     overlap_m: float = Field(
         _DEFAULTS["overlap_m"],
         ge=0,
-        description="largest overlap (m) of two measured bodies still counted as clear (what "
-        "sensing noise can show).",
+        description="largest overlap of two measured bodies still counted as clear "
+        "(sensing noise).",
     )
 
     @classmethod
