@@ -33,8 +33,8 @@ __all__ = [
     "PlacementMetrics",
     "Refusals",
     "TrialResult",
-    "count_refusals",
     "refusals_of",
+    "sum_refusals",
 ]
 
 K = TypeVar("K")
@@ -122,7 +122,17 @@ class AnswerErrorCounts(_Record):
         )
 
 
-def count_refusals(counts: Iterable[tuple[str, ErrorCategory, int]]) -> Refusals:
+def sum_refusals(many: Iterable[Refusals]) -> Refusals:
+    """Refusals summed (see :func:`_count` for the order)."""
+    return _count(
+        (agent, category, n)
+        for refusals in many
+        for agent, categories in refusals.items()
+        for category, n in categories.items()
+    )
+
+
+def _count(counts: Iterable[tuple[str, ErrorCategory, int]]) -> Refusals:
     """(agent, category, count) triples summed: the agents in stage order (others, as the
     single agent, after them by name), each agent's categories in their order, no zeros."""
     pairs = Counter[tuple[str, ErrorCategory]]()
@@ -134,7 +144,7 @@ def count_refusals(counts: Iterable[tuple[str, ErrorCategory, int]]) -> Refusals
 def refusals_of(transcript: Sequence[AgentCall]) -> Refusals:
     """Every refused or failed answer of a trial's transcript (repairs included), by agent
     and category."""
-    return count_refusals(
+    return _count(
         (call.agent, category, 1) for call in transcript for category in call.refused_categories
     )
 
