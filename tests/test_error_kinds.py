@@ -7,6 +7,7 @@ from __future__ import annotations
 import ast
 import inspect
 import json
+from dataclasses import replace
 from pathlib import Path
 from types import ModuleType
 
@@ -17,6 +18,7 @@ from conftest import SMALL_PATTERN
 from fake_world import FakeWorld
 from test_hostile_outputs import HostileChat
 from test_run_dir import manifest, result
+from test_trial_config import run_config
 from test_validation import AGENTS, DOWN, STATE, waypoint
 
 from actionreasoning.agents import gates, orchestrator, put_down, single_agent
@@ -29,13 +31,12 @@ from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.report.build import build_report
 from actionreasoning.eval.results import AnswerErrorCounts, TrialResult, refusals_of
 from actionreasoning.eval.rules import Method
-from actionreasoning.eval.run import RunConfig, run_eval
+from actionreasoning.eval.run import run_eval
 from actionreasoning.eval.summary import summarize, summary_markdown
 from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.reasoners.llm import LLMLimits, LLMReasoner
 from actionreasoning.world.layout import sample_pick_poses
-from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PRECISE
 from actionreasoning.world.scene_spec import SceneSpec
 
@@ -209,18 +210,8 @@ def answer_error_run(out: Path, kind: CorruptionKind, bricks: int = 1) -> Path:
     pattern = out.parent / "pattern.json"
     pattern.write_text(json.dumps({**SMALL_PATTERN, "bricks": SMALL_PATTERN["bricks"][:bricks]}))
     errors = AnswerErrors(rate=1.0, kinds=(kind,))
-    run_eval(
-        RunConfig(
-            method=Method.AGENTS,
-            pattern_name=str(pattern),
-            goal=load_pattern(pattern, SceneSpec()),
-            trials=1,
-            seed=3,
-            out=out,
-            config=TrialConfig(answer_errors=errors),
-            transcripts=True,
-        )
-    )
+    config = run_config(pattern, out, TrialConfig(answer_errors=errors))
+    run_eval(replace(config, method=Method.AGENTS, transcripts=True))
     return out
 
 

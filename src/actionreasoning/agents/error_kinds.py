@@ -11,21 +11,14 @@ that a corrupted answer's kind and the category of its refusal can be compared.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from enum import StrEnum
 from types import MappingProxyType
 from typing import Final
 
+from actionreasoning.records import Described
 
-class ErrorCategory(StrEnum):
+
+class ErrorCategory(Described):
     """A kind of refused or failed answer: a stable name (its value) and what it covers."""
-
-    meaning: str
-
-    def __new__(cls, category: str, meaning: str) -> ErrorCategory:
-        member = str.__new__(cls, category)
-        member._value_ = category
-        member.meaning = meaning
-        return member
 
     SCHEMA = (
         "schema",

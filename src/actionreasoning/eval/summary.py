@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -23,6 +23,8 @@ from actionreasoning.records import FailureCode
 from actionreasoning.world.noise import NoiseLevel
 from actionreasoning.world.physics import PhysicsProfile
 from actionreasoning.world.success import SuccessRule
+
+K = TypeVar("K", bound=str)
 
 METRICS = ("rotation_error_deg", "center_offset_cm", "iou", "symmetric_rotation_error_deg")
 
@@ -245,8 +247,8 @@ def _answer_error_lines(totals: AnswerErrorTotals) -> list[str]:
 
 def category_table(
     first: str,
-    counts: Mapping[str, Mapping[ErrorCategory, int]],
-    extra: Mapping[str, Mapping[str, str]] | None = None,
+    counts: Mapping[K, Mapping[ErrorCategory, int]],
+    extra: Mapping[str, Mapping[K, str]] | None = None,
 ) -> list[str]:
     """A markdown table of ``counts``: a row per key (titled ``first``), a column per
     category that occurs and the total; ``extra`` columns (title -> key -> cell) after the

@@ -13,6 +13,7 @@ import shutil
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from jinja2 import Environment, PackageLoader, select_autoescape
 
@@ -36,7 +37,7 @@ from actionreasoning.eval.report.tables import (
     to_latex,
     to_markdown,
 )
-from actionreasoning.eval.results import TrialResult
+from actionreasoning.eval.results import Refusals, TrialResult
 from actionreasoning.eval.summary import categories_in
 
 HTML_FILE = "report.html"
@@ -172,22 +173,7 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
         ],
         failures=table.failures,
         answer_errors=table.answer_errors,
-        refusals=[
-            {
-                "label": row.label,
-                "pattern": row.pattern,
-                "categories": (shown := categories_in(row.counts)),
-                "agents": [
-                    {
-                        "agent": agent,
-                        "cells": [counts.get(c, 0) for c in shown],
-                        "total": sum(counts.values()),
-                    }
-                    for agent, counts in row.counts.items()
-                ],
-            }
-            for row in table.refusals
-        ],
+        refusals=[_refusal_table(row, p, counts) for (row, p), counts in table.refusals.items()],
         notes=table.notes,
         plots=[{"data": _data_uri(p), "caption": c} for p, c in report.plots],
         grids=[{"data": _data_uri(p), "caption": c} for p, c in report.grids],
@@ -200,3 +186,14 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
     path = report.directory / HTML_FILE
     path.write_text(page, encoding="utf-8")
     return path
+
+
+def _refusal_table(label: str, pattern: str, refusals: Refusals) -> dict[str, Any]:
+    """One group's refused answers as the page shows them: a row per agent, a column per
+    category that occurs, and the total."""
+    shown = categories_in(refusals)
+    rows = [
+        {"agent": agent, "cells": [counts.get(c, 0) for c in shown], "total": sum(counts.values())}
+        for agent, counts in refusals.items()
+    ]
+    return {"label": label, "pattern": pattern, "categories": shown, "agents": rows}

@@ -71,16 +71,6 @@ class AnswerErrorRow:
 
 
 @dataclass(frozen=True)
-class RefusalRow:
-    """The refused and failed answers of one method's runs on one pattern, by agent and
-    error category, summed over their trials."""
-
-    label: str
-    pattern: str
-    counts: Refusals
-
-
-@dataclass(frozen=True)
 class Table:
     """Cell values (None where a method has no successful trial on a pattern)."""
 
@@ -92,7 +82,7 @@ class Table:
     failures: list[FailureRow]
     notes: list[str]  # how the runs' conditions differ (collect.condition_notes)
     answer_errors: list[AnswerErrorRow]  # the groups run with answer errors
-    refusals: list[RefusalRow]  # the groups with refused answers
+    refusals: dict[tuple[str, str], Refusals]  # (row, pattern) -> refused answers, where any
 
     def best(self, pattern: str, metric: str) -> float | None:
         """The best value of a column, for bold type."""
@@ -152,9 +142,7 @@ def comparison_table(groups: Sequence[Group]) -> Table:
             for g in groups
             if g.summary.answer_errors is not None
         ],
-        refusals=[
-            RefusalRow(g.label, g.pattern, g.summary.refusals) for g in groups if g.summary.refusals
-        ],
+        refusals={(g.label, g.pattern): g.summary.refusals for g in groups if g.summary.refusals},
     )
 
 
@@ -227,13 +215,12 @@ def to_markdown(table: Table) -> str:
                 for a in table.answer_errors
             ),
         ]
-    for row in table.refusals:
+    for (row, pattern), counts in table.refusals.items():
         lines += [
             "",
-            f"Refused and failed answers of {row.label} on {row.pattern}, by agent and error "
-            "category:",
+            f"Refused and failed answers of {row} on {pattern}, by agent and error category:",
             "",
-            *category_table("Agent", row.counts),
+            *category_table("Agent", counts),
         ]
     if table.refusals:
         lines += ["", f"![Refused answers by agent and error category]({REFUSALS_PLOT})"]
