@@ -16,6 +16,8 @@ import pytest
 from fake_world import FakeWorld
 
 from actionreasoning.agents.answer_errors import CorruptionKind
+from actionreasoning.agents.error_kinds import ErrorCategory as C
+from actionreasoning.agents.error_kinds import check_category
 from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.agents.transcript import AgentCall
@@ -135,6 +137,8 @@ def test_each_error_is_refused_by_its_check_before_the_arm_moves(
     call, reasoner, _, later = corrupted_build(kinematics, wall, agent, kind)
     assert call.outcome == "refused"
     assert call.caught_by == EXPECTED[agent, kind]
+    check = EXPECTED[agent, kind].split(":")[1]  # validation here: numbers off the workspace
+    assert call.category == (C.FRAME_UNITS if check == "valid_answer" else check_category(check))
     # Nothing moved between the corrupted answer and the next question.
     assert reasoner.moves_at_call[call.call] == reasoner.moves_at_call[call.call + 1]
     retry = later[0]

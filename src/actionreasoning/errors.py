@@ -4,7 +4,14 @@ Every error a user can cause (bad files, bad options, unreachable targets) is an
 :class:`ActionReasoningError`; the CLI prints its message on one line and exits non-zero.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 from actionreasoning.records import FailureCode, LLMUsage
+
+if TYPE_CHECKING:
+    from actionreasoning.agents.error_kinds import ErrorCategory
 
 
 class ActionReasoningError(Exception):
@@ -48,7 +55,8 @@ class StorageError(ActionReasoningError):
 
 class LLMError(ActionReasoningError):
     """A language model could not give a valid answer: the server failed or timed out, or
-    every repair of its output was refused. ``reason`` is the trial's failure code."""
+    every repair of its output was refused. ``reason`` is the trial's failure code;
+    ``repairs`` why its outputs were sent back, ``repair_categories`` their categories."""
 
     def __init__(
         self,
@@ -56,9 +64,11 @@ class LLMError(ActionReasoningError):
         detail: str,
         repairs: tuple[str, ...] = (),
         usage: LLMUsage | None = None,
+        repair_categories: tuple[ErrorCategory, ...] = (),
     ) -> None:
         super().__init__(f"{reason}: {detail}")
         self.reason = reason
         self.detail = detail
         self.repairs = repairs
         self.usage = usage or LLMUsage()
+        self.repair_categories = repair_categories

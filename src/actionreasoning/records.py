@@ -6,21 +6,26 @@ They are written into results.jsonl as they are (DESIGN section 7 fixes the fiel
 from __future__ import annotations
 
 from enum import StrEnum
+from typing import Self
 
 from pydantic import BaseModel, ConfigDict
 
 
-class FailureCode(StrEnum):
-    """Why a trial failed: a short stable code (its value) and what it means (``meaning``),
-    which summaries, reports and the README print."""
+class Described(StrEnum):
+    """A string enum whose members are a short stable code (the value) and what it means
+    (``meaning``), which summaries, reports and the README print."""
 
     meaning: str
 
-    def __new__(cls, code: str, meaning: str) -> FailureCode:
+    def __new__(cls, code: str, meaning: str) -> Self:
         member = str.__new__(cls, code)
         member._value_ = code
         member.meaning = meaning
         return member
+
+
+class FailureCode(Described):
+    """Why a trial failed."""
 
     INVALID_OUTPUT = "invalid_output", "the model gave no valid answer within its repairs"
     INVALID_CHOICE = "invalid_choice", "an answer named a brick or target that cannot be used now"

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from functools import partial
 from typing import Any, TypeVar
 
+from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.gates import GateVerdict
 from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.outputs import AgentAnswer
@@ -139,25 +140,32 @@ class AgentCaller:
         except LLMError as error:
             self.result.usage += error.usage
             call.tool_calls, call.usage, call.repairs = tool_calls, error.usage, list(error.repairs)
-            self.conclude(Outcome.FAILED, error.detail)
+            call.repair_categories = list(error.repair_categories)
+            self.conclude(Outcome.FAILED, error.detail, _failure_category(error))
             raise TrialStopped(error.reason, spec.key, error.detail) from None
         self.result.decisions += 1
         self.result.fallbacks += reply.fallback
         self.result.usage += reply.usage
         call.answer, call.tool_calls = reply.answer.model_dump(mode="json"), tool_calls
         call.usage, call.repairs = reply.usage, list(reply.repairs)
+        call.repair_categories = list(reply.repair_categories)
         call.tool_turns, call.fallback = reply.tool_turns, reply.fallback
         call.corruption = reply.corruption
         call.prompt_chars = reply.prompt_chars or call.prompt_chars
         self._tell(call)
         if not isinstance(reply.answer, expected):
-            raise TrialStopped(FailureCode.INVALID_OUTPUT, spec.key, "answer of the wrong schema")
+            detail = "answer of the wrong schema"
+            self.conclude(Outcome.FAILED, detail, ErrorCategory.SCHEMA)
+            raise TrialStopped(FailureCode.INVALID_OUTPUT, spec.key, detail)
         return reply.answer, state
 
-    def conclude(self, outcome: Outcome, feedback: str = "") -> None:
-        """Note in the transcript what became of the last answer."""
+    def conclude(
+        self, outcome: Outcome, feedback: str = "", category: ErrorCategory | None = None
+    ) -> None:
+        """Note in the transcript what became of the last answer (see
+        :meth:`AgentCall.conclude` for ``category``)."""
         call = self.result.transcript[-1]
-        call.outcome, call.feedback = outcome, feedback
+        call.conclude(outcome, feedback, category)
         self._tell(call)
 
     def judge(self, verdict: GateVerdict) -> GateVerdict:
@@ -173,6 +181,14 @@ class AgentCaller:
     def measure(self, state: WorldState, tool: Tool[In, Out], arguments: In) -> Out:
         """A tool run for verification and gates (not an agent's tool call)."""
         return tool(self.world.tools(state), arguments)
+
+
+def _failure_category(error: LLMError) -> ErrorCategory:
+    """A model that gave no valid answer within its repairs failed as its last repair did;
+    one whose server failed (or timed out, or whose session closed) gave no answer."""
+    if error.reason is FailureCode.INVALID_OUTPUT and error.repair_categories:
+        return error.repair_categories[-1]
+    return ErrorCategory.LLM_FAILURE
 
 
 def _run_tool(

@@ -33,6 +33,7 @@ from actionreasoning.agents.calls import (
     TrialStopped,
     failure_of,
 )
+from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.feedback import Measured, Refusal
 from actionreasoning.agents.gates import Check, GateVerdict
 from actionreasoning.agents.memory import PlacedBrick, PlacementPhase, TaskMemory
@@ -95,21 +96,31 @@ class Budgets:
 class _Refused(Exception):
     """An answer refused by validation, verification or a gate, with what was measured.
 
-    ``reason`` is the failure code the trial ends with if the agent's budget runs out.
+    ``reason`` is the failure code the trial ends with if the agent's budget runs out;
+    ``category`` the answer's error category where no recorded verdict tells it (None: the
+    transcript takes it from the failed gate).
     """
 
-    def __init__(self, refusal: Refusal, reason: FailureCode = FailureCode.INVALID_OUTPUT) -> None:
+    def __init__(
+        self,
+        refusal: Refusal,
+        reason: FailureCode = FailureCode.INVALID_OUTPUT,
+        category: ErrorCategory | None = None,
+    ) -> None:
         super().__init__(refusal.text())
         self.refusal = refusal
         self.reason = reason
+        self.category = category
 
 
 class _Regrasp(Exception):
-    """The brick was put down to be grasped again: start again at Ag1 with this refusal."""
+    """The brick was put down to be grasped again: start again at Ag1 with this refusal
+    (``category`` as for :class:`_Refused`)."""
 
-    def __init__(self, refusal: Refusal) -> None:
+    def __init__(self, refusal: Refusal, category: ErrorCategory | None = None) -> None:
         super().__init__(refusal.text())
         self.refusal = refusal
+        self.category = category
 
 
 class Orchestrator:
@@ -219,7 +230,7 @@ class Orchestrator:
                 outcome = act(answer, state)
             except _Refused as refusal:
                 reason = refusal.reason
-                self._remember(key, attempt, refusal.refusal)
+                self._remember(key, attempt, refusal.refusal, refusal.category)
                 continue
             except UnreachableError as error:
                 reason = FailureCode.UNREACHABLE
@@ -229,7 +240,7 @@ class Orchestrator:
                 self._remember(key, attempt, self.calls.judge(verdict).refusal(key))
                 continue
             except _Regrasp as regrasp:
-                self.calls.conclude(Outcome.REGRASP, regrasp.refusal.text())
+                self.calls.conclude(Outcome.REGRASP, regrasp.refusal.text(), regrasp.category)
                 raise
             self.calls.conclude(Outcome.ACCEPTED)
             done = (*self.memory.steps_done, key)
@@ -243,8 +254,10 @@ class Orchestrator:
             f"{self.budgets.attempts_per_agent} answers refused; last: {self.memory.last_feedback}",
         )
 
-    def _remember(self, key: Stage, attempt: int, refusal: Refusal) -> None:
-        self.calls.conclude(Outcome.REFUSED, refusal.text())
+    def _remember(
+        self, key: Stage, attempt: int, refusal: Refusal, category: ErrorCategory | None = None
+    ) -> None:
+        self.calls.conclude(Outcome.REFUSED, refusal.text(), category)
         self.memory = self.memory.model_copy(
             update={"retries": {**self.memory.retries, key: attempt}}
         )
@@ -265,7 +278,8 @@ class Orchestrator:
         try:
             check_answer(answer, self.specs[key], state, WORKSPACE, normalise=False)
         except OutputError as error:
-            self._gate(_failed(f"{key}_answer", "valid_answer", str(error)), key)
+            verdict = _failed(f"{key}_answer", "valid_answer", str(error))
+            self._gate(verdict, key, category=error.category)
 
     def _require(self, key: Stage, answer: AgentAnswer, fields: Sequence[str]) -> None:
         """Refuse an answer that leaves a decision field of its stage empty."""
@@ -275,12 +289,16 @@ class Orchestrator:
             self._gate(_failed(f"{key}_plan", "answer_complete", note), key)
 
     def _gate(
-        self, verdict: GateVerdict, key: Stage, reason: FailureCode = FailureCode.INVALID_OUTPUT
+        self,
+        verdict: GateVerdict,
+        key: Stage,
+        reason: FailureCode = FailureCode.INVALID_OUTPUT,
+        category: ErrorCategory | None = None,
     ) -> None:
-        """Record a verdict and refuse the answer of ``key`` (failure code ``reason``) if it
-        failed."""
+        """Record a verdict and refuse the answer of ``key`` (failure code ``reason``, error
+        ``category`` if the verdict does not tell it) if it failed."""
         if not self.calls.judge(verdict).passed:
-            raise _Refused(verdict.refusal(key), reason)
+            raise _Refused(verdict.refusal(key), reason, category)
 
     # --- the agents' acts ---------------------------------------------------------------
     def _pre_grasp(
@@ -591,7 +609,8 @@ class Orchestrator:
                     gate="placement_regrasp",
                     measured=Measured(tilt_deg=tilt),
                     note=f"placement asked for a re-grasp: {answer.rationale}",
-                )
+                ),
+                ErrorCategory.GRASP,
             )
         self._require(Stage.PLACEMENT, answer, ("waypoint",))
         assert answer.waypoint is not None
@@ -775,4 +794,5 @@ def _checked(key: Stage, waypoint: WaypointProposal, path: str | None = None) ->
     try:
         return unit_waypoint(waypoint, path)
     except ValueError as error:
-        raise _Refused(_failed(f"{key}_answer", "valid_answer", str(error)).refusal(key)) from None
+        refusal = _failed(f"{key}_answer", "valid_answer", str(error)).refusal(key)
+        raise _Refused(refusal, category=ErrorCategory.FRAME_UNITS) from None

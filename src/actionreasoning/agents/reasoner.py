@@ -9,6 +9,7 @@ from typing import Any, Protocol
 from pydantic import BaseModel
 
 from actionreasoning.agents.answer_errors import AnswerCorruption
+from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.outputs import AgentAnswer
 from actionreasoning.agents.spec import AgentKey, AgentSpec
@@ -92,15 +93,17 @@ class AgentReply:
     """A validated answer (an instance of the agent's output model) and what it cost.
 
     ``repairs`` are the errors that sent the model's earlier outputs back for repair,
-    ``tool_turns`` how many rounds of tool calls it made, and ``fallback`` whether the
-    built-in reasoner answered after the repair budget was spent. ``prompt_chars`` is how
-    many characters went to the model over all its turns (None: the prompt once).
+    ``repair_categories`` their categories (one each), ``tool_turns`` how many rounds of
+    tool calls it made, and ``fallback`` whether the built-in reasoner answered after the
+    repair budget was spent. ``prompt_chars`` is how many characters went to the model over
+    all its turns (None: the prompt once).
     ``corruption`` says what ``eval --answer-errors`` changed in the answer, if anything.
     """
 
     answer: AgentAnswer
     usage: LLMUsage = LLMUsage()
     repairs: tuple[str, ...] = ()
+    repair_categories: tuple[ErrorCategory, ...] = ()
     tool_turns: int = 0
     fallback: bool = False
     prompt_chars: int | None = None

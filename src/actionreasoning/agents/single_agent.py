@@ -5,7 +5,8 @@ the cycle with a gripper command. Its answers are validated as any model answer 
 (``agents/validation.py``: schema, workspace box, unit quaternion, known brick and target)
 and the controller's limits still hold (an unreachable pose is refused), but nothing is
 verified or gated: no collision check before a move, no force
-check after the grasp, no slip or alignment check, no retries with feedback.
+check after the grasp, no slip or alignment check, no retries with feedback. An answer
+refused by either ends the trial: its call fails with the error's category.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from actionreasoning.agents.calls import (
     TrialStopped,
     failure_of,
 )
+from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.memory import PlacedBrick, TaskMemory
 from actionreasoning.agents.outputs import SingleAgentAnswer
 from actionreasoning.agents.reasoner import Reasoner
@@ -29,6 +31,7 @@ from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
 from actionreasoning.agents.transcript import Outcome
 from actionreasoning.agents.validation import OutputError, check_answer
 from actionreasoning.agents.world import World
+from actionreasoning.errors import UnreachableError
 from actionreasoning.records import FailureCode
 from actionreasoning.world.models import GoalPattern, WorldState
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M, WORKSPACE
@@ -67,7 +70,11 @@ class SingleAgent:
         try:
             for call in range(budget):
                 answer, state = self.calls.ask(self.spec, self.memory, call + 1, SingleAgentAnswer)
-                self._execute(answer, state)
+                try:
+                    self._execute(answer, state)
+                except UnreachableError as error:
+                    self.calls.conclude(Outcome.FAILED, str(error), ErrorCategory.UNREACHABLE)
+                    raise
                 self.calls.conclude(Outcome.EXECUTED)
                 if answer.step == "done":
                     return self.result
@@ -84,15 +91,12 @@ class SingleAgent:
         try:
             answer = cast(SingleAgentAnswer, check_answer(answer, self.spec, state, WORKSPACE))
         except OutputError as error:
-            raise TrialStopped(FailureCode.INVALID_OUTPUT, self.spec.key, str(error)) from None
+            raise self._refused(str(error), error.category) from None
         update: dict[str, object] = {"step": answer.step}
         if answer.step == Stage.PRE_GRASP:
             if answer.brick_id is None or answer.target_index is None:
-                raise TrialStopped(
-                    FailureCode.INVALID_OUTPUT,
-                    self.spec.key,
-                    "pre_grasp names no brick_id or target_index",
-                )
+                detail = "pre_grasp names no brick_id or target_index"
+                raise self._refused(detail, ErrorCategory.SCHEMA)
             update |= {"current_brick": answer.brick_id, "current_target": answer.target_index}
         if answer.waypoint is not None:
             self.world.move(answer.waypoint)
@@ -110,3 +114,9 @@ class SingleAgent:
             self.memory = self.memory.model_copy(update={"placed": placed})
         if self.on_stage is not None:
             self.on_stage(brick, answer.step)
+
+    def _refused(self, detail: str, category: ErrorCategory) -> TrialStopped:
+        """The error that ends the trial on an invalid answer, whose call fails with
+        ``category``."""
+        self.calls.conclude(Outcome.FAILED, detail, category)
+        return TrialStopped(FailureCode.INVALID_OUTPUT, self.spec.key, detail)

@@ -2,7 +2,8 @@
 
 One :class:`AgentCall` per request to a reasoner: the agent, the brick, the attempt, the
 size of the rendered prompt, the answer, the tools it called, the gate verdicts with their
-measured values and thresholds, and what became of the answer. ``eval --transcripts``
+measured values and thresholds, what became of the answer and, if it was refused or failed,
+the category of its error (``error_kinds.py``). ``eval --transcripts``
 writes them as one JSON line per call. Recording never touches the simulator, so a trial
 is the same with and without transcripts.
 """
@@ -15,6 +16,7 @@ from typing import Any
 from pydantic import BaseModel, Field
 
 from actionreasoning.agents.answer_errors import AnswerCorruption
+from actionreasoning.agents.error_kinds import ErrorCategory, check_category
 from actionreasoning.agents.gates import GateVerdict
 from actionreasoning.records import LLMUsage
 
@@ -96,6 +98,14 @@ class AgentCall(BaseModel):
     repairs: list[str] = Field(
         default_factory=list, description="Why the model's earlier outputs were sent back."
     )
+    repair_categories: list[ErrorCategory] = Field(
+        default_factory=list, description="The category of each of ``repairs``."
+    )
+    category: ErrorCategory | None = Field(
+        None,
+        description="The category of the error that refused or failed the answer (None: it "
+        "was accepted, executed or not judged).",
+    )
     tool_turns: int = 0
     fallback: bool = Field(False, description="Answered by the built-in reasoner instead.")
     usage: LLMUsage = LLMUsage()
@@ -104,6 +114,40 @@ class AgentCall(BaseModel):
         description="What eval --answer-errors changed in the reasoner's answer (its original "
         "kept there); ``answer`` is the corrupted one, as judged.",
     )
+
+    def conclude(
+        self, outcome: Outcome, feedback: str = "", category: ErrorCategory | None = None
+    ) -> None:
+        """Note what became of the answer and, if it was refused or failed, its category:
+        ``category`` if given (an error no gate verdict records), else that of the first
+        failed check of its last failed gate verdict."""
+        self.outcome, self.feedback = outcome, feedback
+        if outcome in (Outcome.ACCEPTED, Outcome.EXECUTED, Outcome.PENDING):
+            self.category = None
+            return
+        stopped = self._stopped_by()
+        check = None if stopped is None else stopped[1]
+        self.category = category or (None if check is None else check_category(check))
+
+    @property
+    def refused_categories(self) -> list[ErrorCategory]:
+        """The category of every refused output of this call, once each: its repairs', then
+        its answer's (none of its own when it failed on its repairs: its category is then
+        the last repair's)."""
+        failed_on_repairs = (
+            self.outcome is Outcome.FAILED
+            and not self.answer
+            and self.category is not ErrorCategory.LLM_FAILURE
+        )
+        own = [] if self.category is None or failed_on_repairs else [self.category]
+        return [*self.repair_categories, *own]
+
+    def _stopped_by(self) -> tuple[str, str | None] | None:
+        """The last failed gate verdict and its first failed check (None: no gate failed)."""
+        failed = [gate for gate in self.gates if not gate.passed]
+        if not failed:
+            return None
+        return failed[-1].gate, next((c.name for c in failed[-1].checks if not c.passed), None)
 
     @property
     def caught_by(self) -> str:
@@ -115,11 +159,11 @@ class AgentCall(BaseModel):
             return "missed"
         if self.outcome in (Outcome.FAILED, Outcome.PENDING):
             return "trial_stopped"
-        failed = [gate for gate in self.gates if not gate.passed]
-        if not failed:
+        stopped = self._stopped_by()
+        if stopped is None:
             return str(self.outcome)
-        check = next((c.name for c in failed[-1].checks if not c.passed), None)
-        return failed[-1].gate if check is None else f"{failed[-1].gate}:{check}"
+        gate, check = stopped
+        return gate if check is None else f"{gate}:{check}"
 
     @property
     def brick_in_hand(self) -> int | None:

@@ -5,7 +5,8 @@ output schema, and checked against physical bounds: finite numbers, tool positio
 the workspace box, unit quaternions (normalised within a tolerance, else refused), brick
 ids and target indexes that exist, and tool calls to whitelisted tools of the agent's
 knowledge base with typed arguments. A failure is an :class:`OutputError` whose message is
-short enough to send back to the model for a repair.
+short enough to send back to the model for a repair, and whose ``category`` says what kind
+of error it is.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.outputs import AgentAnswer, WaypointProposal, unit_waypoint
 from actionreasoning.agents.spec import AgentSpec
 from actionreasoning.errors import ActionReasoningError
@@ -29,7 +31,12 @@ _FENCE = re.compile(r"^```(?:json)?\s*(.*?)\s*```$", re.S)
 
 
 class OutputError(ActionReasoningError):
-    """A model's answer that is not a valid answer; the message says what to repair."""
+    """A model's answer that is not a valid answer; the message says what to repair, the
+    ``category`` what kind of error it is."""
+
+    def __init__(self, message: str, category: ErrorCategory) -> None:
+        super().__init__(message)
+        self.category = category
 
 
 def parse_answer(
@@ -45,7 +52,7 @@ def parse_answer(
     try:
         answer = spec.output_model.model_validate(data)
     except ValidationError as error:
-        raise OutputError(_describe(error)) from None
+        raise OutputError(_describe(error), ErrorCategory.SCHEMA) from None
     return check_answer(answer, spec, state, workspace, normalise)
 
 
@@ -66,38 +73,53 @@ def check_answer(
         if not workspace.contains(waypoint.position_m):
             raise OutputError(
                 f"waypoint.position_m {_short(waypoint.position_m)} is outside the workspace "
-                f"box {_short(workspace.low_m)} .. {_short(workspace.high_m)} m"
+                f"box {_short(workspace.low_m)} .. {_short(workspace.high_m)} m",
+                ErrorCategory.FRAME_UNITS,
             )
         try:
             unit = unit_waypoint(waypoint)
         except ValueError as error:
-            raise OutputError(f"waypoint.quat_xyzw: {error} (give a unit quaternion)") from None
+            raise OutputError(
+                f"waypoint.quat_xyzw: {error} (give a unit quaternion)", ErrorCategory.FRAME_UNITS
+            ) from None
         if normalise:
             update["waypoint"] = unit
     brick = getattr(answer, "brick_id", None)
     if brick is not None and brick not in {b.id for b in state.bricks}:
-        raise OutputError(f"brick_id {brick} names no brick (ids 0..{len(state.bricks) - 1})")
+        raise OutputError(
+            f"brick_id {brick} names no brick (ids 0..{len(state.bricks) - 1})",
+            ErrorCategory.HALLUCINATED_ID,
+        )
     target = getattr(answer, "target_index", None)
     if target is not None and target >= len(state.goal.targets):
         count = len(state.goal.targets)
-        raise OutputError(f"target_index {target} names no target (0..{count - 1})")
+        raise OutputError(
+            f"target_index {target} names no target (0..{count - 1})",
+            ErrorCategory.HALLUCINATED_ID,
+        )
     for index, call in enumerate(answer.tool_calls):
         if call.name not in spec.tools:
             raise OutputError(
                 f"tool_calls[{index}].name {call.name[:40]!r} is not one of your tools: "
-                + ", ".join(spec.tools)
+                + ", ".join(spec.tools),
+                ErrorCategory.HALLUCINATED_ID,
             )
         try:
             TOOLS[call.name].input_model.model_validate(call.arguments)
         except ValidationError as error:
-            raise OutputError(f"tool_calls[{index}] ({call.name}): {_describe(error)}") from None
+            raise OutputError(
+                f"tool_calls[{index}] ({call.name}): {_describe(error)}", ErrorCategory.SCHEMA
+            ) from None
     return answer.model_copy(update=update) if update else answer
 
 
 def _json_object(text: str) -> dict[str, Any]:
     """The one JSON object in ``text`` (a Markdown code fence around it is allowed)."""
     if len(text) > MAX_ANSWER_CHARS:
-        raise OutputError(f"the answer is {len(text)} characters; answer with one short object")
+        raise OutputError(
+            f"the answer is {len(text)} characters; answer with one short object",
+            ErrorCategory.SCHEMA,
+        )
     stripped = text.strip()
     fenced = _FENCE.match(stripped)
     if fenced:
@@ -105,11 +127,15 @@ def _json_object(text: str) -> dict[str, Any]:
     try:
         data = json.loads(stripped)
     except json.JSONDecodeError as error:
-        raise OutputError(f"not valid JSON ({error.msg} at character {error.pos})") from None
+        raise OutputError(
+            f"not valid JSON ({error.msg} at character {error.pos})", ErrorCategory.SCHEMA
+        ) from None
     except RecursionError:
-        raise OutputError("the JSON is nested too deeply") from None
+        raise OutputError("the JSON is nested too deeply", ErrorCategory.SCHEMA) from None
     if not isinstance(data, dict):
-        raise OutputError(f"the answer must be a JSON object, not {type(data).__name__}")
+        raise OutputError(
+            f"the answer must be a JSON object, not {type(data).__name__}", ErrorCategory.SCHEMA
+        )
     return data
 
 

@@ -9,16 +9,18 @@ which name the code that wrote it.
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.agents.answer_errors import CorruptionKind
+from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.tiers import BEFORE_TIERS
 from actionreasoning.eval.provenance import Provenance
 from actionreasoning.records import Failure, LLMUsage
 from actionreasoning.world.geometry import QuatXYZW, Vec3
+from actionreasoning.world.stages import Stage
 
 if TYPE_CHECKING:
     from actionreasoning.agents.transcript import AgentCall
@@ -29,8 +31,16 @@ __all__ = [
     "Failure",
     "LLMUsage",
     "PlacementMetrics",
+    "Refusals",
     "TrialResult",
+    "refusals_of",
+    "sum_refusals",
 ]
+
+K = TypeVar("K")
+
+#: Refused and failed answers by agent and error category: agent -> category -> count.
+Refusals = dict[str, dict[ErrorCategory, int]]
 
 
 class _Record(BaseModel):
@@ -67,18 +77,30 @@ class AnswerErrorCounts(_Record):
     """What ``eval --answer-errors`` corrupted, by kind, and what caught the corrupted answers:
     ``gate:check`` (the first failed check of the last failed verdict on the answer),
     ``refused`` (refused before any gate), ``missed`` (accepted or executed) or
-    ``trial_stopped`` (the trial ended on it). Counts add up with ``+``."""
+    ``trial_stopped`` (the trial ended on it); and the error category each kind's refused
+    or failed answers got (``refused_as``, to compare with the kind's ``expected``; absent
+    when none was). Counts add up with ``+``."""
 
     corrupted: int = 0
     by_kind: dict[CorruptionKind, int] = Field(default_factory=dict)
     caught_by: dict[str, int] = Field(default_factory=dict)
+    refused_as: dict[CorruptionKind, dict[ErrorCategory, int]] = Field(
+        default_factory=dict, exclude_if=lambda counts: not counts
+    )
 
     @classmethod
     def of(cls, transcript: Sequence[AgentCall]) -> AnswerErrorCounts:
         """The corrupted calls of a trial's transcript, counted."""
         return sum(
             (
-                cls(corrupted=1, by_kind={call.corruption.kind: 1}, caught_by={call.caught_by: 1})
+                cls(
+                    corrupted=1,
+                    by_kind={call.corruption.kind: 1},
+                    caught_by={call.caught_by: 1},
+                    refused_as={}
+                    if call.category is None
+                    else {call.corruption.kind: {call.category: 1}},
+                )
                 for call in transcript
                 if call.corruption is not None
             ),
@@ -88,11 +110,57 @@ class AnswerErrorCounts(_Record):
     def __add__(self, other: AnswerErrorCounts) -> AnswerErrorCounts:
         kinds = Counter(self.by_kind) + Counter(other.by_kind)
         caught = Counter(self.caught_by) + Counter(other.caught_by)
+        pairs = Counter[tuple[CorruptionKind, ErrorCategory]]()
+        for refused in (self.refused_as, other.refused_as):
+            for kind, categories in refused.items():
+                pairs.update({(kind, category): n for category, n in categories.items()})
         return AnswerErrorCounts(
             corrupted=self.corrupted + other.corrupted,
             by_kind={kind: kinds[kind] for kind in CorruptionKind if kind in kinds},
             caught_by=dict(sorted(caught.items())),
+            refused_as=_nested(pairs, CorruptionKind),
         )
+
+
+def sum_refusals(many: Iterable[Refusals]) -> Refusals:
+    """Refusals summed (see :func:`_count` for the order)."""
+    return _count(
+        (agent, category, n)
+        for refusals in many
+        for agent, categories in refusals.items()
+        for category, n in categories.items()
+    )
+
+
+def _count(counts: Iterable[tuple[str, ErrorCategory, int]]) -> Refusals:
+    """(agent, category, count) triples summed: the agents in stage order (others, as the
+    single agent, after them by name), each agent's categories in their order, no zeros."""
+    pairs = Counter[tuple[str, ErrorCategory]]()
+    for agent, category, n in counts:
+        pairs[agent, category] += n
+    return _nested(pairs, sorted({agent for agent, _ in pairs}, key=_stage_order))
+
+
+def refusals_of(transcript: Sequence[AgentCall]) -> Refusals:
+    """Every refused or failed answer of a trial's transcript (repairs included), by agent
+    and category."""
+    return _count(
+        (call.agent, category, 1) for call in transcript for category in call.refused_categories
+    )
+
+
+def _nested(
+    pairs: Counter[tuple[K, ErrorCategory]], keys: Iterable[K]
+) -> dict[K, dict[ErrorCategory, int]]:
+    """``pairs`` as key -> category -> count, in the order of ``keys`` and of the categories,
+    without zeros."""
+    nested = {key: {c: pairs[key, c] for c in ErrorCategory if pairs[key, c]} for key in keys}
+    return {key: counts for key, counts in nested.items() if counts}
+
+
+def _stage_order(agent: str) -> tuple[int, str]:
+    stages = list(Stage)
+    return (stages.index(Stage(agent)) if agent in stages else len(stages), agent)
 
 
 class TrialResult(Provenance):
@@ -123,4 +191,7 @@ class TrialResult(Provenance):
     fallback_decisions: int = 0
     #: With eval --answer-errors RATE > 0 only: lines at rate 0 have no such field.
     answer_errors: AnswerErrorCounts | None = Field(None, exclude_if=lambda counts: counts is None)
+    #: Refused and failed answers, repairs included, by agent and category; lines of trials
+    #: with none (and lines written before categories existed) have no such field.
+    refusals: Refusals = Field(default_factory=dict, exclude_if=lambda counts: not counts)
     sim_steps: int

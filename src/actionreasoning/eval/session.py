@@ -31,6 +31,7 @@ from typing import Any, TypeVar
 
 from pydantic import BaseModel, Field
 
+from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest, ToolRunner
 from actionreasoning.agents.tiers import DEFAULT_TIER, load_tier
 from actionreasoning.agents.transcript import AgentCall
@@ -398,12 +399,18 @@ class _OutsideAgent:
         for meanwhile."""
         self.outbox.put(_Asked(request))
         refused: list[str] = []
+        categories: list[ErrorCategory] = []
         turns = 0
         while True:
             command = self.inbox.get()
             if command is _CLOSE:
                 detail = "the session closed while the agent waited"
-                raise LLMError(FailureCode.ABANDONED, detail, tuple(refused))
+                raise LLMError(
+                    FailureCode.ABANDONED,
+                    detail,
+                    tuple(refused),
+                    repair_categories=tuple(categories),
+                )
             if isinstance(command, _InScene):
                 self.outbox.put(_Replied(self._in_scene(command)))
                 continue
@@ -417,6 +424,7 @@ class _OutsideAgent:
                 answer = parse_answer(command.text, request.spec, request.state, normalise=False)
             except OutputError as error:
                 refused.append(str(error))
+                categories.append(error.category)
                 refusal = Refusal(code=RefusalCode.INVALID_ANSWER, detail=str(error))
                 self.outbox.put(_Replied(AnswerReply(refusal=refusal)))
                 continue
@@ -430,7 +438,12 @@ class _OutsideAgent:
                 ]
                 self.outbox.put(_Replied(AnswerReply(tools=tools)))
                 continue
-            return AgentReply(answer=answer, repairs=tuple(refused), tool_turns=turns)
+            return AgentReply(
+                answer=answer,
+                repairs=tuple(refused),
+                repair_categories=tuple(categories),
+                tool_turns=turns,
+            )
 
     def _in_scene(self, command: _InScene) -> Any:
         assert self.watch.scene is not None  # started before the first request

@@ -3,18 +3,28 @@
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any, TypeVar
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.agents.answer_errors import AnswerErrors, CorruptionKind
+from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.eval.provenance import Provenance
-from actionreasoning.eval.results import AnswerErrorCounts, LLMUsage, TrialResult
+from actionreasoning.eval.results import (
+    AnswerErrorCounts,
+    LLMUsage,
+    Refusals,
+    TrialResult,
+    sum_refusals,
+)
 from actionreasoning.records import FailureCode
 from actionreasoning.world.noise import NoiseLevel
 from actionreasoning.world.physics import PhysicsProfile
 from actionreasoning.world.success import SuccessRule
+
+K = TypeVar("K", bound=str)
 
 METRICS = ("rotation_error_deg", "center_offset_cm", "iou", "symmetric_rotation_error_deg")
 
@@ -66,6 +76,9 @@ class RunSummary(Provenance):
     wall_time_s: float
     resumed_trials: int = 0
     answer_errors: AnswerErrorTotals | None = Field(None, exclude_if=lambda totals: totals is None)
+    #: Refused and failed answers by agent and category, summed over the trials (absent
+    #: when there were none).
+    refusals: Refusals = Field(default_factory=dict, exclude_if=lambda counts: not counts)
 
 
 def describe_rule(rule: SuccessRule) -> str:
@@ -136,6 +149,7 @@ def summarize(
         wall_time_s=wall_time_s,
         resumed_trials=resumed_trials,
         answer_errors=_answer_error_totals(results, answer_errors),
+        refusals=sum_refusals(r.refusals for r in results),
     )
 
 
@@ -194,6 +208,13 @@ def summary_markdown(summary: RunSummary) -> str:
         ]
     else:
         lines.append("No failures.")
+    if summary.refusals:
+        lines += [
+            "",
+            "Refused and failed answers (repairs included) by agent and error category:",
+            "",
+            *category_table("Agent", summary.refusals),
+        ]
     if summary.answer_errors is not None:
         lines += ["", *_answer_error_lines(summary.answer_errors)]
     if summary.llm_usage.calls:
@@ -213,6 +234,33 @@ def _answer_error_lines(totals: AnswerErrorTotals) -> list[str]:
         lines += [f"| `{k}` | {k.meaning} | {n} |" for k, n in totals.by_kind.items()]
         lines += ["", "| Caught by | Answers |", "|---|---|"]
         lines += [f"| `{check}` | {n} |" for check, n in totals.caught_by.items()]
+    if totals.refused_as:
+        expected = {kind: f"`{kind.expected}`" for kind in totals.refused_as}
+        lines += [
+            "",
+            "Corrupted answers refused or failed, by kind and the category they got:",
+            "",
+            *category_table("Kind", totals.refused_as, {"Expected": expected}),
+        ]
+    return lines
+
+
+def category_table(
+    first: str,
+    counts: Mapping[K, Mapping[ErrorCategory, int]],
+    extra: Mapping[str, Mapping[K, str]] | None = None,
+) -> list[str]:
+    """A markdown table of ``counts``: a row per key (titled ``first``), a column per
+    category that occurs and the total; ``extra`` columns (title -> key -> cell) after the
+    first."""
+    extra = extra or {}
+    shown = categories_in(counts)
+    header = [first, *extra, *(f"`{c}`" for c in shown), "Total"]
+    lines = ["| " + " | ".join(header) + " |", "|---" * len(header) + "|"]
+    for key, row in counts.items():
+        cells = [f"`{key}`", *(column[key] for column in extra.values())]
+        cells += [str(row.get(c, 0)) for c in shown] + [str(sum(row.values()))]
+        lines.append("| " + " | ".join(cells) + " |")
     return lines
 
 
@@ -247,3 +295,8 @@ def _llm_lines(summary: RunSummary) -> list[str]:
             f"{a.completion_tokens / bricks:.0f} | {a.latency_s / max(a.calls, 1):.2f} |"
         )
     return lines
+
+
+def categories_in(*counts: Mapping[Any, Mapping[ErrorCategory, int]]) -> list[ErrorCategory]:
+    """The categories that occur in any row of ``counts``, in their order."""
+    return [c for c in ErrorCategory if any(c in row for table in counts for row in table.values())]

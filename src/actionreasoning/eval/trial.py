@@ -24,6 +24,7 @@ from actionreasoning.eval.results import (
     LLMUsage,
     PlacementMetrics,
     TrialResult,
+    refusals_of,
 )
 from actionreasoning.eval.rules import Method, trial_seed
 from actionreasoning.eval.sim_world import SimWorld
@@ -306,6 +307,7 @@ def _measure(
         answer_errors=AnswerErrorCounts.of(outcome.transcript)
         if config.answer_errors.rate
         else None,
+        refusals=refusals_of(outcome.transcript),
         sim_steps=scene.ticks,
     )
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.outputs import AgentAnswer
 from actionreasoning.agents.prompt import compact_json
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest, Reasoner
@@ -53,6 +54,7 @@ class LLMReasoner:
         schema = request.spec.output_model.model_json_schema()
         messages: list[Message] = [{"role": "user", "content": request.prompt}]
         usage, repairs, tool_turns, sent = LLMUsage(), [], 0, 0
+        categories: list[ErrorCategory] = []
         while True:
             sent += sum(len(message["content"]) for message in messages)
             try:
@@ -63,7 +65,11 @@ class LLMReasoner:
                 )
             except LLMError as error:  # keep what this step cost and why it was repaired
                 raise LLMError(
-                    error.reason, error.detail, tuple(repairs), usage + error.usage
+                    error.reason,
+                    error.detail,
+                    tuple(repairs),
+                    usage + error.usage,
+                    tuple(categories),
                 ) from None
             usage += reply.usage
             messages.append({"role": "assistant", "content": reply.content})
@@ -71,8 +77,9 @@ class LLMReasoner:
                 answer = parse_answer(reply.content, request.spec, request.state)
             except OutputError as error:
                 repairs.append(str(error))
+                categories.append(error.category)
                 if len(repairs) > self.limits.repairs:
-                    return self._give_up(request, usage, tuple(repairs), sent)
+                    return self._give_up(request, usage, tuple(repairs), tuple(categories), sent)
                 messages.append({"role": "user", "content": _repair_prompt(str(error))})
                 continue
             if answer.tool_calls and tool_turns < self.limits.tool_turns:
@@ -84,12 +91,18 @@ class LLMReasoner:
                 answer=answer,
                 usage=usage,
                 repairs=tuple(repairs),
+                repair_categories=tuple(categories),
                 tool_turns=tool_turns,
                 prompt_chars=sent,
             )
 
     def _give_up(
-        self, request: AgentRequest, usage: LLMUsage, repairs: tuple[str, ...], sent: int
+        self,
+        request: AgentRequest,
+        usage: LLMUsage,
+        repairs: tuple[str, ...],
+        categories: tuple[ErrorCategory, ...],
+        sent: int,
     ) -> AgentReply:
         if self.fallback is None:
             raise LLMError(
@@ -97,10 +110,16 @@ class LLMReasoner:
                 f"{len(repairs)} answers refused; last: {repairs[-1]}",
                 repairs=repairs,
                 usage=usage,
+                repair_categories=categories,
             )
         reply = self.fallback.decide(request)
         return AgentReply(
-            answer=reply.answer, usage=usage, repairs=repairs, fallback=True, prompt_chars=sent
+            answer=reply.answer,
+            usage=usage,
+            repairs=repairs,
+            repair_categories=categories,
+            fallback=True,
+            prompt_chars=sent,
         )
 
 

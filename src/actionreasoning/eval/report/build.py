@@ -13,24 +13,32 @@ import shutil
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from jinja2 import Environment, PackageLoader, select_autoescape
 
 from actionreasoning.eval.layout import RunDir
 from actionreasoning.eval.report.collect import Group, load_groups, patterns
 from actionreasoning.eval.report.pictures import stage_grid, trial_gif
-from actionreasoning.eval.report.plots import error_distributions, llm_cost, success_rates
+from actionreasoning.eval.report.plots import (
+    error_distributions,
+    llm_cost,
+    refusal_categories,
+    success_rates,
+)
 from actionreasoning.eval.report.runs import unique
 from actionreasoning.eval.report.tables import (
     AVERAGE,
     COLUMNS,
+    REFUSALS_PLOT,
     Table,
     comparison_table,
     to_csv,
     to_latex,
     to_markdown,
 )
-from actionreasoning.eval.results import TrialResult
+from actionreasoning.eval.results import Refusals, TrialResult
+from actionreasoning.eval.summary import categories_in
 
 HTML_FILE = "report.html"
 
@@ -74,6 +82,9 @@ def build_report(directories: Sequence[Path], out: Path, gifs: bool = False) -> 
     cost = llm_cost(groups, out / "llm_cost.png")
     if cost is not None:
         report.plots.append((cost, "LLM tokens per brick and latency per call, by agent"))
+    refused = refusal_categories(groups, out / REFUSALS_PLOT)
+    if refused is not None:
+        report.plots.append((refused, "Refused and failed answers per agent, by error category"))
     for pattern in patterns(groups):
         members = [g for g in groups if g.pattern == pattern]
         grid = stage_grid(members, out / f"stages_{_slug(pattern)}.png")
@@ -162,6 +173,7 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
         ],
         failures=table.failures,
         answer_errors=table.answer_errors,
+        refusals=[_refusal_table(row, p, counts) for (row, p), counts in table.refusals.items()],
         notes=table.notes,
         plots=[{"data": _data_uri(p), "caption": c} for p, c in report.plots],
         grids=[{"data": _data_uri(p), "caption": c} for p, c in report.grids],
@@ -174,3 +186,14 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
     path = report.directory / HTML_FILE
     path.write_text(page, encoding="utf-8")
     return path
+
+
+def _refusal_table(label: str, pattern: str, refusals: Refusals) -> dict[str, Any]:
+    """One group's refused answers as the page shows them: a row per agent, a column per
+    category that occurs, and the total."""
+    shown = categories_in(refusals)
+    rows = [
+        {"agent": agent, "cells": [counts.get(c, 0) for c in shown], "total": sum(counts.values())}
+        for agent, counts in refusals.items()
+    ]
+    return {"label": label, "pattern": pattern, "categories": shown, "agents": rows}

@@ -1,4 +1,5 @@
-"""Report plots as PNG: per-brick errors per method, success per pattern, LLM cost per agent."""
+"""Report plots as PNG: per-brick errors per method, success per pattern, LLM cost and
+refused answers per agent."""
 
 from __future__ import annotations
 
@@ -9,7 +10,10 @@ import numpy as np
 from matplotlib import colormaps
 from matplotlib.figure import Figure
 
+from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.eval.report.collect import Group, labels, patterns
+from actionreasoning.eval.results import sum_refusals
+from actionreasoning.eval.summary import categories_in
 from actionreasoning.records import LLMUsage
 
 #: (per-brick field, axis title, scale)
@@ -151,6 +155,42 @@ def llm_cost(groups: Sequence[Group], path: Path) -> Path | None:
         axis.grid(axis="y", alpha=0.3)
     tokens.legend(fontsize=7)
     latency.legend(fontsize=7)
+    figure.tight_layout()
+    figure.savefig(path)
+    return path
+
+
+def refusal_categories(groups: Sequence[Group], path: Path) -> Path | None:
+    """Horizontal bars: the refused and failed answers of each agent, stacked by error
+    category; a bar per method (its patterns summed) under each agent. None if no answer was
+    refused."""
+    by_method = {
+        label: sum_refusals(g.summary.refusals for g in groups if g.label == label)
+        for label in labels(groups)
+    }
+    by_method = {label: counts for label, counts in by_method.items() if counts}
+    if not by_method:
+        return None
+    shown = categories_in(*by_method.values())
+    bars = [(agent, label) for agent in sum_refusals(by_method.values()) for label in by_method]
+    figure = Figure(figsize=(8.5, 1.4 + 0.35 * len(bars)), dpi=110)
+    axis = figure.subplots()
+    y = np.arange(len(bars))[::-1]
+    left = np.zeros(len(bars))
+    # tab20's dark shades, then its light ones: neighbouring categories look apart.
+    colours = {c: colormaps["tab20"](i * 2 % 20 + i // 10) for i, c in enumerate(ErrorCategory)}
+    for category in shown:
+        widths = np.array(
+            [by_method[label].get(agent, {}).get(category, 0) for agent, label in bars]
+        )
+        axis.barh(y, widths, left=left, color=colours[category], label=str(category))
+        left += widths
+    names = [agent if len(by_method) == 1 else f"{agent} · {label}" for agent, label in bars]
+    axis.set_yticks(y, names, fontsize=8)
+    axis.set_xlabel("refused or failed answers (repairs included)")
+    axis.set_title("Refused answers per agent, by error category")
+    axis.grid(axis="x", alpha=0.3)
+    axis.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     figure.tight_layout()
     figure.savefig(path)
     return path

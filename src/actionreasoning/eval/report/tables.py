@@ -1,7 +1,8 @@
 """The paper's Table I: methods in rows; per pattern and on average, rotation error (°),
 centre offset (cm) and IoU (%), means over successful trials; as markdown, CSV and LaTeX.
 Rows and pattern columns are the groups of collect.py; the notes say how runs differ. Runs
-with answer errors get a table of what was corrupted and what caught it.
+with answer errors get a table of what was corrupted and what caught it, and runs with
+refused answers a table per group of them by agent and error category.
 """
 
 from __future__ import annotations
@@ -14,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from actionreasoning.eval.report.collect import Group, condition_notes, labels, patterns
-from actionreasoning.eval.summary import AnswerErrorTotals
+from actionreasoning.eval.results import Refusals
+from actionreasoning.eval.summary import AnswerErrorTotals, category_table
 from actionreasoning.records import FailureCode
 
 #: (summary metric, column title, scale, digits, lower is better)
@@ -24,6 +26,8 @@ COLUMNS = (
     ("iou", "IoU", 100.0, 2, False),
 )
 AVERAGE = "Average"  # Table I's last column group; for success counts, the total
+#: The chart of refused answers by agent and category, beside the tables.
+REFUSALS_PLOT = "refusals.png"
 
 
 @dataclass(frozen=True)
@@ -55,6 +59,16 @@ class AnswerErrorRow:
     def caught(self) -> str:
         return ", ".join(f"{check} {n}" for check, n in self.totals.caught_by.items()) or "–"
 
+    @property
+    def refused_as(self) -> str:
+        """Each kind with the categories its refused answers got (kind -> category n)."""
+        pairs = [
+            f"{kind} → {category} {n}"
+            for kind, categories in self.totals.refused_as.items()
+            for category, n in categories.items()
+        ]
+        return ", ".join(pairs) or "–"
+
 
 @dataclass(frozen=True)
 class Table:
@@ -68,6 +82,7 @@ class Table:
     failures: list[FailureRow]
     notes: list[str]  # how the runs' conditions differ (collect.condition_notes)
     answer_errors: list[AnswerErrorRow]  # the groups run with answer errors
+    refusals: dict[tuple[str, str], Refusals]  # (row, pattern) -> refused answers, where any
 
     def best(self, pattern: str, metric: str) -> float | None:
         """The best value of a column, for bold type."""
@@ -127,6 +142,7 @@ def comparison_table(groups: Sequence[Group]) -> Table:
             for g in groups
             if g.summary.answer_errors is not None
         ],
+        refusals={(g.label, g.pattern): g.summary.refusals for g in groups if g.summary.refusals},
     )
 
 
@@ -190,14 +206,24 @@ def to_markdown(table: Table) -> str:
     if table.answer_errors:
         lines += [
             "",
-            "| Method | Pattern | Answer error rate | Corrupted | By kind | Caught by |",
-            "|---|---|---|---|---|---|",
+            "| Method | Pattern | Answer error rate | Corrupted | By kind | Caught by "
+            "| Refused as |",
+            "|---|---|---|---|---|---|---|",
             *(
                 f"| {a.label} | {a.pattern} | {a.totals.rate:g} | {a.totals.corrupted} | "
-                f"{a.kinds} | {a.caught} |"
+                f"{a.kinds} | {a.caught} | {a.refused_as} |"
                 for a in table.answer_errors
             ),
         ]
+    for (row, pattern), counts in table.refusals.items():
+        lines += [
+            "",
+            f"Refused and failed answers of {row} on {pattern}, by agent and error category:",
+            "",
+            *category_table("Agent", counts),
+        ]
+    if table.refusals:
+        lines += ["", f"![Refused answers by agent and error category]({REFUSALS_PLOT})"]
     if table.notes:
         lines += ["", *(f"- {note}" for note in table.notes)]
     return "\n".join(lines) + "\n"
