@@ -359,3 +359,23 @@ def test_a_report_has_a_refusal_table_and_the_chart(tmp_path: Path) -> None:
     assert (
         "<tr><td>lift</td><td>0</td><td>4</td><td>0</td><td>0</td><td>1</td><td>5</td></tr>" in html
     )
+
+
+def test_the_readme_table_is_the_enum_in_order() -> None:
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    lines = text.split("### Refused answers by category", 1)[1].splitlines()
+    start = lines.index("| category | meaning | refused by | the kind that expects it |") + 2
+    rows = []
+    for line in lines[start:]:
+        if not line.startswith("| `"):
+            break
+        category, meaning, _, kinds = line.strip("| ").split(" | ")
+        rows.append((category.strip("`"), meaning, kinds))
+    assert rows == [
+        (
+            c.value,
+            c.meaning,
+            ", ".join(f"`{k}`" for k in CorruptionKind if k.expected is c) or "–",
+        )
+        for c in ErrorCategory
+    ]

@@ -7,6 +7,7 @@ import json
 import math
 import subprocess
 import sys
+from collections import Counter
 from pathlib import Path
 
 import pytest
@@ -15,7 +16,7 @@ from conftest import cli as in_process
 from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.reasoner import AgentRequest
 from actionreasoning.agents.spec import agent_specs
-from actionreasoning.agents.tiers import ToolTier
+from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.agents.view import StateView
 from actionreasoning.control.waypoint import WaypointController
@@ -107,6 +108,44 @@ def recorded_run(llama_server: str, tmp_path_factory: pytest.TempPathFactory) ->
     assert result.returncode == 0, result.stderr
     assert "Traceback" not in result.stdout + result.stderr
     return root
+
+
+@pytest.fixture(scope="module", params=list(ToolTier))
+def tier_run(
+    request: pytest.FixtureRequest, llama_server: str, tmp_path_factory: pytest.TempPathFactory
+) -> tuple[ToolTier, Path]:
+    """Gemma's one-brick trial in each reasoning tier (check: the recorded run); returns the
+    tier and the run's directory."""
+    tier = request.param
+    if tier is DEFAULT_TIER:
+        return tier, request.getfixturevalue("recorded_run") / "out"
+    out = tmp_path_factory.mktemp(f"llm_{tier}") / "out"
+    result = eval_one_brick(out, f"openai:{MODEL}", "--base-url", llama_server, "--tools", tier)
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stdout + result.stderr
+    return tier, out
+
+
+def test_gemma_ends_in_typed_categorised_failures_in_every_tier(
+    tier_run: tuple[ToolTier, Path],
+) -> None:
+    tier, out = tier_run
+    line = json.loads((out / "results.jsonl").read_text())
+    assert line["tools"] == tier
+    if not line["success"]:
+        assert line["failure"]["reason"] in FAILURE_CODES
+    calls = [
+        AgentCall.model_validate_json(text)
+        for text in (out / "transcripts/trial_000.jsonl").read_text().splitlines()
+    ]
+    counted: Counter[tuple[str, str]] = Counter()
+    for call in calls:
+        refused = call.outcome not in ("accepted", "executed", "pending")
+        assert (call.category is not None) == refused, call
+        assert len(call.repair_categories) == len(call.repairs)
+        counted.update((call.agent, str(c)) for c in call.refused_categories)
+    shown = {(a, c): n for a, cats in line.get("refusals", {}).items() for c, n in cats.items()}
+    assert shown == dict(counted)
 
 
 def test_llm_check_reports_the_model_latency_and_mode(llama_server: str) -> None:

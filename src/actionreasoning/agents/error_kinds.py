@@ -39,8 +39,8 @@ class ErrorCategory(Described):
     UNREACHABLE = "unreachable", "a pose the arm cannot reach"
     PREMATURE_ACTION = (
         "premature_action",
-        "a gripper action before (or after) its stage allows it: too narrow an opening, no "
-        "close at the grasp",
+        "a gripper action or a move before its stage allows it: too narrow an opening, no "
+        "close at the grasp, a move down to its goal without stopping above it",
     )
     DYNAMICS = "dynamics", "a move too fast, or a brick slipping in the hand"
     GRASP = "grasp", "fingers that do not hold the brick (or hold it rolled)"
