@@ -39,6 +39,23 @@ from actionreasoning.world.physics import PRECISE
 from actionreasoning.world.scene_spec import SceneSpec
 
 #: Three bricks: two side by side and one on top; a short end-to-end build.
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+def readme_table(section: str, header: str) -> list[tuple[str, ...]]:
+    """The rows of the README table under ``header`` after ``section``, whose first cell is
+    code (its backquotes stripped), a tuple of cells each."""
+    lines = README.read_text().split(section, 1)[1].splitlines()
+    start = lines.index(header) + 2
+    rows = []
+    for line in lines[start:]:
+        if not line.startswith("| `"):
+            break
+        first, *rest = line.strip("| ").split(" | ")
+        rows.append((first.strip("`"), *rest))
+    return rows
+
+
 SMALL_PATTERN = {
     "name": "small",
     "brick_size": [0.2, 0.095, 0.06],

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from conftest import SMALL_PATTERN, assert_clean_error, cli
+from conftest import README, SMALL_PATTERN, assert_clean_error, cli, readme_table
 from fake_world import FakeWorld
 from scipy.spatial.transform import Rotation
 
@@ -565,17 +565,9 @@ def test_bad_answer_error_rates_are_refused_in_one_line(
 
 
 def test_the_readme_table_is_the_enum_in_order() -> None:
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    lines = readme.split("### Answer errors", 1)[1].splitlines()
-    start = lines.index("| kind | what changes | where it applies |") + 2
-    rows = []
-    for row in lines[start:]:
-        if not row.startswith("| `"):
-            break
-        kind, meaning, where = row.strip("| ").split(" | ")
-        rows.append((kind.strip("`"), meaning, where))
+    rows = readme_table("### Answer errors", "| kind | what changes | where it applies |")
     assert rows == [(k.value, k.meaning, k.applies_to) for k in ALL]
-    assert "Which check catches each kind, before the arm moves" in readme
+    assert "Which check catches each kind, before the arm moves" in README.read_text()
 
 
 def test_the_single_agents_corrupted_answers_are_marked_and_counted(kinematics, wall) -> None:

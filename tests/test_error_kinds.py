@@ -14,7 +14,7 @@ from types import ModuleType
 import imageio.v3 as iio
 import numpy as np
 import pytest
-from conftest import SMALL_PATTERN
+from conftest import SMALL_PATTERN, readme_table
 from fake_world import FakeWorld
 from test_hostile_outputs import HostileChat
 from test_run_dir import manifest, result
@@ -362,16 +362,11 @@ def test_a_report_has_a_refusal_table_and_the_chart(tmp_path: Path) -> None:
 
 
 def test_the_readme_table_is_the_enum_in_order() -> None:
-    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    lines = text.split("### Refused answers by category", 1)[1].splitlines()
-    start = lines.index("| category | meaning | refused by | the kind that expects it |") + 2
-    rows = []
-    for line in lines[start:]:
-        if not line.startswith("| `"):
-            break
-        category, meaning, _, kinds = line.strip("| ").split(" | ")
-        rows.append((category.strip("`"), meaning, kinds))
-    assert rows == [
+    rows = readme_table(
+        "### Refused answers by category",
+        "| category | meaning | refused by | the kind that expects it |",
+    )
+    assert [(category, meaning, kinds) for category, meaning, _, kinds in rows] == [
         (
             c.value,
             c.meaning,

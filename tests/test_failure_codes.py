@@ -3,31 +3,16 @@ README table, summaries and reports print its meanings."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
+from conftest import readme_table
 from pydantic import ValidationError
 
 from actionreasoning.records import Failure, FailureCode
 
-README = Path(__file__).resolve().parents[1] / "README.md"
-
-
-def _readme_table() -> list[tuple[str, str]]:
-    """The rows (code, meaning) of the README's failure code table."""
-    lines = README.read_text().split("**Failure codes.**", 1)[1].splitlines()
-    start = lines.index("| code | meaning |") + 2
-    rows = []
-    for line in lines[start:]:
-        if not line.startswith("| `"):
-            break
-        code, meaning = line.strip("| ").split(" | ")
-        rows.append((code.strip("`"), meaning))
-    return rows
-
 
 def test_the_readme_table_is_the_enum_in_order() -> None:
-    assert _readme_table() == [(code.value, code.meaning) for code in FailureCode]
+    rows = readme_table("**Failure codes.**", "| code | meaning |")
+    assert rows == [(code.value, code.meaning) for code in FailureCode]
 
 
 def test_a_failure_reads_and_writes_its_code_as_the_plain_string() -> None:

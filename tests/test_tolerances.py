@@ -5,9 +5,9 @@ joints), and the gates never pass what the success rule fails."""
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import pytest
+from conftest import README
 
 from actionreasoning.agents.gates import sigma5_placement
 from actionreasoning.tools.geometry import AlignmentErrors
@@ -17,7 +17,6 @@ from actionreasoning.world.scene_spec import SceneSpec
 from actionreasoning.world.success import SuccessRule
 from actionreasoning.world.tolerances import Tolerances, derivation_table, derivations
 
-README = Path(__file__).resolve().parents[1] / "README.md"
 #: The inputs, written out: brick 0.20 x 0.095 x 0.06 m, 1.5 kg; success 2 cm, 5 deg;
 #: fingertips 2 cm below the tool centre, pads 4 cm long; reach 0.76 m; joint checks every
 #: 0.05 rad; moves at most 30 s; measured: path deviation 3 mm, grasp error 2 mm / 0.5 deg
