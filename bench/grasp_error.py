@@ -15,9 +15,9 @@ import argparse
 
 import numpy as np
 
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.trial import TrialSpec, run_trial
-from actionreasoning.eval.trial_config import TrialConfig
+from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.rules import Method
+from actionreasoning.trial.runner import TrialSpec, run_trial
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
 

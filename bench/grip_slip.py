@@ -36,9 +36,9 @@ from scipy.spatial.transform import Rotation
 
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
 from actionreasoning.errors import UnreachableError
-from actionreasoning.eval.trial import SPAWN_SETTLE_S
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.scene import Scene
+from actionreasoning.trial.runner import SPAWN_SETTLE_S
 from actionreasoning.world.geometry import quat_yaw, top_down_quat
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import READY_POSE, Pose

@@ -19,9 +19,9 @@ import numpy as np
 from profiles import LIFT_Z, OVER_BUILD, RUN_SEED, change, in_hand
 
 from actionreasoning.control.waypoint import GripperCommand, Waypoint
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.trial import TrialSpec, trial_world
-from actionreasoning.eval.trial_config import TrialConfig
+from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.rules import Method
+from actionreasoning.trial.runner import TrialSpec, trial_world
 from actionreasoning.world.geometry import quat_yaw, top_down_quat
 from actionreasoning.world.models import Pose
 from actionreasoning.world.patterns import load_pattern

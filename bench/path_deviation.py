@@ -19,11 +19,11 @@ from collections import deque
 
 import numpy as np
 
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.trial import TrialObserver, TrialSpec, run_trial
-from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.scene import Scene
+from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.rules import Method
+from actionreasoning.trial.runner import TrialObserver, TrialSpec, run_trial
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
 

@@ -22,9 +22,9 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.run import RunConfig, run_eval
-from actionreasoning.eval.trial import TrialSpec, run_trial, trial_world
+from actionreasoning.runs.run import RunConfig, run_eval
+from actionreasoning.trial.rules import Method
+from actionreasoning.trial.runner import TrialSpec, run_trial, trial_world
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
 

@@ -22,12 +22,12 @@ import time
 from rich.console import Console
 from rich.table import Table
 
-from actionreasoning.eval.jobs import TrialJob, TrialOutput, execute
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.trial import TrialSpec
-from actionreasoning.eval.trial_config import TrialConfig
-from actionreasoning.eval.video import FPS
 from actionreasoning.reasoners.backend import LLMConfig
+from actionreasoning.recording.video import FPS
+from actionreasoning.runs.jobs import TrialJob, TrialOutput, execute
+from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.rules import Method
+from actionreasoning.trial.runner import TrialSpec
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
 

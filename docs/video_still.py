@@ -19,7 +19,7 @@ from pathlib import Path
 import imageio.v3 as iio
 from PIL import Image
 
-from actionreasoning.eval.video import FPS
+from actionreasoning.recording.video import FPS
 
 
 def main() -> None:

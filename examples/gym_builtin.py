@@ -21,10 +21,10 @@ import gymnasium
 
 import actionreasoning.gym_env
 from actionreasoning.errors import ToolError
-from actionreasoning.eval.trial import run_trial
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.tools.base import ToolModel
 from actionreasoning.tools.registry import TOOLS
+from actionreasoning.trial.runner import run_trial
 
 #: The fields of a results.jsonl line that say what the trial did.
 METRICS = ("success", "bricks_placed", "bricks", "metrics", "failure", "sim_steps", "decisions")

@@ -18,12 +18,12 @@ import pytest
 
 from actionreasoning.agents.tiers import DEFAULT_TIER
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.run import RunConfig, run_eval
-from actionreasoning.eval.trial_config import TrialConfig
+from actionreasoning.runs.run import RunConfig, run_eval
 from actionreasoning.sim.collision import CollisionChecker
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.scene import Scene
+from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.rules import Method
 from actionreasoning.world.geometry import top_down_quat
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import (

@@ -28,8 +28,6 @@ from actionreasoning.agents.reasoner import AgentReply, AgentRequest, Reasoner
 from actionreasoning.agents.single_agent import SingleAgent
 from actionreasoning.agents.transcript import AgentCall, CheckRecord, GateRecord, Outcome
 from actionreasoning.agents.view import target_supports
-from actionreasoning.eval.results import AnswerErrorCounts, PlacementMetrics, TrialResult
-from actionreasoning.eval.summary import summarize, summary_markdown
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.reasoners.imperfect import (
     ANSWER_ERROR_STREAM,
@@ -37,6 +35,8 @@ from actionreasoning.reasoners.imperfect import (
     ImperfectReasoner,
     corruption,
 )
+from actionreasoning.runs.summary import summarize, summary_markdown
+from actionreasoning.trial.results import AnswerErrorCounts, PlacementMetrics, TrialResult
 from actionreasoning.world import noise
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import GoalPattern

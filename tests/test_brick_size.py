@@ -11,15 +11,15 @@ import pybullet as p
 import pytest
 from conftest import assert_clean_error, cli
 
-from actionreasoning.control.classical import StageEvent
 from actionreasoning.errors import PatternError
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.trial import TrialObserver, TrialSpec, run_trial, trial_world
-from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.sim.scene import Scene
+from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.rules import Method
+from actionreasoning.trial.runner import TrialObserver, TrialSpec, run_trial, trial_world
 from actionreasoning.world.patterns import GRIP_MARGIN_M, brick_size_limits, load_pattern
 from actionreasoning.world.physics import PRECISE
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M, SceneSpec
+from actionreasoning.world.stages import StageEvent
 from actionreasoning.world.tolerances import Tolerances
 
 SPEC = SceneSpec()

@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 from conftest import SMALL_PATTERN, assert_clean_error, cli, cli_process
 
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.run import RunConfig
+from actionreasoning.runs.run import RunConfig
+from actionreasoning.trial.rules import Method
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
 

@@ -11,16 +11,16 @@ import pybullet_data
 import pytest
 from conftest import assert_clean_error, cli
 
-from actionreasoning.control.classical import StageEvent
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.trial import TrialObserver, TrialSpec, run_trial, trial_world
-from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.sim.robot_model import FINGER_LEFT, FINGER_RIGHT
 from actionreasoning.sim.scene import Scene
+from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.rules import Method
+from actionreasoning.trial.runner import TrialObserver, TrialSpec, run_trial, trial_world
 from actionreasoning.world.noise import LEVELS, NoiseLevel, vary_bricks
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PAPER, PROFILES, PhysicsProfile
 from actionreasoning.world.scene_spec import BrickBody, SceneSpec
+from actionreasoning.world.stages import StageEvent
 
 NOMINAL = BrickBody(size_m=(0.2, 0.095, 0.06), mass_kg=1.5, lateral_friction=0.5)
 

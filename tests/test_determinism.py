@@ -9,9 +9,9 @@ from pathlib import Path
 import pytest
 
 from actionreasoning.agents.transcript import AgentCall
-from actionreasoning.eval.rules import Method, trial_seed
-from actionreasoning.eval.run import RunConfig, run_eval
-from actionreasoning.eval.trial_config import TrialConfig
+from actionreasoning.runs.run import RunConfig, run_eval
+from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.rules import Method, trial_seed
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PRECISE
 from actionreasoning.world.scene_spec import SceneSpec

@@ -27,15 +27,15 @@ from actionreasoning.agents.error_kinds import CHECK_CATEGORIES, ErrorCategory, 
 from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.transcript import AgentCall, Outcome
 from actionreasoning.agents.validation import OutputError, parse_answer
-from actionreasoning.eval.layout import RunDir
-from actionreasoning.eval.report.build import build_report
-from actionreasoning.eval.results import AnswerErrorCounts, TrialResult, refusals_of
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.run import run_eval
-from actionreasoning.eval.summary import summarize, summary_markdown
-from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.reasoners.llm import LLMLimits, LLMReasoner
+from actionreasoning.report.build import build_report
+from actionreasoning.runs.layout import RunDir
+from actionreasoning.runs.run import run_eval
+from actionreasoning.runs.summary import summarize, summary_markdown
+from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.results import AnswerErrorCounts, TrialResult, refusals_of
+from actionreasoning.trial.rules import Method
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.physics import PRECISE
 from actionreasoning.world.scene_spec import SceneSpec

@@ -33,7 +33,7 @@ def test_an_unknown_code_is_refused_naming_it() -> None:
 def test_summaries_explain_each_code_from_the_enum() -> None:
     from test_run_dir import result
 
-    from actionreasoning.eval.summary import summarize, summary_markdown
+    from actionreasoning.runs.summary import summarize, summary_markdown
 
     results = [result(trial, success=trial == 0) for trial in range(3)]
     summary = summarize(results, wall_time_s=1.0)

@@ -18,9 +18,9 @@ from gymnasium.utils.env_checker import check_env
 
 import actionreasoning.gym_env
 from actionreasoning.errors import ConfigError
-from actionreasoning.eval.rules import Method
 from actionreasoning.gym_env.env import BrickStackEnv
 from actionreasoning.reasoners.builtin import BuiltinReasoner
+from actionreasoning.trial.rules import Method
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "gym_builtin.py"
 

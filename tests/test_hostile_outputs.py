@@ -20,13 +20,13 @@ from actionreasoning.agents.spec import agent_specs, single_agent_spec
 from actionreasoning.agents.validation import OutputError, parse_answer
 from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.errors import ActionReasoningError
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.eval.trial import TrialSpec, trial_world
 from actionreasoning.reasoners.chat import ChatReply, ChatRequest
 from actionreasoning.reasoners.llm import LLMLimits, LLMReasoner
 from actionreasoning.records import LLMUsage
 from actionreasoning.tools.registry import TOOLS
+from actionreasoning.trial.rules import Method
+from actionreasoning.trial.runner import TrialSpec, trial_world
+from actionreasoning.trial.sim_world import SimWorld
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import WORKSPACE, SceneSpec
 

@@ -4,6 +4,7 @@ for the commands that run them."""
 
 from __future__ import annotations
 
+import ast
 import inspect
 import os
 import subprocess
@@ -26,7 +27,7 @@ REASONING = (
     "actionreasoning.reasoners.builtin",
     "actionreasoning.reasoners.factory",
     "actionreasoning.reasoners.reference_model",
-    "actionreasoning.eval.summary",
+    "actionreasoning.runs.summary",
 )
 NO_PYBULLET = "import sys; sys.modules['pybullet'] = None\n"
 #: PyBullet and the package that wraps it, whose __init__ imports PyBullet with stderr shut
@@ -118,3 +119,62 @@ def test_an_ik_solution_is_an_ik_result(arm: KinematicArm) -> None:
     }
     assert wanted == given
     assert isinstance(arm, ArmModel) and isinstance(CollisionChecker(arm), ClearanceChecker)
+
+
+BELOW_TRIAL = {"records", "errors", "world", "sim", "tools", "control", "agents", "reasoners"}
+#: The packages each package may import at run time (``TYPE_CHECKING`` imports aside).
+#: Dependencies point one way: runs -> recording -> trial -> agents/control -> tools ->
+#: sim/world, and the Gym env and the MCP server reach the scene only through the session.
+MAY_IMPORT: dict[str, set[str]] = {
+    "records": set(),
+    "errors": {"records"},
+    "world": {"records", "errors"},
+    "sim": {"records", "errors", "world"},
+    "tools": {"records", "errors", "world"},
+    "control": {"records", "errors", "world", "sim"},
+    "agents": {"records", "errors", "world", "tools"},
+    "reasoners": {"records", "errors", "world", "tools", "agents"},
+    "trial": BELOW_TRIAL,
+    "recording": BELOW_TRIAL | {"trial"},
+    "runs": BELOW_TRIAL | {"trial", "recording"},
+    "report": {"records", "errors", "world", "agents", "trial", "recording", "runs"},
+    "gym_env": {"records", "errors", "world", "tools", "agents", "trial"},
+    "mcp_server": {"records", "errors", "world", "tools", "agents", "trial"},
+    "__main__": {"cli"},
+}
+#: The command line, which wires every layer together, may import them all.
+COMMAND = "cli"
+PACKAGE = Path(__file__).resolve().parents[1] / "src" / "actionreasoning"
+
+
+def _run_time_imports(tree: ast.Module) -> set[str]:
+    """The ``actionreasoning`` subpackages a module imports outside ``if TYPE_CHECKING:``."""
+    skipped = {
+        id(node)
+        for block in ast.walk(tree)
+        if isinstance(block, ast.If) and ast.unparse(block.test) == "TYPE_CHECKING"
+        for node in ast.walk(block)
+    }
+    names: set[str] = set()
+    for node in ast.walk(tree):
+        if id(node) in skipped:
+            continue
+        if isinstance(node, ast.ImportFrom) and node.module:
+            names.add(node.module)
+        elif isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+    return {n.split(".")[1] for n in names if n.startswith("actionreasoning.")}
+
+
+def test_every_package_imports_only_the_layers_below_it() -> None:
+    wrong = []
+    for module in sorted(PACKAGE.rglob("*.py")):
+        parts = module.relative_to(PACKAGE).parts
+        package = parts[0] if len(parts) > 1 else module.stem
+        if package in ("__init__", COMMAND):
+            continue
+        used = _run_time_imports(ast.parse(module.read_text())) - {package}
+        wrong += [
+            f"{module.relative_to(PACKAGE)} imports {u}" for u in sorted(used - MAY_IMPORT[package])
+        ]
+    assert not wrong, "\n".join(wrong)

@@ -21,15 +21,15 @@ from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.agents.view import StateView
 from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.errors import LLMError
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.eval.trial import TrialSpec, trial_world
 from actionreasoning.reasoners.backend import ServerOptions
 from actionreasoning.reasoners.chat import StructuredMode
 from actionreasoning.reasoners.llm import LLMLimits, LLMReasoner
 from actionreasoning.reasoners.openai_chat import OpenAIChat
 from actionreasoning.reasoners.recording import RecordingChat
 from actionreasoning.tools.registry import call_tool
+from actionreasoning.trial.rules import Method
+from actionreasoning.trial.runner import TrialSpec, trial_world
+from actionreasoning.trial.sim_world import SimWorld
 from actionreasoning.world.models import Progress
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec

@@ -28,11 +28,11 @@ from mcp.client.stdio import StdioServerParameters, stdio_client
 from actionreasoning.agents.spec import single_agent_spec
 from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.errors import ToolError
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.session import Conditions, TrialSession
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.tools.base import ToolModel
 from actionreasoning.tools.registry import GATE_MEASUREMENTS, TOOLS, tool_schema
+from actionreasoning.trial.rules import Method
+from actionreasoning.trial.session import Conditions, TrialSession
 
 COMMAND = [sys.executable, "-m", "actionreasoning", "mcp"]
 #: The SDK starts the server in a bare environment: give it the package under test.

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from actionreasoning.eval.metrics import (
+from actionreasoning.trial.metrics import (
     box_iou,
     brick_metrics,
     center_offset_cm,

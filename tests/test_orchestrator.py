@@ -18,12 +18,12 @@ from actionreasoning.agents.put_down import SET_ASIDE_MARGIN_M, SET_ASIDE_RANGE_
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.agents.view import target_supports
 from actionreasoning.control.waypoint import WaypointController
-from actionreasoning.eval.metrics import center_offset_cm
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.eval.trial import TrialSpec, trial_world
-from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.builtin import BuiltinReasoner
+from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.metrics import center_offset_cm
+from actionreasoning.trial.rules import Method
+from actionreasoning.trial.runner import TrialSpec, trial_world
+from actionreasoning.trial.sim_world import SimWorld
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import top_down_quat
 from actionreasoning.world.models import READY_POSE, Pose

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from conftest import assert_clean_error, cli
 
-from actionreasoning.eval.rules import Method, trial_seed
-from actionreasoning.eval.trial import TrialSpec, trial_world
+from actionreasoning.trial.rules import Method, trial_seed
+from actionreasoning.trial.runner import TrialSpec, trial_world
 from actionreasoning.world.layout import pick_capacity, sample_pick_poses
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec

@@ -14,11 +14,11 @@ from actionreasoning.agents.calls import AgentCaller, BuildResult
 from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.agents.put_down import PutDown
 from actionreasoning.control.waypoint import WaypointController
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.eval.trial import TrialSpec, trial_world
-from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.builtin import BuiltinReasoner
+from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.rules import Method
+from actionreasoning.trial.runner import TrialSpec, trial_world
+from actionreasoning.trial.sim_world import SimWorld
 from actionreasoning.world.geometry import quat_yaw, tilt_deg, top_down_quat
 from actionreasoning.world.models import Pose, Progress
 from actionreasoning.world.patterns import load_pattern

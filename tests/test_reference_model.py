@@ -19,15 +19,15 @@ from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.control.waypoint import WaypointController
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.eval.trial import TrialSpec, trial_world
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.reasoners.chat import ChatReply, ChatRequest
 from actionreasoning.reasoners.llm import LLMLimits, LLMReasoner
 from actionreasoning.reasoners.reference_model import UnreadableConversation, reply
 from actionreasoning.reasoners.reference_server import ReferenceServer
 from actionreasoning.records import LLMUsage
+from actionreasoning.trial.rules import Method
+from actionreasoning.trial.runner import TrialSpec, trial_world
+from actionreasoning.trial.sim_world import SimWorld
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
 

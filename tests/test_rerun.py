@@ -15,8 +15,8 @@ import pytest
 from conftest import assert_clean_error, cli, eval_lines
 from rerun.chunk import RrdReader
 
-from actionreasoning.eval.rerun_log import SAMPLE_S, TIMELINE
-from actionreasoning.eval.rules import Method
+from actionreasoning.recording.rerun_log import SAMPLE_S, TIMELINE
+from actionreasoning.trial.rules import Method
 from actionreasoning.world.tolerances import Tolerances
 
 ONE_BRICK = {

@@ -13,15 +13,15 @@ from rich.console import Console
 
 from actionreasoning.control.limits import ControllerLimits
 from actionreasoning.errors import ConfigError
-from actionreasoning.eval.progress import ConsoleProgress
-from actionreasoning.eval.provenance import Provenance
-from actionreasoning.eval.report.runs import read_run
-from actionreasoning.eval.results import PlacementMetrics, TrialResult
-from actionreasoning.eval.rules import trial_seed
-from actionreasoning.eval.run_dir import RunManifest, append_result, open_run, read_results
-from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.backend import LLMConfig
 from actionreasoning.records import Failure
+from actionreasoning.report.runs import read_run
+from actionreasoning.runs.progress import ConsoleProgress
+from actionreasoning.runs.run_dir import RunManifest, append_result, open_run, read_results
+from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.provenance import Provenance
+from actionreasoning.trial.results import PlacementMetrics, TrialResult
+from actionreasoning.trial.rules import trial_seed
 from actionreasoning.world.noise import LEVELS
 from actionreasoning.world.physics import PRECISE
 from actionreasoning.world.tolerances import Tolerances

@@ -15,11 +15,11 @@ from conftest import SMALL_PATTERN, layout_scene
 
 from actionreasoning.control.waypoint import Waypoint, WaypointController
 from actionreasoning.errors import TrialAborted
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.trial import TrialSpec, run_trial
-from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.scene import Scene
+from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.rules import Method
+from actionreasoning.trial.runner import TrialSpec, run_trial
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.geometry import top_down_quat
 from actionreasoning.world.models import READY_POSE, Pose

@@ -11,8 +11,6 @@ import pytest
 
 from actionreasoning.agents.outputs import PreGraspAnswer
 from actionreasoning.errors import ToolError
-from actionreasoning.eval.session import Conditions, SessionError, TrialSession
-from actionreasoning.eval.trial import TrialObserver
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.sim.scene import Scene
 from actionreasoning.tools.contact import SlipEstimate
@@ -20,6 +18,8 @@ from actionreasoning.tools.geometry import AlignmentErrors
 from actionreasoning.tools.grasp_plan import GraspOptions
 from actionreasoning.tools.reach import ReachReport
 from actionreasoning.tools.registry import GATE_MEASUREMENTS
+from actionreasoning.trial.runner import TrialObserver
+from actionreasoning.trial.session import Conditions, SessionError, TrialSession
 
 SPEC = Conditions.load("pyramid", tools="solve").spec(seed=0, trial=0)  # grasp_options
 

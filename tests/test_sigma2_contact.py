@@ -16,14 +16,14 @@ from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.control.waypoint import WaypointController
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.eval.trial import TrialSpec, trial_world
-from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.reasoners.builtin import DESCENT_SLACK_M, BuiltinReasoner
 from actionreasoning.sim.scene import GRASP_CONTACT_N
 from actionreasoning.tools.contact import ContactForces
 from actionreasoning.tools.registry import call_tool
+from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.rules import Method
+from actionreasoning.trial.runner import TrialSpec, trial_world
+from actionreasoning.trial.sim_world import SimWorld
 from actionreasoning.world.geometry import QuatXYZW, Vec3, quat_yaw, top_down_quat
 from actionreasoning.world.models import GoalPattern, Progress, WorldState
 from actionreasoning.world.noise import LEVELS

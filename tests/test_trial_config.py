@@ -18,12 +18,12 @@ import actionreasoning
 from actionreasoning.cli import app
 from actionreasoning.control.safety import SafetyLimits
 from actionreasoning.errors import ConfigError
-from actionreasoning.eval.provenance import SCHEMA_VERSION, Provenance, git_revision
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.run import RunConfig, run_eval
-from actionreasoning.eval.run_dir import config_digest
-from actionreasoning.eval.trial import TrialSpec, run_trial
-from actionreasoning.eval.trial_config import TrialConfig
+from actionreasoning.runs.run import RunConfig, run_eval
+from actionreasoning.runs.run_dir import config_digest
+from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.provenance import SCHEMA_VERSION, Provenance, git_revision
+from actionreasoning.trial.rules import Method
+from actionreasoning.trial.runner import TrialSpec, run_trial
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PRECISE
 from actionreasoning.world.scene_spec import SceneSpec

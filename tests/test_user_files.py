@@ -11,8 +11,8 @@ import pytest
 from conftest import SMALL_PATTERN, assert_clean_error, cli
 
 from actionreasoning.errors import ConfigError
-from actionreasoning.eval.layout import RunDir
-from actionreasoning.eval.run_dir import read_results
+from actionreasoning.runs.layout import RunDir
+from actionreasoning.runs.run_dir import read_results
 from actionreasoning.world.config_files import MAX_FILE_BYTES, read_user_file
 from actionreasoning.world.noise import load_noise
 from actionreasoning.world.physics import load_physics

@@ -16,11 +16,11 @@ import pytest
 from conftest import SMALL_PATTERN, assert_processes_end, children, cli, eval_lines
 
 from actionreasoning.agents.transcript import AgentCall, CheckRecord, GateRecord
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.video import FPS, doing_text, verdict_text
+from actionreasoning.recording.video import FPS, doing_text, verdict_text
 from actionreasoning.sim.camera import FixedCamera, overview, render
 from actionreasoning.sim.replica import Replica, SceneLooks, ScenePose
 from actionreasoning.sim.scene import Scene
+from actionreasoning.trial.rules import Method
 from actionreasoning.world.physics import PAPER
 
 
@@ -124,9 +124,9 @@ def test_a_script_without_a_main_guard_films(tmp_path: Path, one_brick: Path) ->
     script = tmp_path / "film_it.py"
     script.write_text(
         "import sys\n"
-        "from actionreasoning.eval.jobs import TrialJob, execute\n"
-        "from actionreasoning.eval.rules import Method\n"
-        "from actionreasoning.eval.trial import TrialSpec\n"
+        "from actionreasoning.runs.jobs import TrialJob, execute\n"
+        "from actionreasoning.trial.rules import Method\n"
+        "from actionreasoning.trial.runner import TrialSpec\n"
         "from actionreasoning.world.patterns import load_pattern\n"
         "from actionreasoning.world.scene_spec import SceneSpec\n"
         f"goal = load_pattern({str(one_brick)!r}, SceneSpec())\n"

@@ -20,9 +20,10 @@ from rich.table import Table
 
 from actionreasoning.agents.tiers import DEFAULT_TIER, TIER_HELP, ToolTier
 from actionreasoning.errors import ActionReasoningError, ConfigError
-from actionreasoning.eval.layout import RunDir
-from actionreasoning.eval.rules import Method
 from actionreasoning.reasoners.sampling import MAX_COMPLETION_TOKENS, Effort, Sampling
+from actionreasoning.recording.names import VIDEO_FPS
+from actionreasoning.runs.layout import RunDir
+from actionreasoning.trial.rules import Method
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.geometry import quat_yaw
 from actionreasoning.world.noise import load_noise
@@ -31,9 +32,9 @@ from actionreasoning.world.physics import load_physics
 from actionreasoning.world.scene_spec import SceneSpec
 
 if TYPE_CHECKING:
-    from actionreasoning.eval.report.tables import Table as ComparisonTable
-    from actionreasoning.eval.summary import RunSummary
     from actionreasoning.reasoners.backend import LLMConfig
+    from actionreasoning.report.tables import Table as ComparisonTable
+    from actionreasoning.runs.summary import RunSummary
 
 app = typer.Typer(
     help="LLM action reasoning for robot brick stacking: simulate, evaluate, report.",
@@ -271,7 +272,7 @@ def eval_command(
     video: Annotated[
         bool,
         typer.Option(
-            help=f"Film every trial from above, {RunDir.VIDEO_FPS} frames per simulated second, to "
+            help=f"Film every trial from above, {VIDEO_FPS} frames per simulated second, to "
             "videos/trial_k_OUTCOME.mp4 (OUTCOME: ok or the failure code)."
         ),
     ] = False,
@@ -336,9 +337,9 @@ def demo(
     animation of the build. It writes only into a new or empty directory, which it marks as
     its own (.actionreasoning-demo), or into an earlier demo's, whose files it replaces.
     """
-    from actionreasoning.eval.demo_dir import demo_directory
-    from actionreasoning.eval.report.demo import write_demo_pages
     from actionreasoning.reasoners.backend import LLMConfig
+    from actionreasoning.report.demo import write_demo_pages
+    from actionreasoning.runs.demo_dir import demo_directory
 
     try:
         with demo_directory(out):
@@ -386,10 +387,10 @@ def _evaluate(
     """Load the pattern and conditions, run the trials with progress, print the table; errors
     end the command."""
     from actionreasoning.agents.answer_errors import AnswerErrors
-    from actionreasoning.eval.jobs import RESUME_HINT
-    from actionreasoning.eval.progress import ConsoleProgress
-    from actionreasoning.eval.run import RunConfig, run_eval
-    from actionreasoning.eval.trial_config import TrialConfig
+    from actionreasoning.runs.jobs import RESUME_HINT
+    from actionreasoning.runs.progress import ConsoleProgress
+    from actionreasoning.runs.run import RunConfig, run_eval
+    from actionreasoning.trial.config import TrialConfig
 
     if Path(pattern).is_file():  # one file, however it is spelled: ./x.json is x.json
         pattern = os.path.normpath(pattern)
@@ -439,7 +440,7 @@ def _evaluate(
 
 def _comparison(table: ComparisonTable) -> Table:
     """Table I for the terminal: one cell per pattern with its three means and successes."""
-    from actionreasoning.eval.report.tables import AVERAGE, COLUMNS
+    from actionreasoning.report.tables import AVERAGE, COLUMNS
 
     shown = Table(
         title="rotation error (°), centre offset (cm), IoU (%): means over successful trials",
@@ -474,8 +475,8 @@ def report_command(
     Runs are pooled only under the same run.json conditions (the seed aside) and pattern
     content; others are set side by side, and the report names the fields that differ.
     """
-    from actionreasoning.eval.report.build import build_report
-    from actionreasoning.eval.run_dir import output_directory
+    from actionreasoning.report.build import build_report
+    from actionreasoning.runs.run_dir import output_directory
 
     try:
         output_directory(out)
@@ -510,9 +511,9 @@ def prompt_command(
     """Print the prompt agent N is first sent in trial 0 (the built-in reasoner answers
     the agents before it), to read and tune it."""
     from actionreasoning.agents.spec import agent_specs, single_agent_spec
-    from actionreasoning.eval.first_prompt import first_prompt
-    from actionreasoning.eval.trial import TrialSpec
-    from actionreasoning.eval.trial_config import TrialConfig
+    from actionreasoning.trial.config import TrialConfig
+    from actionreasoning.trial.first_prompt import first_prompt
+    from actionreasoning.trial.runner import TrialSpec
 
     try:
         config = TrialConfig(physics=load_physics(physics), noise=load_noise(noise), tools=tools)
@@ -550,9 +551,9 @@ def schema_command(
     """Print the JSON Schema of an eval directory's records, to check or load them elsewhere."""
     import json
 
-    from actionreasoning.eval.results import TrialResult
-    from actionreasoning.eval.summary import RunSummary
-    from actionreasoning.eval.trial_config import TrialConfig
+    from actionreasoning.runs.summary import RunSummary
+    from actionreasoning.trial.config import TrialConfig
+    from actionreasoning.trial.results import TrialResult
 
     models = {Schema.RESULTS: TrialResult, Schema.SUMMARY: RunSummary, Schema.CONFIG: TrialConfig}
     print(json.dumps(models[records].model_json_schema(mode="serialization"), indent=2))

@@ -17,7 +17,7 @@ from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointC
 from actionreasoning.sim.perceive import Sensor
 from actionreasoning.world.geometry import QuatXYZW, Vec3, quat_yaw, top_down_quat
 from actionreasoning.world.models import GoalPattern, Pose
-from actionreasoning.world.stages import Stage
+from actionreasoning.world.stages import Stage, StageEvent
 
 
 @dataclass(frozen=True)
@@ -29,14 +29,6 @@ class ClassicalScript:
     release_height_m: float = 0.01
     transfer_s: float = 2.0
     vertical_s: float = 1.0
-
-
-@dataclass(frozen=True)
-class StageEvent:
-    """A stage the script finished, for snapshots and logs."""
-
-    brick: int
-    stage: str
 
 
 class ClassicalController:

@@ -8,8 +8,8 @@ import json
 from dataclasses import dataclass
 from typing import Any
 
-from actionreasoning.eval.session import Refusal, RefusalCode
 from actionreasoning.gym_env.observation import MAX_ACTION_CHARS
+from actionreasoning.trial.session import Refusal, RefusalCode
 
 FORMAT = 'an action is {"tool": NAME, "arguments": {...}} or {"answer": {...}}'
 

@@ -1,7 +1,7 @@
 """``actionreasoning/BrickStack-v0``: one ``eval`` trial of the six gated agents, with the
 agents' answers coming from the caller of ``step``.
 
-An episode is one trial (:class:`~actionreasoning.eval.session.TrialSession`). A step is
+An episode is one trial (:class:`~actionreasoning.trial.session.TrialSession`). A step is
 one action for the agent that waits: a tool call (one of its tools, or one of the gates'
 measurements) or an answer, as JSON text (``actions.py``), validated as a language model's
 answer is and, if valid, gated and executed by the same controller. The observation is the
@@ -22,17 +22,7 @@ import numpy as np
 
 from actionreasoning.agents.tiers import DEFAULT_TIER
 from actionreasoning.agents.transcript import AgentCall
-from actionreasoning.control.classical import StageEvent
 from actionreasoning.errors import ConfigError
-from actionreasoning.eval.session import (
-    Conditions,
-    Refusal,
-    RefusalCode,
-    SessionError,
-    ToolReply,
-    TrialSession,
-)
-from actionreasoning.eval.trial import TrialObserver
 from actionreasoning.gym_env.actions import AnswerAction, ToolAction, parse_action
 from actionreasoning.gym_env.observation import (
     action_space,
@@ -43,8 +33,18 @@ from actionreasoning.gym_env.reward import PlacedCount
 from actionreasoning.records import FailureCode
 from actionreasoning.sim.camera import overview, render
 from actionreasoning.sim.scene import Scene
+from actionreasoning.trial.runner import TrialObserver
+from actionreasoning.trial.session import (
+    Conditions,
+    Refusal,
+    RefusalCode,
+    SessionError,
+    ToolReply,
+    TrialSession,
+)
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.models import WorldState
+from actionreasoning.world.stages import StageEvent
 
 #: Trial ends that are budgets outside the task (Gymnasium's truncation), not its outcome.
 TRUNCATIONS = frozenset({FailureCode.STEP_BUDGET, FailureCode.TIME_BUDGET})

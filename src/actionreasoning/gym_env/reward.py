@@ -11,13 +11,12 @@ answer that moved the arm). An episode's rewards add up to the trial's ``bricks_
 from __future__ import annotations
 
 from actionreasoning.agents.transcript import AgentCall
-from actionreasoning.control.classical import StageEvent
-from actionreasoning.eval.metrics import brick_metrics
-from actionreasoning.eval.trial import TrialObserver
 from actionreasoning.sim.scene import Scene
+from actionreasoning.trial.metrics import brick_metrics
+from actionreasoning.trial.runner import TrialObserver
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.models import GoalPattern
-from actionreasoning.world.stages import Stage
+from actionreasoning.world.stages import Stage, StageEvent
 from actionreasoning.world.success import SuccessRule
 
 

@@ -1,5 +1,5 @@
 """One connection's door to a trial: the MCP server's tools as calls on a
-:class:`~actionreasoning.eval.session.TrialSession`, with no protocol in them.
+:class:`~actionreasoning.trial.session.TrialSession`, with no protocol in them.
 
 A connection holds at most one trial. ``start_trial`` starts one (ending one still running
 as ``abandoned``); ``read_state`` shows the waiting agent's turn; each registry tool runs
@@ -25,10 +25,10 @@ from pydantic_core import to_json
 from actionreasoning.agents.spec import single_agent_spec
 from actionreasoning.agents.tiers import DEFAULT_TIER, TIER_HELP, ToolTier
 from actionreasoning.errors import ActionReasoningError
-from actionreasoning.eval.provenance import current_provenance, stamp
-from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.session import Conditions, Refusal, RefusalCode, TrialSession
 from actionreasoning.tools.registry import GATE_MEASUREMENTS, tool_schema
+from actionreasoning.trial.provenance import current_provenance, stamp
+from actionreasoning.trial.results import TrialResult
+from actionreasoning.trial.session import Conditions, Refusal, RefusalCode, TrialSession
 from actionreasoning.world.budget import TrialBudget
 
 #: What the results line calls the agent that answered.

@@ -7,6 +7,7 @@ the classical script, and names of pictures for all.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from enum import StrEnum
 
 
@@ -21,3 +22,12 @@ class Stage(StrEnum):
     PLACEMENT = "placement"
     RELEASE = "release"
     RETREAT = "retreat"
+
+
+@dataclass(frozen=True)
+class StageEvent:
+    """A stage a method finished for brick ``brick``, for observers: snapshots, videos,
+    recordings and the Gym env's reward."""
+
+    brick: int
+    stage: str

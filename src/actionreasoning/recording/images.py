@@ -12,9 +12,6 @@ import imageio.v3 as iio
 import numpy as np
 from matplotlib.figure import Figure
 
-#: The folder of a trial's snapshots holding its overview frames, in trial order.
-FRAMES_DIR = "frames"
-
 
 def png(image: np.ndarray) -> bytes:
     """An RGB image encoded as PNG."""

@@ -13,7 +13,7 @@ from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, HalfspaceIntersection, QhullError
 from scipy.spatial.transform import Rotation
 
-from actionreasoning.eval.results import PlacementMetrics
+from actionreasoning.trial.results import PlacementMetrics
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import QuatXYZW, Vec3
 

@@ -3,7 +3,7 @@
 A :class:`TrialConfig` is made once per run and handed to every trial; each of its parts
 goes to the one place that uses it (the scene, the controller, the agents, the scoring),
 so the configuration recorded is the one run. A trial adds only its method, pattern, seed
-and index (:class:`~actionreasoning.eval.trial.TrialSpec`).
+and index (:class:`~actionreasoning.trial.runner.TrialSpec`).
 """
 
 from __future__ import annotations

@@ -14,10 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actionreasoning.eval.report.collect import Group, condition_notes, labels, patterns
-from actionreasoning.eval.results import Refusals
-from actionreasoning.eval.summary import AnswerErrorTotals, category_table
 from actionreasoning.records import FailureCode
+from actionreasoning.report.collect import Group, condition_notes, labels, patterns
+from actionreasoning.runs.summary import AnswerErrorTotals, category_table
+from actionreasoning.trial.results import Refusals
 
 #: (summary metric, column title, scale, digits, lower is better)
 COLUMNS = (

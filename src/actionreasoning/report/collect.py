@@ -15,12 +15,12 @@ from pathlib import Path, PurePath
 from typing import Any
 
 from actionreasoning.errors import ConfigError
-from actionreasoning.eval.layout import RunDir
-from actionreasoning.eval.provenance import Provenance
-from actionreasoning.eval.report.runs import Run, read_runs
-from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.run_dir import AnyManifest
-from actionreasoning.eval.summary import RunSummary, summarize
+from actionreasoning.report.runs import Run, read_runs
+from actionreasoning.runs.layout import RunDir
+from actionreasoning.runs.run_dir import AnyManifest
+from actionreasoning.runs.summary import RunSummary, summarize
+from actionreasoning.trial.provenance import Provenance
+from actionreasoning.trial.results import TrialResult
 
 PATTERN_HASH = "pattern_sha256"
 

@@ -11,14 +11,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from actionreasoning.control.classical import StageEvent
-from actionreasoning.eval.images import FRAMES_DIR, image_grid, png
-from actionreasoning.eval.layout import RunDir
-from actionreasoning.eval.trial import TrialObserver
+from actionreasoning.recording.images import image_grid, png
+from actionreasoning.recording.names import FINAL_BUILD, FRAMES_DIR, STAGE_SHEET
 from actionreasoning.sim.camera import build_closeup, closeup, overview, render
 from actionreasoning.sim.scene import Scene
+from actionreasoning.trial.runner import TrialObserver
 from actionreasoning.world.geometry import Vec3
-from actionreasoning.world.stages import Stage
+from actionreasoning.world.stages import Stage, StageEvent
 
 WIDTH, HEIGHT = 320, 240
 PICK_STAGES = frozenset({Stage.PRE_GRASP, Stage.DESCENT, Stage.GRASP, Stage.LIFT})
@@ -58,9 +57,9 @@ class SnapshotRecorder(TrialObserver):
 
     def _finish(self, scene: Scene) -> None:
         self.files["final_overview.png"] = png(render(scene, overview(scene)))
-        self.files[RunDir.FINAL_BUILD] = png(render(scene, build_closeup(scene)))
+        self.files[FINAL_BUILD] = png(render(scene, build_closeup(scene)))
         if self._rows:
-            self.files[RunDir.STAGE_SHEET] = sheet_png(self._rows)
+            self.files[STAGE_SHEET] = sheet_png(self._rows)
 
 
 def sheet_png(rows: dict[int, list[tuple[str, np.ndarray]]]) -> bytes:

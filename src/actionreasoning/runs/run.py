@@ -20,19 +20,19 @@ from pathlib import Path
 from typing import Protocol
 
 from actionreasoning.errors import ConfigError
-from actionreasoning.eval.jobs import (
+from actionreasoning.runs.jobs import (
     TrialJob,
     TrialOutput,
     run_in_processes,
     run_on_ray,
     run_serial,
 )
-from actionreasoning.eval.layout import RunDir
-from actionreasoning.eval.provenance import current_provenance, stamp
-from actionreasoning.eval.rerun_log import require_rerun
-from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.run_dir import (
+from actionreasoning.runs.layout import RunDir
+from actionreasoning.trial.provenance import current_provenance, stamp
+from actionreasoning.recording.rerun_log import require_rerun
+from actionreasoning.trial.results import TrialResult
+from actionreasoning.trial.rules import Method
+from actionreasoning.runs.run_dir import (
     RunManifest,
     append_result,
     digest,
@@ -40,10 +40,10 @@ from actionreasoning.eval.run_dir import (
     write_error,
     write_file,
 )
-from actionreasoning.eval.run_lock import run_lock
-from actionreasoning.eval.summary import RunSummary, summarize, summary_markdown
-from actionreasoning.eval.trial import TrialSpec
-from actionreasoning.eval.trial_config import TrialConfig
+from actionreasoning.runs.run_lock import run_lock
+from actionreasoning.runs.summary import RunSummary, summarize, summary_markdown
+from actionreasoning.trial.runner import TrialSpec
+from actionreasoning.trial.config import TrialConfig
 from actionreasoning.reasoners.factory import prepare
 from actionreasoning.world.models import GoalPattern
 

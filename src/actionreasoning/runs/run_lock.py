@@ -18,8 +18,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from actionreasoning.errors import ConfigError
-from actionreasoning.eval.layout import RunDir
-from actionreasoning.eval.run_dir import output_directory, write_error
+from actionreasoning.runs.layout import RunDir
+from actionreasoning.runs.run_dir import output_directory, write_error
 
 #: The directories (device, inode) this process holds.
 _held: set[tuple[int, int]] = set()

@@ -27,17 +27,17 @@ from typing import IO
 
 import actionreasoning
 from actionreasoning.agents.transcript import AgentCall
-from actionreasoning.control.classical import StageEvent
 from actionreasoning.errors import EngineError
-from actionreasoning.eval.film import Frame, Reel
-from actionreasoning.eval.layout import RunDir
-from actionreasoning.eval.trial import TrialObserver
+from actionreasoning.recording.film import Frame, Reel
+from actionreasoning.recording.names import VIDEO_FPS
 from actionreasoning.sim.camera import overview
 from actionreasoning.sim.replica import SceneLooks, ScenePose
 from actionreasoning.sim.scene import Scene
+from actionreasoning.trial.runner import TrialObserver
+from actionreasoning.world.stages import StageEvent
 
 #: Frames per simulated second, and the playback rate: videos play in real time.
-FPS = RunDir.VIDEO_FPS
+FPS = VIDEO_FPS
 #: Simulated time between two frames.
 FRAME_S = 1.0 / FPS
 WIDTH, HEIGHT = 320, 240
@@ -78,7 +78,7 @@ class VideoRecorder(TrialObserver):
         # The film process finds this very package, however this process found it.
         package_root = str(Path(actionreasoning.__file__).parents[1])
         paths = [package_root, *filter(None, [os.environ.get("PYTHONPATH")])]
-        command = [sys.executable, "-m", "actionreasoning.eval.film", name]
+        command = [sys.executable, "-m", "actionreasoning.recording.film", name]
         self._film = subprocess.Popen(
             command,
             stdin=subprocess.PIPE,

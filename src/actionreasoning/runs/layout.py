@@ -36,11 +36,6 @@ class RunDir:
     SNAPSHOTS: ClassVar[str] = "snapshots"
     RERUN: ClassVar[str] = "rerun"
     VIDEOS: ClassVar[str] = "videos"
-    #: The videos' frames per simulated second, also their playback rate (real time).
-    VIDEO_FPS: ClassVar[int] = 5
-    #: In a trial's snapshot folder: the sheet of its stages and the close-up of the build.
-    STAGE_SHEET: ClassVar[str] = "stages.png"
-    FINAL_BUILD: ClassVar[str] = "final_build.png"
     DEMO_PAGE: ClassVar[str] = "report.md"
     DEMO_REPORT: ClassVar[str] = "report"
     DEMO_MARKER: ClassVar[str] = ".actionreasoning-demo"

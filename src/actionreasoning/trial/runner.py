@@ -13,11 +13,18 @@ from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.reasoner import Reasoner
 from actionreasoning.agents.single_agent import SingleAgent
 from actionreasoning.agents.transcript import AgentCall
-from actionreasoning.control.classical import StageEvent, run_classical
+from actionreasoning.control.classical import run_classical
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
 from actionreasoning.errors import ConfigError, TrialAborted, UnreachableError
-from actionreasoning.eval.metrics import brick_metrics
-from actionreasoning.eval.results import (
+from actionreasoning.reasoners.factory import make_reasoner
+from actionreasoning.reasoners.imperfect import ImperfectReasoner
+from actionreasoning.records import FailureCode
+from actionreasoning.sim.kinematics import KinematicArm
+from actionreasoning.sim.perceive import Sensor
+from actionreasoning.sim.scene import Scene
+from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.metrics import brick_metrics
+from actionreasoning.trial.results import (
     AnswerErrorCounts,
     BrickResult,
     Failure,
@@ -26,19 +33,13 @@ from actionreasoning.eval.results import (
     TrialResult,
     refusals_of,
 )
-from actionreasoning.eval.rules import Method, trial_seed
-from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.eval.trial_config import TrialConfig
-from actionreasoning.reasoners.factory import make_reasoner
-from actionreasoning.reasoners.imperfect import ImperfectReasoner
-from actionreasoning.records import FailureCode
-from actionreasoning.sim.kinematics import KinematicArm
-from actionreasoning.sim.perceive import Sensor
-from actionreasoning.sim.scene import Scene
+from actionreasoning.trial.rules import Method, trial_seed
+from actionreasoning.trial.sim_world import SimWorld
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import READY_POSE, GoalPattern
 from actionreasoning.world.noise import vary_bricks
+from actionreasoning.world.stages import StageEvent
 
 SPAWN_SETTLE_S = 0.25
 FINAL_SETTLE_S = 1.0

@@ -12,9 +12,9 @@ from pathlib import Path
 from typing import Any
 
 from actionreasoning.errors import ConfigError
-from actionreasoning.eval.layout import RunDir
-from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.run_dir import AnyManifest, read_any_manifest, read_results
+from actionreasoning.runs.layout import RunDir
+from actionreasoning.runs.run_dir import AnyManifest, read_any_manifest, read_results
+from actionreasoning.trial.results import TrialResult
 
 #: run.json fields that do not make trials incomparable: the seed (runs of other seeds are
 #: pooled) and the pattern as it was given (its content is compared, by pattern_sha256).

@@ -17,8 +17,8 @@ from pydantic import BaseModel, ConfigDict, Field
 from actionreasoning.agents.answer_errors import CorruptionKind
 from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.tiers import BEFORE_TIERS
-from actionreasoning.eval.provenance import Provenance
 from actionreasoning.records import Failure, LLMUsage
+from actionreasoning.trial.provenance import Provenance
 from actionreasoning.world.geometry import QuatXYZW, Vec3
 from actionreasoning.world.stages import Stage
 

@@ -17,17 +17,17 @@ from typing import Any
 
 from jinja2 import Environment, PackageLoader, select_autoescape
 
-from actionreasoning.eval.layout import RunDir
-from actionreasoning.eval.report.collect import Group, load_groups, patterns
-from actionreasoning.eval.report.pictures import stage_grid, trial_gif
-from actionreasoning.eval.report.plots import (
+from actionreasoning.recording.names import VIDEO_FPS
+from actionreasoning.report.collect import Group, load_groups, patterns
+from actionreasoning.report.pictures import stage_grid, trial_gif
+from actionreasoning.report.plots import (
     error_distributions,
     llm_cost,
     refusal_categories,
     success_rates,
 )
-from actionreasoning.eval.report.runs import unique
-from actionreasoning.eval.report.tables import (
+from actionreasoning.report.runs import unique
+from actionreasoning.report.tables import (
     AVERAGE,
     COLUMNS,
     REFUSALS_PLOT,
@@ -37,8 +37,8 @@ from actionreasoning.eval.report.tables import (
     to_latex,
     to_markdown,
 )
-from actionreasoning.eval.results import Refusals, TrialResult
-from actionreasoning.eval.summary import categories_in
+from actionreasoning.runs.summary import categories_in
+from actionreasoning.trial.results import Refusals, TrialResult
 
 HTML_FILE = "report.html"
 
@@ -144,11 +144,11 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
     table = report.table
     column_groups = [*table.patterns, AVERAGE]
     environment = Environment(
-        loader=PackageLoader("actionreasoning.eval.report"), autoescape=select_autoescape()
+        loader=PackageLoader("actionreasoning.report"), autoescape=select_autoescape()
     )
     page = environment.get_template("report.html.j2").render(
         title="actionreasoning report",
-        video_fps=RunDir.VIDEO_FPS,
+        video_fps=VIDEO_FPS,
         runs=[str(d) for d in unique(directories)],
         column_groups=column_groups,
         columns=[f"{title} {'↓' if lower else '↑'}" for _, title, _, _, lower in COLUMNS],

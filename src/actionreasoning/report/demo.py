@@ -7,8 +7,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from actionreasoning.eval.layout import RunDir
-from actionreasoning.eval.report.build import build_report
+from actionreasoning.recording.names import FINAL_BUILD, STAGE_SHEET, VIDEO_FPS
+from actionreasoning.report.build import build_report
+from actionreasoning.runs.layout import RunDir
 
 DEMO_TRIAL = 0
 
@@ -32,9 +33,9 @@ def write_demo_pages(run: RunDir) -> DemoPages:
     run.demo_page.write_text(
         run.summary_md.read_text()
         + "\n## Stages\n\nStages left to right, bricks top to bottom.\n\n"
-        + f"![stages]({snapshots}/{RunDir.STAGE_SHEET})\n\n## Result\n\n"
-        + f"![build]({snapshots}/{RunDir.FINAL_BUILD})\n"
+        + f"![stages]({snapshots}/{STAGE_SHEET})\n\n## Result\n\n"
+        + f"![build]({snapshots}/{FINAL_BUILD})\n"
         + f"![the build, stage by stage]({animation})\n\n"
-        + f"[The video of the build]({video}) ({RunDir.VIDEO_FPS} frames per simulated second).\n"
+        + f"[The video of the build]({video}) ({VIDEO_FPS} frames per simulated second).\n"
     )
     return DemoPages(markdown=run.demo_page, html=report.html)

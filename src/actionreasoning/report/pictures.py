@@ -11,9 +11,10 @@ from pathlib import Path
 import imageio.v3 as iio
 import numpy as np
 
-from actionreasoning.eval.images import FRAMES_DIR, image_grid
-from actionreasoning.eval.report.collect import Group
-from actionreasoning.eval.results import TrialResult
+from actionreasoning.recording.images import image_grid
+from actionreasoning.recording.names import FRAMES_DIR
+from actionreasoning.report.collect import Group
+from actionreasoning.trial.results import TrialResult
 from actionreasoning.world.stages import Stage
 
 CLOSEUP = re.compile(r"b(?P<brick>\d+)_(?P<n>\d+)_(?P<stage>\w+)\.png")

@@ -10,9 +10,9 @@ from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.agents.single_agent import SingleAgent
 from actionreasoning.agents.spec import SINGLE_AGENT, AgentKey
 from actionreasoning.errors import ActionReasoningError
-from actionreasoning.eval.sim_world import SimWorld
-from actionreasoning.eval.trial import TrialSpec, trial_world
 from actionreasoning.reasoners.builtin import BuiltinReasoner
+from actionreasoning.trial.runner import TrialSpec, trial_world
+from actionreasoning.trial.sim_world import SimWorld
 
 
 class _Caught(Exception):

@@ -21,11 +21,11 @@ from dataclasses import dataclass, field
 from itertools import islice
 
 from actionreasoning.errors import ConfigError, EngineError
-from actionreasoning.eval.rerun_log import RerunRecorder
-from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.snapshots import SnapshotRecorder
-from actionreasoning.eval.trial import TrialSpec, run_trial
-from actionreasoning.eval.video import VideoRecorder
+from actionreasoning.recording.rerun_log import RerunRecorder
+from actionreasoning.trial.results import TrialResult
+from actionreasoning.recording.snapshots import SnapshotRecorder
+from actionreasoning.trial.runner import TrialSpec, run_trial
+from actionreasoning.recording.video import VideoRecorder
 
 PARENT_POLL_S = 0.5
 #: Jobs handed out ahead per worker (or Ray CPU): one running, one waiting to start.

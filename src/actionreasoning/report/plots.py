@@ -11,10 +11,10 @@ from matplotlib import colormaps
 from matplotlib.figure import Figure
 
 from actionreasoning.agents.error_kinds import ErrorCategory
-from actionreasoning.eval.report.collect import Group, labels, patterns
-from actionreasoning.eval.results import sum_refusals
-from actionreasoning.eval.summary import categories_in
 from actionreasoning.records import LLMUsage
+from actionreasoning.report.collect import Group, labels, patterns
+from actionreasoning.runs.summary import categories_in
+from actionreasoning.trial.results import sum_refusals
 
 #: (per-brick field, axis title, scale)
 BRICK_METRICS = (

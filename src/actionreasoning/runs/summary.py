@@ -11,8 +11,8 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.agents.answer_errors import AnswerErrors, CorruptionKind
 from actionreasoning.agents.error_kinds import ErrorCategory
-from actionreasoning.eval.provenance import Provenance
-from actionreasoning.eval.results import (
+from actionreasoning.trial.provenance import Provenance
+from actionreasoning.trial.results import (
     AnswerErrorCounts,
     LLMUsage,
     Refusals,

@@ -16,7 +16,7 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
-from actionreasoning.eval.results import TrialResult
+from actionreasoning.trial.results import TrialResult
 
 
 def trial_line(result: TrialResult) -> str:

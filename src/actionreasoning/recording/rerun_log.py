@@ -18,13 +18,13 @@ from typing import Any
 import numpy as np
 
 from actionreasoning.agents.transcript import AgentCall, CheckRecord, GateRecord, Outcome
-from actionreasoning.control.classical import StageEvent
 from actionreasoning.errors import ConfigError
-from actionreasoning.eval.metrics import center_offset_cm
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.trial import TrialObserver, TrialSpec
 from actionreasoning.sim.robot_model import FINGER_LEFT
 from actionreasoning.sim.scene import GRASP_CONTACT_N, Scene
+from actionreasoning.trial.metrics import center_offset_cm
+from actionreasoning.trial.rules import Method
+from actionreasoning.trial.runner import TrialObserver, TrialSpec
+from actionreasoning.world.stages import StageEvent
 
 #: The scene is sampled every this many simulated seconds (8 Hz), and at each stage.
 SAMPLE_S = 0.125

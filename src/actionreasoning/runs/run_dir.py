@@ -24,10 +24,10 @@ from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
 from actionreasoning.agents.answer_errors import AnswerErrors
 from actionreasoning.agents.tiers import BEFORE_TIERS
 from actionreasoning.errors import ConfigError, StorageError
-from actionreasoning.eval.layout import RunDir
-from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.rules import trial_seed
-from actionreasoning.eval.trial_config import TrialConfig
+from actionreasoning.runs.layout import RunDir
+from actionreasoning.trial.results import TrialResult
+from actionreasoning.trial.rules import trial_seed
+from actionreasoning.trial.config import TrialConfig
 from actionreasoning.world.config_files import read_user_file
 
 

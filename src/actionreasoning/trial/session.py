@@ -1,6 +1,6 @@
 """One trial driven from outside: one agent answer or one tool call at a time.
 
-The trial runs as ``eval`` runs it (:func:`~actionreasoning.eval.trial.run_trial`: the same
+The trial runs as ``eval`` runs it (:func:`~actionreasoning.trial.runner.run_trial`: the same
 scene, agents, validation, gates and controller) in a thread of its own, with an outside
 agent as its reasoner. When an agent asks, the trial waits; the session's caller reads the
 question (:meth:`TrialSession.turn`), calls the agent's tools (and, whichever agent waits,
@@ -37,14 +37,14 @@ from actionreasoning.agents.tiers import DEFAULT_TIER, load_tier
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.agents.validation import OutputError, parse_answer
 from actionreasoning.errors import ActionReasoningError, ConfigError, LLMError, ToolError
-from actionreasoning.eval.results import TrialResult
-from actionreasoning.eval.rules import Method
-from actionreasoning.eval.trial import TrialObserver, TrialRun, TrialSpec, run_trial
-from actionreasoning.eval.trial_config import TrialConfig
 from actionreasoning.records import FailureCode
 from actionreasoning.sim.scene import Scene
 from actionreasoning.tools.base import ToolModel
 from actionreasoning.tools.registry import GATE_MEASUREMENTS, ToolSchema, tool_schema
+from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.results import TrialResult
+from actionreasoning.trial.rules import Method
+from actionreasoning.trial.runner import TrialObserver, TrialRun, TrialSpec, run_trial
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.models import GoalPattern, WorldState
 from actionreasoning.world.noise import load_noise

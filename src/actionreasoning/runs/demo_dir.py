@@ -13,8 +13,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from actionreasoning.errors import ConfigError
-from actionreasoning.eval.layout import RunDir
-from actionreasoning.eval.run_lock import run_lock
+from actionreasoning.runs.layout import RunDir
+from actionreasoning.runs.run_lock import run_lock
 
 NOTE = (
     "Written by `actionreasoning demo`: a demo into this directory again replaces "

@@ -1,1 +1,0 @@
-"""Evaluation: trials, metrics, aggregation and reports."""
