@@ -18,7 +18,7 @@ from jinja2 import Environment, PackageLoader, StrictUndefined
 from scipy.spatial.transform import Rotation
 
 from actionreasoning.tools import formulas as f
-from actionreasoning.world.geometry import quat_yaw, round_floats, top_down_quat, yaw_quat
+from actionreasoning.world.geometry import as_quat, quat_yaw, round_floats, top_down_quat, yaw_quat
 from actionreasoning.world.models import Pose
 
 _ENVIRONMENT = Environment(
@@ -91,7 +91,7 @@ def _grasp_yaws() -> dict[str, str]:
 
 def held_example() -> Pose:
     """The held brick of the worked examples, as measured."""
-    return f.carried(TOOL, OFFSET_IN_HAND_M, tuple(ROLL_IN_HAND.as_quat()))  # type: ignore[arg-type]
+    return f.carried(TOOL, OFFSET_IN_HAND_M, as_quat(ROLL_IN_HAND.as_quat()))
 
 
 def _in_hand() -> dict[str, str]:

@@ -154,4 +154,4 @@ class StateView(_View):
 def target_supports(goal: GoalPattern) -> dict[int, tuple[int, ...]]:
     """For each target, the targets it rests on."""
     boxes = [Box(t.pose.position_m, t.pose.quat_xyzw, t.size_m, id=t.index) for t in goal.targets]
-    return {box.id: tuple(o.id for o, _ in carriers(box, boxes)) for box in boxes}
+    return {box.named_id: tuple(o.named_id for o, _ in carriers(box, boxes)) for box in boxes}

@@ -29,7 +29,7 @@ from actionreasoning.agents.outputs import (
 )
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest, Reasoner
 from actionreasoning.agents.view import target_supports
-from actionreasoning.world.geometry import QuatXYZW, Vec3
+from actionreasoning.world.geometry import QuatXYZW, Vec3, as_vec3
 from actionreasoning.world.stages import Stage
 
 #: The stream of a trial's seed that answer errors draw from (world/noise.py has 1 and 2).
@@ -247,8 +247,7 @@ def _displacement(
     if waypoint is None:
         return None, (0.0, 0.0, 0.0)
     tool = request.state.robot.ee_pose.position_m
-    moved = tuple(p - t for p, t in zip(waypoint.position_m, tool, strict=True))
-    return waypoint, moved  # type: ignore[return-value]
+    return waypoint, as_vec3(np.subtract(waypoint.position_m, tool))
 
 
 def _choice(answer: AgentAnswer) -> PreGraspAnswer | SingleAgentAnswer | None:

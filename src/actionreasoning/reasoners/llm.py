@@ -53,7 +53,8 @@ class LLMReasoner:
         """Ask the model until it gives a valid answer, within the turn budgets."""
         schema = request.spec.output_model.model_json_schema()
         messages: list[Message] = [{"role": "user", "content": request.prompt}]
-        usage, repairs, tool_turns, sent = LLMUsage(), [], 0, 0
+        usage, tool_turns, sent = LLMUsage(), 0, 0
+        repairs: list[str] = []
         categories: list[ErrorCategory] = []
         while True:
             sent += sum(len(message["content"]) for message in messages)

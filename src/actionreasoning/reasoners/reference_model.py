@@ -158,7 +158,7 @@ def _thresholds(prompt: str) -> Tolerances:
     # A threshold the prompt does not show is NaN: a policy that read it would fail its
     # comparisons, never fall back on a default it was not told.
     unknown = {name: math.nan for name in Tolerances.model_fields if name not in shown}
-    return Tolerances.model_construct(**unknown, **shown)
+    return Tolerances.model_construct(None, **unknown, **shown)
 
 
 def _tool_results(messages: Sequence[Message]) -> dict[str, dict[str, Any]]:

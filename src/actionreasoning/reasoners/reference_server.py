@@ -67,7 +67,7 @@ class ReferenceServer(ThreadingHTTPServer):
     @property
     def url(self) -> str:
         """The base URL clients are given, ``http://HOST:PORT/v1``."""
-        host, port = self.server_address[:2]
+        host, port = str(self.server_address[0]), self.server_address[1]
         shown = f"[{host}]" if self.address_family == socket.AF_INET6 else host
         return f"http://{shown}:{port}/v1"
 

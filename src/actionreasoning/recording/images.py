@@ -6,6 +6,7 @@ reads snapshots without the simulator.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from io import BytesIO
 
 import imageio.v3 as iio
@@ -19,7 +20,7 @@ def png(image: np.ndarray) -> bytes:
 
 
 def image_grid(
-    rows: list[tuple[str, list[tuple[str, np.ndarray | None]]]], titles_on_first_row: bool
+    rows: Sequence[tuple[str, Sequence[tuple[str, np.ndarray | None]]]], titles_on_first_row: bool
 ) -> bytes:
     """Labelled rows of titled pictures as one PNG; a ``None`` picture leaves its cell blank.
 

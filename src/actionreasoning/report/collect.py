@@ -220,9 +220,9 @@ def _compact(names: Sequence[str]) -> str:
     for top, rests in by_top.items():
         if "" in rests:
             parts.append(top)
-        rest = [r for r in rests if r]
-        if len(rest) == 1:
-            parts.append(f"{top}.{rest[0]}")
-        elif rest:
-            parts.append(f"{top}.{{{', '.join(rest)}}}")
+        nested = [r for r in rests if r]
+        if len(nested) == 1:
+            parts.append(f"{top}.{nested[0]}")
+        elif nested:
+            parts.append(f"{top}.{{{', '.join(nested)}}}")
     return ", ".join(parts)

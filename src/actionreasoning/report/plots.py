@@ -144,10 +144,8 @@ def llm_cost(groups: Sequence[Group], path: Path) -> Path | None:
             color=colour,
             label=f"{label} completion",
         )
-        per_call = [
-            (u.latency_s / u.calls) if (u := row.get(a)) is not None and u.calls else 0.0
-            for a in agents
-        ]
+        calls = [row.get(a, LLMUsage()) for a in agents]
+        per_call = [u.latency_s / u.calls if u.calls else 0.0 for u in calls]
         latency.bar(shift, per_call, width * 0.95, color=colour, label=label)
     for axis, title in ((tokens, "tokens per brick"), (latency, "latency per call (s)")):
         axis.set_xticks(x, [a.replace("_", " ") for a in agents], rotation=30, ha="right")

@@ -70,10 +70,10 @@ def _acquire(out: Path) -> int:
         os.close(handle)
         raise ConfigError(f"--out {out}: cannot lock it ({error.strerror})") from error
     started = time.strftime("%Y-%m-%d %H:%M:%S %z")
-    holder = f"pid {os.getpid()} on {socket.gethostname()} since {started}\n".encode()
+    mark = f"pid {os.getpid()} on {socket.gethostname()} since {started}\n".encode()
     try:
         os.ftruncate(handle, 0)
-        if os.write(handle, holder) != len(holder):
+        if os.write(handle, mark) != len(mark):
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
     except OSError as error:
         os.close(handle)

@@ -14,7 +14,7 @@ import pybullet as p
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.clearance import SEARCH_DISTANCE_M, Clearance
-from actionreasoning.world.geometry import Vec3
+from actionreasoning.world.geometry import Joints, Vec3
 
 #: Arm links that can come near the ground (the elbow and everything after it).
 FIRST_GROUND_LINK = 3
@@ -37,7 +37,7 @@ class CollisionChecker:
 
     def clearance(
         self,
-        joints_rad: Sequence[float],
+        joints_rad: Joints,
         finger_half_width_m: float,
         obstacles: Sequence[Box],
         held: Box | None = None,

@@ -9,7 +9,6 @@ target's azimuth is refined by damped least squares until the pose error is belo
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,7 +23,15 @@ from actionreasoning.sim.robot_model import (
     TCP_LINK,
     load_robot,
 )
-from actionreasoning.world.geometry import QuatXYZW, Vec3, quat_yaw, wrap_angle
+from actionreasoning.world.geometry import (
+    Joints,
+    QuatXYZW,
+    Vec3,
+    as_quat,
+    as_vec3,
+    quat_yaw,
+    wrap_angle,
+)
 
 #: A comfortable top-down configuration; joints 1 and 7 are set from the target.
 REST_POSE_RAD = (0.0, 0.55, 0.0, -1.55, 0.0, 1.05, 0.0)
@@ -76,7 +83,7 @@ class KinematicArm:
         """The arm's body id in :attr:`client`."""
         return self._robot
 
-    def set_configuration(self, joints_rad: Sequence[float], finger_half_width_m: float) -> None:
+    def set_configuration(self, joints_rad: Joints, finger_half_width_m: float) -> None:
         """Put the kinematic copy in a configuration (arm joints and finger opening)."""
         self._set(joints_rad)
         for finger in (FINGER_LEFT, FINGER_RIGHT):
@@ -89,13 +96,13 @@ class KinematicArm:
         if p.isConnected(self._client):
             p.disconnect(self._client)
 
-    def forward(self, joints_rad: Sequence[float]) -> tuple[Vec3, QuatXYZW]:
+    def forward(self, joints_rad: Joints) -> tuple[Vec3, QuatXYZW]:
         """Tool centre point pose (position m, quaternion xyzw) for arm joint angles."""
         self._set(joints_rad)
         state = p.getLinkState(
             self._robot, TCP_LINK, computeForwardKinematics=True, physicsClientId=self._client
         )
-        return tuple(state[4]), tuple(state[5])  # type: ignore[return-value]
+        return as_vec3(state[4]), as_quat(state[5])
 
     def default_rest(self, position_m: Vec3, quat_xyzw: QuatXYZW) -> tuple[float, ...]:
         """The rest pose with joint 1 turned towards the target and joint 7 set for its yaw.
@@ -111,7 +118,7 @@ class KinematicArm:
         self,
         position_m: Vec3,
         quat_xyzw: QuatXYZW,
-        rest_rad: Sequence[float] | None = None,
+        rest_rad: Joints | None = None,
         refine_iterations: int = 30,
     ) -> IKSolution:
         """Joint angles putting the tool centre point at the pose; ``rest_rad`` seeds and biases."""
@@ -162,6 +169,6 @@ class KinematicArm:
             joint_limit_margin_rad=margin,
         )
 
-    def _set(self, joints_rad: Sequence[float]) -> None:
+    def _set(self, joints_rad: Joints) -> None:
         for joint, angle in zip(ARM_JOINTS, joints_rad, strict=False):
             p.resetJointState(self._robot, joint, float(angle), physicsClientId=self._client)

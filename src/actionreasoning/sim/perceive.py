@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from actionreasoning.sim.robot_model import FINGER_MAX_M, FINGER_MIN_M, FINGER_PAD_BELOW_TCP_M
 from actionreasoning.sim.scene import GRASP_CONTACT_N, FingerContact, Scene
-from actionreasoning.world.geometry import QuatXYZW, Vec3, tilt_deg
+from actionreasoning.world.geometry import QuatXYZW, Vec3, as_quat, as_vec3, tilt_deg
 from actionreasoning.world.models import (
     BrickState,
     BrickStatus,
@@ -54,10 +54,10 @@ class Sensor:
         noise = self.noise.perception
         if noise.position_std_m > 0.0:
             shift = self._rng.normal(0.0, noise.position_std_m, size=3)
-            position = tuple(float(v) for v in np.add(position, shift))  # type: ignore[assignment]
+            position = as_vec3(np.add(position, shift))
         if noise.yaw_std_deg > 0.0:
             turn = Rotation.from_euler("z", self._rng.normal(0.0, noise.yaw_std_deg), degrees=True)
-            quat = tuple(float(q) for q in (turn * Rotation.from_quat(quat)).as_quat())  # type: ignore[assignment]
+            quat = as_quat((turn * Rotation.from_quat(quat)).as_quat())
         return position, quat
 
     def _forces(self, values: tuple[float, float], rng: np.random.Generator) -> tuple[float, float]:

@@ -33,8 +33,8 @@ class SceneLooks:
         """The looks of ``scene``'s bricks, read from their visual shapes."""
         shapes = [p.getVisualShapeData(b, physicsClientId=scene.client)[0] for b in scene.bricks]
         return cls(
-            brick_sizes_m=tuple(tuple(shape[3]) for shape in shapes),  # type: ignore[misc]
-            brick_colors=tuple(tuple(shape[7]) for shape in shapes),  # type: ignore[misc]
+            brick_sizes_m=tuple(tuple(shape[3]) for shape in shapes),
+            brick_colors=tuple(tuple(shape[7]) for shape in shapes),
         )
 
 

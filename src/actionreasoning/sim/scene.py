@@ -31,7 +31,7 @@ from actionreasoning.sim.robot_model import (
     load_robot,
 )
 from actionreasoning.world.budget import TrialBudget
-from actionreasoning.world.geometry import QuatXYZW, Vec3
+from actionreasoning.world.geometry import Joints, QuatXYZW, Vec3, as_quat, as_vec3
 from actionreasoning.world.models import Pose
 from actionreasoning.world.physics import GRAVITY_MPS2, PAPER, PhysicsProfile
 from actionreasoning.world.scene_spec import BrickBody, SceneSpec
@@ -73,7 +73,7 @@ class Scene:
         self,
         spec: SceneSpec,
         brick_poses: Sequence[Pose],
-        ready_joints_rad: Sequence[float],
+        ready_joints_rad: Joints,
         physics: PhysicsProfile = PAPER,
         budget: TrialBudget = TrialBudget(),
         bodies: Sequence[BrickBody] | None = None,
@@ -172,7 +172,7 @@ class Scene:
         return body
 
     # --- actuation --------------------------------------------------------------------
-    def set_arm_targets(self, joints_rad: Sequence[float]) -> None:
+    def set_arm_targets(self, joints_rad: Joints) -> None:
         """Position targets for the seven arm joints (applied from the next step on)."""
         self.arm_targets = np.asarray(joints_rad, dtype=float)
         self._apply_targets()
@@ -292,38 +292,39 @@ class Scene:
         state = p.getLinkState(
             self.robot, TCP_LINK, computeForwardKinematics=True, physicsClientId=self.client
         )
-        return tuple(state[4]), tuple(state[5])  # type: ignore[return-value]
+        return as_vec3(state[4]), as_quat(state[5])
 
     def link_positions(self) -> list[Vec3]:
         """World positions of the arm's base and every link frame, from base to tool."""
         cid, links = self.client, range(p.getNumJoints(self.robot, physicsClientId=self.client))
         base = p.getBasePositionAndOrientation(self.robot, physicsClientId=cid)[0]
         states = p.getLinkStates(self.robot, list(links), physicsClientId=cid)
-        return [tuple(base), *(tuple(state[4]) for state in states)]  # type: ignore[list-item]
+        return [as_vec3(base), *(as_vec3(state[4]) for state in states)]
 
     def tcp_velocity(self) -> tuple[Vec3, Vec3]:
         """Measured tool-centre-point linear (m/s) and angular (rad/s) velocity."""
         state = p.getLinkState(
             self.robot, TCP_LINK, computeLinkVelocity=True, physicsClientId=self.client
         )
-        return tuple(state[6]), tuple(state[7])  # type: ignore[return-value]
+        return as_vec3(state[6]), as_vec3(state[7])
 
     def brick_pose(self, brick: int) -> tuple[Vec3, QuatXYZW]:
         """Measured pose of brick ``brick``."""
         position, quat = p.getBasePositionAndOrientation(
             self.bricks[brick], physicsClientId=self.client
         )
-        return tuple(position), tuple(quat)  # type: ignore[return-value]
+        return as_vec3(position), as_quat(quat)
 
     def brick_velocity(self, brick: int) -> tuple[Vec3, Vec3]:
         """Measured linear (m/s) and angular (rad/s) velocity of brick ``brick``."""
         linear, angular = p.getBaseVelocity(self.bricks[brick], physicsClientId=self.client)
-        return tuple(linear), tuple(angular)  # type: ignore[return-value]
+        return as_vec3(linear), as_vec3(angular)
 
     def finger_contacts(self, brick: int) -> tuple[FingerContact, FingerContact]:
         """Normal and tangential contact force between each finger pad and a brick."""
-        return tuple(  # type: ignore[return-value]
-            self._contact(self.bricks[brick], finger) for finger in (FINGER_LEFT, FINGER_RIGHT)
+        return (
+            self._contact(self.bricks[brick], FINGER_LEFT),
+            self._contact(self.bricks[brick], FINGER_RIGHT),
         )
 
     def is_held(self, brick: int) -> bool:

@@ -91,7 +91,7 @@ def slip_estimate(context: ToolContext, query: BrickQuery) -> SlipEstimate:
         brick_id=brick.id,
         relative_speed_mps=float(np.linalg.norm(relative)),
         relative_angular_speed_radps=float(np.linalg.norm(spin)),
-        offset_in_gripper_m=tuple(float(v) for v in offset),  # type: ignore[arg-type]
+        offset_in_gripper_m=tuple(float(v) for v in offset),
         tilt_in_hand_deg=axis_angle_deg(brick.pose.quat_xyzw, tool.quat_xyzw),
     )
 

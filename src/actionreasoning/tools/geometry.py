@@ -158,7 +158,7 @@ def grasp_candidates(context: ToolContext, query: GraspQuery) -> GraspCandidates
     return GraspCandidates(
         brick_id=brick.id,
         grasp_axis_xy=(-math.sin(yaw), math.cos(yaw)),
-        candidates=candidates,  # type: ignore[arg-type]
+        candidates=candidates,
     )
 
 

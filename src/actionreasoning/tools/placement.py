@@ -85,8 +85,8 @@ def placement_pose(context: ToolContext, query: PlacementQuery) -> PlacementPose
     slot = slot_pose(target_of(state, query.target_index).pose, *in_hand(tool_pose, brick.pose))
     quat = slot.quat_xyzw
     x, y, z = slot.position_m
-    above = Pose(position_m=(x, y, max(z, tool_pose.position_m[2])), quat_xyzw=quat)  # type: ignore[arg-type]
-    seat = Pose(position_m=(x, y, z + SEAT_CLEARANCE_M), quat_xyzw=quat)  # type: ignore[arg-type]
+    above = Pose(position_m=(x, y, max(z, tool_pose.position_m[2])), quat_xyzw=quat)
+    seat = Pose(position_m=(x, y, z + SEAT_CLEARANCE_M), quat_xyzw=quat)
     opening = state.robot.gripper_width_m
     over = (
         CollisionQuery(pose=above, path="joint", gripper_opening_m=opening)

@@ -11,7 +11,7 @@ from typing import Protocol, runtime_checkable
 
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.clearance import Clearance
-from actionreasoning.world.geometry import QuatXYZW, Vec3
+from actionreasoning.world.geometry import Joints, QuatXYZW, Vec3
 
 
 class IKResult(Protocol):
@@ -38,12 +38,12 @@ class IKResult(Protocol):
 class ArmModel(Protocol):
     """Forward and inverse kinematics of the arm's tool centre point."""
 
-    def forward(self, joints_rad: Sequence[float]) -> tuple[Vec3, QuatXYZW]:
+    def forward(self, joints_rad: Joints) -> tuple[Vec3, QuatXYZW]:
         """Tool centre point pose (position m, quaternion xyzw) for arm joint angles."""
         ...
 
     def solve(
-        self, position_m: Vec3, quat_xyzw: QuatXYZW, rest_rad: Sequence[float] | None = None
+        self, position_m: Vec3, quat_xyzw: QuatXYZW, rest_rad: Joints | None = None
     ) -> IKResult:
         """Joint angles putting the tool centre point at the pose; ``rest_rad`` seeds them."""
         ...
@@ -55,7 +55,7 @@ class ClearanceChecker(Protocol):
 
     def clearance(
         self,
-        joints_rad: Sequence[float],
+        joints_rad: Joints,
         finger_half_width_m: float,
         obstacles: Sequence[Box],
         held: Box | None = None,

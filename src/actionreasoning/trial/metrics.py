@@ -70,7 +70,7 @@ def _intersection_volume(halfspaces: np.ndarray) -> float:
         b_ub=-offsets,
         bounds=[(None, None)] * 3 + [(0.0, None)],
     )
-    if not lp.success or lp.x[3] <= _MIN_DEPTH_M:
+    if not lp.success or lp.x is None or lp.x[3] <= _MIN_DEPTH_M:
         return 0.0
     try:
         vertices = HalfspaceIntersection(halfspaces, lp.x[:3]).intersections

@@ -24,6 +24,13 @@ class Box:
     id: int | None = None
 
     @property
+    def named_id(self) -> int:
+        """The id of a box that stands for a brick or a target."""
+        if self.id is None:
+            raise ValueError("this box stands for no brick or target")
+        return self.id
+
+    @property
     def bottom_m(self) -> float:
         return self.position_m[2] - self.size_m[2] / 2.0
 

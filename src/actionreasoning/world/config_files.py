@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 import os
 import stat
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -22,7 +22,7 @@ from actionreasoning.errors import ActionReasoningError, ConfigError
 
 M = TypeVar("M", bound=BaseModel)
 
-_PARSERS = {
+_PARSERS: dict[str, tuple[str, Callable[[str], Any]]] = {
     ".json": ("JSON", json.loads),
     ".yaml": ("YAML", yaml.safe_load),
     ".yml": ("YAML", yaml.safe_load),
@@ -147,7 +147,7 @@ def load_named(name_or_path: str | Path, builtins: Mapping[str, M], model: type[
     kind = what.split()[-1]  # "profile", "level"
     data = read_mapping(path, f"{what.split()[0]} file", ConfigError)
     loaded = parse_model(model, data, str(path), ConfigError)
-    name = loaded.name  # type: ignore[attr-defined]
+    name = loaded.name  # type: ignore[attr-defined]  # every named model (profile, level) has one
     if name in builtins and loaded != builtins[name]:
         raise ConfigError(
             f"{path}: name: '{name}' is a built-in {kind} with other values; "

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np
@@ -10,6 +11,8 @@ from scipy.spatial.transform import Rotation
 
 Vec3 = tuple[float, float, float]
 QuatXYZW = tuple[float, float, float, float]
+#: Joint angles (rad), from a model, a controller or the simulator: a sequence or an array.
+Joints = Sequence[float] | np.ndarray
 
 #: How far from 1 a quaternion's norm may be and still be normalised rather than refused.
 QUAT_NORM_TOLERANCE = 1e-3
@@ -18,9 +21,21 @@ QUAT_NORM_TOLERANCE = 1e-3
 TOP_DOWN = Rotation.from_euler("x", math.pi)
 
 
+def as_vec3(values: Iterable[float]) -> Vec3:
+    """Three numbers (a list, an array, a simulator's tuple) as a :data:`Vec3`."""
+    x, y, z = (float(v) for v in values)
+    return (x, y, z)
+
+
+def as_quat(values: Iterable[float]) -> QuatXYZW:
+    """Four numbers, x, y, z, w, as a :data:`QuatXYZW`."""
+    x, y, z, w = (float(v) for v in values)
+    return (x, y, z, w)
+
+
 def yaw_quat(yaw_rad: float) -> QuatXYZW:
     """Quaternion (x, y, z, w) of a rotation by ``yaw_rad`` about the world z axis."""
-    return tuple(Rotation.from_euler("z", yaw_rad).as_quat())  # type: ignore[return-value]
+    return as_quat(Rotation.from_euler("z", yaw_rad).as_quat())
 
 
 def quat_yaw(quat_xyzw: QuatXYZW) -> float:
@@ -31,7 +46,7 @@ def quat_yaw(quat_xyzw: QuatXYZW) -> float:
 
 def top_down_quat(yaw_rad: float) -> QuatXYZW:
     """Orientation of a downward-pointing gripper turned by ``yaw_rad`` about world z."""
-    return tuple((Rotation.from_euler("z", yaw_rad) * TOP_DOWN).as_quat())  # type: ignore[return-value]
+    return as_quat((Rotation.from_euler("z", yaw_rad) * TOP_DOWN).as_quat())
 
 
 def tilt_deg(quat_xyzw: QuatXYZW) -> float:

@@ -112,7 +112,7 @@ def vary_bricks(
                 size_m=tuple(
                     float(s + d * variation.size_m)
                     for s, d in zip(nominal.size_m, size, strict=True)
-                ),  # type: ignore[arg-type]
+                ),
                 mass_kg=nominal.mass_kg * (1.0 + mass * variation.mass_rel),
                 lateral_friction=nominal.lateral_friction
                 * (1.0 + friction * variation.friction_rel),

@@ -246,7 +246,7 @@ def _check_support(source: str, block: Box, blocks: list[Box]) -> None:
             f"{brick} has nothing under it (no brick top within "
             f"{SUPPORT_TOL_M * 1e3:.0f} mm of z = {block.bottom_m:.3f} m)"
         )
-    later = [other.id for other, _ in contacts if other.id > block.id]
+    later = [other.id for other, _ in contacts if other.named_id > block.named_id]
     if later:
         raise PatternError(f"{brick} rests on brick {later[0]}, which is built later")
     if not centre_is_held(block, [area for _, area in contacts]):

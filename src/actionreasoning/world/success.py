@@ -17,8 +17,11 @@ from actionreasoning.world.geometry import Vec3
 class Placement(Protocol):
     """A brick's error against its target (a results line's brick, or trial means)."""
 
-    center_offset_cm: float
-    rotation_error_deg: float
+    @property
+    def center_offset_cm(self) -> float: ...
+
+    @property
+    def rotation_error_deg(self) -> float: ...
 
 
 @dataclass(frozen=True)

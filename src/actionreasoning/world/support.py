@@ -9,7 +9,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from shapely.geometry import Point, Polygon
+from shapely.geometry import Point
+from shapely.geometry.base import BaseGeometry
 from shapely.ops import unary_union
 
 from actionreasoning.world.boxes import Box
@@ -19,7 +20,7 @@ MIN_AREA_M2 = 1e-6  # footprint intersections smaller than this are mere touchin
 HULL_TOL_M = 1e-6  # a centre this close to its support hull still counts as supported
 
 
-def carriers(brick: Box, others: Sequence[Box]) -> list[tuple[Box, Polygon]]:
+def carriers(brick: Box, others: Sequence[Box]) -> list[tuple[Box, BaseGeometry]]:
     """Bricks whose top face carries ``brick``, each with its contact area."""
     level = [
         o for o in others if o.id != brick.id and abs(o.top_m - brick.bottom_m) <= SUPPORT_TOL_M
@@ -28,7 +29,7 @@ def carriers(brick: Box, others: Sequence[Box]) -> list[tuple[Box, Polygon]]:
     return [(o, area) for o, area in areas if area.area > MIN_AREA_M2]
 
 
-def centre_is_held(brick: Box, contact_areas: Sequence[Polygon]) -> bool:
+def centre_is_held(brick: Box, contact_areas: Sequence[BaseGeometry]) -> bool:
     """Whether the brick's centre lies over the convex hull of its contact areas."""
     hull = unary_union(list(contact_areas)).convex_hull
     return hull.distance(Point(brick.position_m[:2])) <= HULL_TOL_M
