@@ -1,0 +1,1 @@
+"""Eval runs: their directories, lock, jobs and resume, summaries and provenance."""
