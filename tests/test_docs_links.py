@@ -124,9 +124,10 @@ def test_every_docs_page_is_linked_from_the_readme() -> None:
 
 
 @pytest.mark.parametrize("page", PAGES[1:], ids=lambda p: p.name)
-def test_a_docs_page_opens_with_its_title_and_a_summary(page: Path) -> None:
-    title, blank, summary = page.read_text().splitlines()[:3]
-    assert title.startswith("# ") and blank == "" and summary and not summary.startswith("#")
+def test_a_docs_page_opens_with_its_title_and_a_one_line_summary(page: Path) -> None:
+    title, blank, summary, after = page.read_text().splitlines()[:4]
+    assert title.startswith("# ") and blank == after == ""
+    assert summary and not summary.startswith(("#", "*", "-", "|", "```"))
 
 
 def test_the_readme_is_a_front_page_that_begins_with_the_two_commands() -> None:
