@@ -38,14 +38,17 @@ from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PRECISE
 from actionreasoning.world.scene_spec import SceneSpec
 
-#: Three bricks: two side by side and one on top; a short end-to-end build.
-README = Path(__file__).resolve().parents[1] / "README.md"
+#: The documentation pages, docs/*.md.
+DOCS = Path(__file__).resolve().parents[1] / "docs"
 
 
-def readme_table(section: str, header: str) -> list[tuple[str, ...]]:
-    """The rows of the README table under ``header`` after ``section``, whose first cell is
-    code (its backquotes stripped), a tuple of cells each."""
-    lines = README.read_text().split(section, 1)[1].splitlines()
+def doc_table(page: str, section: str, header: str) -> list[tuple[str, ...]]:
+    """The rows of the table under ``header`` after ``section`` in ``docs/page``, whose first
+    cell is code (its backquotes stripped), a tuple of cells each."""
+    text = (DOCS / page).read_text()
+    assert section in text, f"docs/{page} has no {section!r}"
+    lines = text.split(section, 1)[1].splitlines()
+    assert header in lines, f"docs/{page} has no table {header!r} after {section!r}"
     start = lines.index(header) + 2
     rows = []
     for line in lines[start:]:
@@ -56,6 +59,7 @@ def readme_table(section: str, header: str) -> list[tuple[str, ...]]:
     return rows
 
 
+#: Three bricks: two side by side and one on top; a short end-to-end build.
 SMALL_PATTERN = {
     "name": "small",
     "brick_size": [0.2, 0.095, 0.06],

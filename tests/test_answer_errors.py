@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from conftest import README, SMALL_PATTERN, assert_clean_error, cli, readme_table
+from conftest import DOCS, SMALL_PATTERN, assert_clean_error, cli, doc_table
 from fake_world import FakeWorld
 from scipy.spatial.transform import Rotation
 
@@ -564,10 +564,11 @@ def test_bad_answer_error_rates_are_refused_in_one_line(
     assert not (tmp_path / "o").exists()
 
 
-def test_the_readme_table_is_the_enum_in_order() -> None:
-    rows = readme_table("### Answer errors", "| kind | what changes | where it applies |")
+def test_the_docs_table_is_the_enum_in_order() -> None:
+    page = "agents-and-gates.md"
+    rows = doc_table(page, "## Answer errors", "| kind | what changes | where it applies |")
     assert rows == [(k.value, k.meaning, k.applies_to) for k in ALL]
-    assert "Which check catches each kind, before the arm moves" in README.read_text()
+    assert "Which check catches each kind, before the arm moves" in (DOCS / page).read_text()
 
 
 def test_the_single_agents_corrupted_answers_are_marked_and_counted(kinematics, wall) -> None:

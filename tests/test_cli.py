@@ -151,7 +151,7 @@ def test_classical_eval_end_to_end(tmp_path: Path) -> None:
         assert field in brick
     # Under precise physics the grid is built: every brick ends near its target (the script
     # is open loop, so only
-    # centimetre accuracy is asserted; the measured figures are in the README).
+    # centimetre accuracy is asserted; the measured figures are in docs/results.md).
     assert all(b["center_offset_cm"] < 2.0 and b["iou"] > 0.8 for b in record["bricks"])
     summary = json.loads((out / "summary.json").read_text())
     assert summary["trials"] == 1

@@ -14,7 +14,7 @@ from types import ModuleType
 import imageio.v3 as iio
 import numpy as np
 import pytest
-from conftest import SMALL_PATTERN, readme_table
+from conftest import SMALL_PATTERN, doc_table
 from fake_world import FakeWorld
 from test_hostile_outputs import HostileChat
 from test_run_dir import manifest, result
@@ -361,9 +361,10 @@ def test_a_report_has_a_refusal_table_and_the_chart(tmp_path: Path) -> None:
     )
 
 
-def test_the_readme_table_is_the_enum_in_order() -> None:
-    rows = readme_table(
-        "### Refused answers by category",
+def test_the_docs_table_is_the_enum_in_order() -> None:
+    rows = doc_table(
+        "agents-and-gates.md",
+        "## Refused answers by category",
         "| category | meaning | refused by | the kind that expects it |",
     )
     assert [(category, meaning, kinds) for category, meaning, _, kinds in rows] == [

@@ -3,8 +3,8 @@ moves, and the agent's next answer is accepted (the scripted FakeWorld, the real
 orchestrator, the built-in reasoner's answers corrupted as ``eval --answer-errors`` does).
 
 The errors are made on the first brick's cycle, and ``into_obstacle`` on the second's, so
-that a placed brick exists to move into. ``EXPECTED`` is the README's table of what catches
-what.
+that a placed brick exists to move into. ``EXPECTED`` is the table of what catches what in
+docs/agents-and-gates.md.
 """
 
 from __future__ import annotations
@@ -67,7 +67,8 @@ EXPECTED: dict[tuple[str, CorruptionKind], str] = {
     ("release", K.INTO_OBSTACLE): "release_plan:ready_offset_m",
     ("release", K.MISSING_FIELD): "release_plan:answer_complete",
 }
-#: Corruptions that change nothing a gate should refuse, and why (the README says so too).
+#: Corruptions that change nothing a gate should refuse, and why (as docs/agents-and-gates.md
+#: says too).
 HARMLESS: dict[tuple[str, CorruptionKind], str] = {
     # The pads grip a brick turned 180 deg the same: the other of grasp_options' two grasps,
     # still checked to reach the brick and its slot (sigma_4's set-down check).

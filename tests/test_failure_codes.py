@@ -1,17 +1,17 @@
 """The failure codes are one enum, records.FailureCode: results store its values, and the
-README table, summaries and reports print its meanings."""
+table in docs/robustness.md, summaries and reports print its meanings."""
 
 from __future__ import annotations
 
 import pytest
-from conftest import readme_table
+from conftest import doc_table
 from pydantic import ValidationError
 
 from actionreasoning.records import Failure, FailureCode
 
 
-def test_the_readme_table_is_the_enum_in_order() -> None:
-    rows = readme_table("**Failure codes.**", "| code | meaning |")
+def test_the_docs_table_is_the_enum_in_order() -> None:
+    rows = doc_table("robustness.md", "## Failure codes", "| code | meaning |")
     assert rows == [(code.value, code.meaning) for code in FailureCode]
 
 

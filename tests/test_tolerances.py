@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from conftest import README
+from conftest import DOCS
 
 from actionreasoning.agents.gates import sigma5_placement
 from actionreasoning.tools.geometry import AlignmentErrors
@@ -117,7 +117,7 @@ def test_sigma5_never_passes_what_the_success_rule_fails(level: str) -> None:
     assert sigma5_placement(_alignment(0.001, 0.001, 0.2, 0.2), t).passed
 
 
-def test_the_readme_shows_the_derivation_table() -> None:
+def test_the_docs_show_the_derivation_table() -> None:
     goal = load_pattern("pyramid", SceneSpec())
     run = Tolerances().for_goal(goal).under(LEVELS["medium"].sensing())
-    assert derivation_table(run, "pyramid, noise medium") in README.read_text()
+    assert derivation_table(run, "pyramid, noise medium") in (DOCS / "conditions.md").read_text()
