@@ -13,7 +13,7 @@ from pydantic import BaseModel, ConfigDict
 
 class Described(StrEnum):
     """A string enum whose members are a short stable code (the value) and what it means
-    (``meaning``), which summaries, reports and the README print."""
+    (``meaning``), which summaries, reports and docs/robustness.md print."""
 
     meaning: str
 
