@@ -22,10 +22,10 @@ from itertools import islice
 
 from actionreasoning.errors import ConfigError, EngineError
 from actionreasoning.recording.rerun_log import RerunRecorder
-from actionreasoning.trial.results import TrialResult
 from actionreasoning.recording.snapshots import SnapshotRecorder
-from actionreasoning.trial.runner import TrialSpec, run_trial
 from actionreasoning.recording.video import VideoRecorder
+from actionreasoning.trial.results import TrialResult
+from actionreasoning.trial.runner import TrialSpec, run_trial
 
 PARENT_POLL_S = 0.5
 #: Jobs handed out ahead per worker (or Ray CPU): one running, one waiting to start.

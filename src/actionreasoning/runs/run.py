@@ -20,6 +20,8 @@ from pathlib import Path
 from typing import Protocol
 
 from actionreasoning.errors import ConfigError
+from actionreasoning.reasoners.factory import prepare
+from actionreasoning.recording.rerun_log import require_rerun
 from actionreasoning.runs.jobs import (
     TrialJob,
     TrialOutput,
@@ -28,10 +30,6 @@ from actionreasoning.runs.jobs import (
     run_serial,
 )
 from actionreasoning.runs.layout import RunDir
-from actionreasoning.trial.provenance import current_provenance, stamp
-from actionreasoning.recording.rerun_log import require_rerun
-from actionreasoning.trial.results import TrialResult
-from actionreasoning.trial.rules import Method
 from actionreasoning.runs.run_dir import (
     RunManifest,
     append_result,
@@ -42,9 +40,11 @@ from actionreasoning.runs.run_dir import (
 )
 from actionreasoning.runs.run_lock import run_lock
 from actionreasoning.runs.summary import RunSummary, summarize, summary_markdown
-from actionreasoning.trial.runner import TrialSpec
 from actionreasoning.trial.config import TrialConfig
-from actionreasoning.reasoners.factory import prepare
+from actionreasoning.trial.provenance import current_provenance, stamp
+from actionreasoning.trial.results import TrialResult
+from actionreasoning.trial.rules import Method
+from actionreasoning.trial.runner import TrialSpec
 from actionreasoning.world.models import GoalPattern
 
 

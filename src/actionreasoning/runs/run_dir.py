@@ -25,9 +25,9 @@ from actionreasoning.agents.answer_errors import AnswerErrors
 from actionreasoning.agents.tiers import BEFORE_TIERS
 from actionreasoning.errors import ConfigError, StorageError
 from actionreasoning.runs.layout import RunDir
+from actionreasoning.trial.config import TrialConfig
 from actionreasoning.trial.results import TrialResult
 from actionreasoning.trial.rules import trial_seed
-from actionreasoning.trial.config import TrialConfig
 from actionreasoning.world.config_files import read_user_file
 
 

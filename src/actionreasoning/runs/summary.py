@@ -11,6 +11,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.agents.answer_errors import AnswerErrors, CorruptionKind
 from actionreasoning.agents.error_kinds import ErrorCategory
+from actionreasoning.records import FailureCode
 from actionreasoning.trial.provenance import Provenance
 from actionreasoning.trial.results import (
     AnswerErrorCounts,
@@ -19,7 +20,6 @@ from actionreasoning.trial.results import (
     TrialResult,
     sum_refusals,
 )
-from actionreasoning.records import FailureCode
 from actionreasoning.world.noise import NoiseLevel
 from actionreasoning.world.physics import PhysicsProfile
 from actionreasoning.world.success import SuccessRule
