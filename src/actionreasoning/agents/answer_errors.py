@@ -17,10 +17,10 @@ from actionreasoning.agents.error_kinds import ErrorCategory
 
 
 class CorruptionKind(StrEnum):
-    """A kind of mistake: a stable name (its value), what it changes (``meaning``) and which
-    answers it can change (``applies_to``), which the table of docs/agents-and-gates.md
-    prints; and the category of refusal it is a mistake of (``expected``), to compare with the category its
-    refusal got."""
+    """A kind of mistake: a stable name (its value), what it changes (``meaning``) and
+    which answers it can change (``applies_to``), which the table of docs/agents-and-gates.md
+    prints; and the category of refusal it is a mistake of (``expected``), to compare with
+    the category its refusal got."""
 
     meaning: str
     applies_to: str

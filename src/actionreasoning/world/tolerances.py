@@ -2,12 +2,12 @@
 
 A threshold protects the success rule (2 cm, 5 deg: a gate must never pass what the rule
 fails), what the next course needs to seat, or the grip (the brick's mass and friction);
-sensing noise widens what compares two measurements by NOISE_SIGMAS standard deviations,
-so that a gate judges the world, not the noise. :func:`derivations` gives each value with
-its formula (the table of docs/conditions.md, ``actionreasoning tolerances``); the design
-values come from :meth:`Tolerances.derive`, the values a trial runs under from :meth:`Tolerances.under`
-(sensing noise, announced mass and friction tolerances) and :meth:`Tolerances.for_goal`
-(the pattern's joints).
+sensing noise widens what compares two measurements by NOISE_SIGMAS standard deviations, so that a
+gate judges the world, not the noise. :func:`derivations` gives each value with its formula (the
+table of docs/conditions.md, ``actionreasoning tolerances``); the design values come from
+:meth:`Tolerances.derive`, the values a trial runs under from :meth:`Tolerances.under` (sensing
+noise, announced mass and friction tolerances) and :meth:`Tolerances.for_goal` (the pattern's
+joints).
 """
 
 from __future__ import annotations
