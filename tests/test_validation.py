@@ -106,5 +106,6 @@ def test_a_chosen_duration_and_a_regrasp_survive_validation() -> None:
 
 def test_answers_keep_their_schema() -> None:
     placement = parse_answer(json.dumps({"waypoint": waypoint()}), AGENTS["placement"], STATE)
-    descent = parse_answer(json.dumps({"gripper_opening_m": 0.13}), AGENTS["descent"], STATE)
+    opened = {"gripper_opening_m": 0.13, "waypoint": waypoint()}
+    descent = parse_answer(json.dumps(opened), AGENTS["descent"], STATE)
     assert isinstance(placement, PlacementAnswer) and isinstance(descent, DescentAnswer)

@@ -11,8 +11,6 @@ refused by either ends the trial: its call fails with the error's category.
 
 from __future__ import annotations
 
-from typing import cast
-
 from actionreasoning.agents.calls import (
     BUILD_STOPPERS,
     AgentCaller,
@@ -24,12 +22,17 @@ from actionreasoning.agents.calls import (
 )
 from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.memory import PlacedBrick, TaskMemory
-from actionreasoning.agents.outputs import SingleAgentAnswer
+from actionreasoning.agents.outputs import (
+    AgentAnswer,
+    SingleAgentPick,
+    SingleAgentStep,
+    single_agent_decision,
+)
 from actionreasoning.agents.reasoner import Reasoner
 from actionreasoning.agents.spec import SINGLE_AGENT_START, single_agent_spec
 from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
 from actionreasoning.agents.transcript import Outcome
-from actionreasoning.agents.validation import OutputError, check_answer
+from actionreasoning.agents.validation import OutputError, check_answer, complete
 from actionreasoning.agents.world import World
 from actionreasoning.errors import UnreachableError
 from actionreasoning.records import FailureCode
@@ -69,14 +72,14 @@ class SingleAgent:
         budget = WAYPOINTS_PER_BRICK * len(goal.targets) + 1
         try:
             for call in range(budget):
-                answer, state = self.calls.ask(self.spec, self.memory, call + 1, SingleAgentAnswer)
+                answer, state = self.calls.ask(self.spec, self.memory, call + 1)
                 try:
-                    self._execute(answer, state)
+                    step = self._execute(answer, state)
                 except UnreachableError as error:
                     self.calls.conclude(Outcome.FAILED, str(error), ErrorCategory.UNREACHABLE)
                     raise
                 self.calls.conclude(Outcome.EXECUTED)
-                if answer.step == "done":
+                if step == "done":
                     return self.result
             raise TrialStopped(
                 FailureCode.BUDGET_EXHAUSTED, self.spec.key, f"{budget} waypoints spent"
@@ -85,18 +88,16 @@ class SingleAgent:
             self.result.failure = failure_of(error, self.spec.key)
         return self.result
 
-    def _execute(self, answer: SingleAgentAnswer, state: WorldState) -> None:
-        """Check the answer's data (as any model answer is checked), move, grip, and keep the
-        memory of the cycle."""
+    def _execute(self, answer: AgentAnswer, state: WorldState) -> SingleAgentStep:
+        """Check the answer's data (as any model answer is checked) and that it is a complete
+        decision, move, grip, and keep the memory of the cycle; returns the step done."""
         try:
-            answer = cast(SingleAgentAnswer, check_answer(answer, self.spec, state, WORKSPACE))
+            checked = check_answer(answer, self.spec, state, WORKSPACE)
+            answer = complete(single_agent_decision, checked)
         except OutputError as error:
             raise self._refused(str(error), error.category) from None
         update: dict[str, object] = {"step": answer.step}
-        if answer.step == Stage.PRE_GRASP:
-            if answer.brick_id is None or answer.target_index is None:
-                detail = "pre_grasp names no brick_id or target_index"
-                raise self._refused(detail, ErrorCategory.SCHEMA)
+        if isinstance(answer, SingleAgentPick):
             update |= {"current_brick": answer.brick_id, "current_target": answer.target_index}
         if answer.waypoint is not None:
             self.world.move(answer.waypoint)
@@ -107,13 +108,14 @@ class SingleAgent:
         self.memory = self.memory.model_copy(update=update)
         brick, target = self.memory.current_brick, self.memory.current_target
         if brick is None or target is None:
-            return
+            return answer.step
         if answer.step == Stage.RELEASE:
             self.result.placements[target] = brick
             placed = (*self.memory.placed, PlacedBrick(brick_id=brick, target_index=target))
             self.memory = self.memory.model_copy(update={"placed": placed})
         if self.on_stage is not None:
             self.on_stage(brick, answer.step)
+        return answer.step
 
     def _refused(self, detail: str, category: ErrorCategory) -> TrialStopped:
         """The error that ends the trial on an invalid answer, whose call fails with
