@@ -2,11 +2,11 @@
 
 One agent holds all six roles, tools and thinking chains and answers the next waypoint of
 the cycle with a gripper command. Its answers are validated as any model answer is
-(``agents/validation.py``: schema, workspace box, unit quaternion, known brick and target)
-and the controller's limits still hold (an unreachable pose is refused), but nothing is
-verified or gated: no collision check before a move, no force
-check after the grasp, no slip or alignment check, no retries with feedback. An answer
-refused by either ends the trial: its call fails with the error's category.
+(``agents/validation.py``: schema, workspace box, unit quaternion, known brick and target,
+a ``pre_grasp`` that names both) and the controller's limits still hold (an unreachable
+pose is refused), but nothing is verified or gated: no collision check before a move, no
+force check after the grasp, no slip or alignment check, no retries with feedback. An
+answer refused by either ends the trial: its call fails with the error's category.
 """
 
 from __future__ import annotations
@@ -93,29 +93,29 @@ class SingleAgent:
         decision, move, grip, and keep the memory of the cycle; returns the step done."""
         try:
             checked = check_answer(answer, self.spec, state, WORKSPACE)
-            answer = complete(single_agent_decision, checked)
+            decision = complete(single_agent_decision, checked)
         except OutputError as error:
             raise self._refused(str(error), error.category) from None
-        update: dict[str, object] = {"step": answer.step}
-        if isinstance(answer, SingleAgentPick):
-            update |= {"current_brick": answer.brick_id, "current_target": answer.target_index}
-        if answer.waypoint is not None:
-            self.world.move(answer.waypoint)
-        if answer.gripper == "open":
-            self.world.grip(answer.gripper_opening_m or FULL_OPENING_M)
-        elif answer.gripper == "close":
+        update: dict[str, object] = {"step": decision.step}
+        if isinstance(decision, SingleAgentPick):
+            update |= {"current_brick": decision.brick_id, "current_target": decision.target_index}
+        if decision.waypoint is not None:
+            self.world.move(decision.waypoint)
+        if decision.gripper == "open":
+            self.world.grip(decision.gripper_opening_m or FULL_OPENING_M)
+        elif decision.gripper == "close":
             self.world.grip(None)
         self.memory = self.memory.model_copy(update=update)
         brick, target = self.memory.current_brick, self.memory.current_target
         if brick is None or target is None:
-            return answer.step
-        if answer.step == Stage.RELEASE:
+            return decision.step
+        if decision.step == Stage.RELEASE:
             self.result.placements[target] = brick
             placed = (*self.memory.placed, PlacedBrick(brick_id=brick, target_index=target))
             self.memory = self.memory.model_copy(update={"placed": placed})
         if self.on_stage is not None:
-            self.on_stage(brick, answer.step)
-        return answer.step
+            self.on_stage(brick, decision.step)
+        return decision.step
 
     def _refused(self, detail: str, category: ErrorCategory) -> TrialStopped:
         """The error that ends the trial on an invalid answer, whose call fails with
