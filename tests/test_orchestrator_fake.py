@@ -28,12 +28,18 @@ from actionreasoning.agents.calls import BuildResult
 from actionreasoning.agents.orchestrator import SETTLE_S, Budgets, Orchestrator
 from actionreasoning.agents.outputs import (
     AgentAnswer,
+    DescentAnswer,
     GraspAnswer,
+    LiftAnswer,
+    PlacementAnswer,
     PreGraspAnswer,
+    ReleaseAnswer,
+    SingleAgentAnswer,
     WaypointProposal,
 )
 from actionreasoning.agents.put_down import SET_ASIDE_MARGIN_M, SET_ASIDE_SLACK_M
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
+from actionreasoning.agents.single_agent import SingleAgent
 from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.reasoners.builtin import BuiltinReasoner
@@ -992,3 +998,56 @@ def test_a_toppled_last_brick_ends_the_trial_with_no_brick_left(kinematics, one_
     assert result.failure.reason == "no_brick_left"
     assert "brick 0 toppled" in result.failure.detail
     assert result.transcript == [] and world.moves == []
+
+
+# --- every agent: an answer that leaves a decision field out ----------------------------
+#: An in-process answer that leaves out what its decision needs, and the refusal it gets:
+#: the words the schema refuses a model's answer with (test_validation.py).
+INCOMPLETE = {
+    "descent": (
+        DescentAnswer(gripper_opening_m=0.13),
+        "the answer needs gripper_opening_m, waypoint; missing: waypoint",
+    ),
+    "lift": (LiftAnswer(), "the answer needs waypoint; missing: waypoint"),
+    "placement": (PlacementAnswer(), "the answer needs waypoint; missing: waypoint"),
+    "release": (
+        ReleaseAnswer(waypoint=READY),
+        "the answer needs gripper_opening_m, waypoint; missing: gripper_opening_m",
+    ),
+}
+
+
+@pytest.mark.parametrize("agent", sorted(INCOMPLETE))
+def test_an_incomplete_answer_is_refused_before_it_acts_and_asked_again(
+    kinematics, one_brick, agent: str
+) -> None:
+    answer, message = INCOMPLETE[agent]
+    clean = FakeWorld(one_brick, BRICKS, *kinematics)
+    assert_built(clean, build(clean))
+    world = FakeWorld(one_brick, BRICKS, *kinematics)
+    result = build(world, Scripted({agent: [answer]}))
+    assert_built(world, result)
+    refused, accepted = calls(result, agent)[:2]
+    assert (refused.outcome, accepted.outcome) == ("refused", "accepted")
+    assert refused.caught_by == f"{agent}_plan:answer_complete"
+    assert refused.category == "schema"
+    assert refused.feedback == f"{agent}_plan failed: answer_complete = 0, needs >= 1; {message}"
+    assert gates_of(refused) == [(f"{agent}_plan", False)]
+    # Nothing moved for the refused answer: the arm made the moves of a build without it.
+    assert [(m.stage, m.waypoint) for m in world.moves] == [
+        (m.stage, m.waypoint) for m in clean.moves
+    ]
+
+
+def test_the_single_agents_pick_without_a_target_ends_the_trial_as_a_schema_error(
+    kinematics, one_brick
+) -> None:
+    world = FakeWorld(one_brick, BRICKS, *kinematics)
+    pick = SingleAgentAnswer(step="pre_grasp", brick_id=0, waypoint=READY)
+    result = SingleAgent(world, Scripted({"single_agent": [pick]})).build(one_brick)
+    assert result.failure is not None
+    detail = "pre_grasp names no brick_id or target_index"
+    assert (result.failure.reason, result.failure.detail) == ("invalid_output", detail)
+    (call,) = result.transcript
+    assert (call.outcome, call.feedback, call.category) == ("failed", detail, "schema")
+    assert world.moves == []

@@ -2,19 +2,35 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 
 import pytest
 from conftest import built_state
 
-from actionreasoning.agents.outputs import DescentAnswer, PlacementAnswer, PreGraspAnswer
-from actionreasoning.agents.spec import agent_specs
+from actionreasoning.agents.error_kinds import ErrorCategory
+from actionreasoning.agents.outputs import (
+    AgentAnswer,
+    DescentAnswer,
+    DescentDecision,
+    GraspAnswer,
+    LiftDecision,
+    PlacementAnswer,
+    PlacementDecision,
+    PreGraspAnswer,
+    PreGraspDecision,
+    RegraspRequest,
+    ReleaseDecision,
+    SingleAgentAnswer,
+    SingleAgentPick,
+)
+from actionreasoning.agents.spec import agent_specs, single_agent_spec
 from actionreasoning.agents.validation import OutputError, parse_answer
 from actionreasoning.world.geometry import top_down_quat
 
 STATE = built_state("pyramid")
-AGENTS = {spec.key: spec for spec in agent_specs()}
+AGENTS = {spec.key: spec for spec in (*agent_specs(), single_agent_spec())}
 DOWN = list(top_down_quat(0.0))
 
 
@@ -106,5 +122,116 @@ def test_a_chosen_duration_and_a_regrasp_survive_validation() -> None:
 
 def test_answers_keep_their_schema() -> None:
     placement = parse_answer(json.dumps({"waypoint": waypoint()}), AGENTS["placement"], STATE)
-    descent = parse_answer(json.dumps({"gripper_opening_m": 0.13}), AGENTS["descent"], STATE)
+    opened = {"gripper_opening_m": 0.13, "waypoint": waypoint()}
+    descent = parse_answer(json.dumps(opened), AGENTS["descent"], STATE)
     assert isinstance(placement, PlacementAnswer) and isinstance(descent, DescentAnswer)
+
+
+# --- a tool turn, or a complete decision ------------------------------------------------
+#: Each agent's complete decision (its decision fields in the order the refusal names them)
+#: and the typed decision it parses into.
+COMPLETE: dict[str, tuple[dict, type[AgentAnswer]]] = {
+    "pre_grasp": (
+        {"brick_id": 2, "target_index": 0, "waypoint": waypoint()},
+        PreGraspDecision,
+    ),
+    "descent": ({"gripper_opening_m": 0.13, "waypoint": waypoint()}, DescentDecision),
+    "lift": ({"waypoint": waypoint()}, LiftDecision),
+    "placement": ({"waypoint": waypoint()}, PlacementDecision),
+    "release": ({"gripper_opening_m": 0.13, "waypoint": waypoint()}, ReleaseDecision),
+}
+#: Every way to leave fields of a complete decision out, or null.
+INCOMPLETE = [
+    (agent, left_out, null)
+    for agent, (answer, _) in COMPLETE.items()
+    for size in range(1, len(answer) + 1)
+    for left_out in itertools.combinations(answer, size)
+    for null in (False, True)
+]
+
+
+def needs(agent: str, left_out: tuple[str, ...]) -> str:
+    """The refusal of ``agent``'s answer without ``left_out``: the words of the orchestrator's
+    hand check before the schema refused it."""
+    fields = list(COMPLETE[agent][0])
+    return f"the answer needs {', '.join(fields)}; missing: {', '.join(left_out)}"
+
+
+def without(answer: dict, left_out: tuple[str, ...], null: bool) -> dict:
+    kept = {name: value for name, value in answer.items() if name not in left_out}
+    return kept | dict.fromkeys(left_out) if null else kept
+
+
+@pytest.mark.parametrize(("agent", "left_out", "null"), INCOMPLETE)
+def test_an_incomplete_decision_is_refused_by_the_schema_naming_what_is_missing(
+    agent: str, left_out: tuple[str, ...], null: bool
+) -> None:
+    answer = without(COMPLETE[agent][0], left_out, null)
+    with pytest.raises(OutputError) as refused:
+        parse_answer(json.dumps(answer), AGENTS[agent], STATE)
+    assert str(refused.value) == needs(agent, left_out)
+    assert refused.value.category is ErrorCategory.SCHEMA
+
+
+@pytest.mark.parametrize(
+    "left_out", [("brick_id",), ("target_index",), ("brick_id", "target_index")]
+)
+def test_the_single_agents_pre_grasp_that_names_no_brick_or_target_is_refused(
+    left_out: tuple[str, ...],
+) -> None:
+    pick = {"step": "pre_grasp", "brick_id": 2, "target_index": 0, "waypoint": waypoint()}
+    for null in (False, True):
+        with pytest.raises(OutputError) as refused:
+            text = json.dumps(without(pick, left_out, null))
+            parse_answer(text, AGENTS["single_agent"], STATE)
+        assert str(refused.value) == "pre_grasp names no brick_id or target_index"
+        assert refused.value.category is ErrorCategory.SCHEMA
+
+
+@pytest.mark.parametrize(
+    ("agent", "answer", "decision"),
+    [
+        *((agent, answer, decision) for agent, (answer, decision) in COMPLETE.items()),
+        ("grasp", {"close": True}, GraspAnswer),
+        ("grasp", {"close": True, "waypoint": waypoint()}, GraspAnswer),
+        ("placement", {"regrasp": True}, RegraspRequest),
+        (
+            "single_agent",
+            {"step": "pre_grasp", "brick_id": 2, "target_index": 0, "waypoint": waypoint()},
+            SingleAgentPick,
+        ),
+        ("single_agent", {"step": "lift", "waypoint": waypoint()}, SingleAgentAnswer),
+        ("single_agent", {"step": "done"}, SingleAgentAnswer),
+    ],
+)
+def test_a_complete_decision_parses_into_its_typed_decision(
+    agent: str, answer: dict, decision: type[AgentAnswer]
+) -> None:
+    parsed = parse_answer(json.dumps(answer), AGENTS[agent], STATE)
+    assert type(parsed) is decision
+    assert set(parsed.model_dump(exclude_defaults=True)) == set(answer)
+
+
+#: A valid call of one of each agent's tools.
+TOOL_CALLS = {
+    "pre_grasp": {"name": "reachability", "arguments": {"pose": waypoint()}},
+    "descent": {"name": "collision_check", "arguments": {"pose": waypoint()}},
+    "grasp": {"name": "finger_contacts", "arguments": {"brick_id": 2}},
+    "lift": {"name": "collision_check", "arguments": {"pose": waypoint()}},
+    "placement": {"name": "held_pose", "arguments": {"brick_id": 2}},
+    "release": {"name": "support_contact", "arguments": {"brick_id": 2}},
+    "single_agent": {"name": "held_pose", "arguments": {"brick_id": 2}},
+}
+
+
+@pytest.mark.parametrize("agent", sorted(TOOL_CALLS))
+def test_a_tool_turn_parses_as_the_answer_model_whatever_decision_it_leaves_out(
+    agent: str,
+) -> None:
+    step = {"step": "pre_grasp"} if agent == "single_agent" else {}
+    partial = {"brick_id": 2} if agent in ("pre_grasp", "single_agent") else {}
+    for answer in (step, step | partial):
+        text = json.dumps({"tool_calls": [TOOL_CALLS[agent]], **answer})
+        parsed = parse_answer(text, AGENTS[agent], STATE)
+        assert type(parsed) is AGENTS[agent].output_model
+        assert [call.name for call in parsed.tool_calls] == [TOOL_CALLS[agent]["name"]]

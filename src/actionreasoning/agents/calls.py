@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
 from functools import partial
-from typing import Any, TypeVar
+from typing import Any
 
 from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.gates import GateVerdict
@@ -34,8 +34,6 @@ from actionreasoning.tools.base import In, Out, Tool, ToolContext, ToolModel
 from actionreasoning.tools.registry import GATE_MEASUREMENTS, call_tool
 from actionreasoning.world.models import Progress, WorldState
 from actionreasoning.world.tolerances import Tolerances
-
-A = TypeVar("A", bound=AgentAnswer)
 
 #: Called with (brick id, stage name) after each stage a build finished, for snapshots.
 StageHook = Callable[[int, str], None]
@@ -98,10 +96,10 @@ class AgentCaller:
         self.on_call = on_call
 
     def ask(
-        self, spec: AgentSpec, memory: TaskMemory, attempt: int, expected: type[A]
-    ) -> tuple[A, WorldState]:
+        self, spec: AgentSpec, memory: TaskMemory, attempt: int
+    ) -> tuple[AgentAnswer, WorldState]:
         """The reasoner's answer for agent ``spec`` now and the state it was given; an answer
-        that is no ``expected`` (the spec's output model) ends the trial."""
+        that is not of the spec's output model ends the trial."""
         progress = Progress(
             placed_ids=tuple(p.brick_id for p in memory.placed),
             current_brick=memory.current_brick,
@@ -153,7 +151,7 @@ class AgentCaller:
         call.corruption = reply.corruption
         call.prompt_chars = reply.prompt_chars or call.prompt_chars
         self._tell(call)
-        if not isinstance(reply.answer, expected):
+        if not isinstance(reply.answer, spec.output_model):
             detail = "answer of the wrong schema"
             self.conclude(Outcome.FAILED, detail, ErrorCategory.SCHEMA)
             raise TrialStopped(FailureCode.INVALID_OUTPUT, spec.key, detail)

@@ -15,17 +15,16 @@ budget ends the trial with a typed failure.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import partial
-from typing import TypeVar
+from typing import NoReturn, TypeVar
 
 from scipy.spatial.transform import Rotation
 
 from actionreasoning.agents import gates
 from actionreasoning.agents.calls import (
     BUILD_STOPPERS,
-    A,
     AgentCaller,
     BuildResult,
     CallHook,
@@ -39,13 +38,15 @@ from actionreasoning.agents.gates import Check, GateVerdict
 from actionreasoning.agents.memory import PlacedBrick, PlacementPhase, TaskMemory
 from actionreasoning.agents.outputs import (
     AgentAnswer,
-    DescentAnswer,
+    DescentDecision,
     GraspAnswer,
-    LiftAnswer,
-    PlacementAnswer,
-    PreGraspAnswer,
-    ReleaseAnswer,
+    LiftDecision,
+    PlacementDecision,
+    PreGraspDecision,
+    RegraspRequest,
+    ReleaseDecision,
     WaypointProposal,
+    placement_decision,
     unit_waypoint,
 )
 from actionreasoning.agents.put_down import PutDown
@@ -53,7 +54,7 @@ from actionreasoning.agents.reasoner import Reasoner
 from actionreasoning.agents.spec import agent_specs
 from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
 from actionreasoning.agents.transcript import Outcome
-from actionreasoning.agents.validation import OutputError, check_answer
+from actionreasoning.agents.validation import OutputError, check_answer, complete
 from actionreasoning.agents.view import target_supports
 from actionreasoning.agents.world import World
 from actionreasoning.errors import UnreachableError
@@ -75,6 +76,7 @@ from actionreasoning.world.stages import Stage
 from actionreasoning.world.tolerances import Tolerances
 
 T = TypeVar("T")
+D = TypeVar("D", bound=AgentAnswer)
 
 #: The lift's path is checked from this far above the grasp: below it the brick still
 #: touches its support.
@@ -171,13 +173,13 @@ class Orchestrator:
             )
             self._check_bricks_left()
             brick, target = self._stage(
-                Stage.PRE_GRASP, PreGraspAnswer, partial(self._pre_grasp, supports=supports)
+                Stage.PRE_GRASP, PreGraspDecision.of, partial(self._pre_grasp, supports=supports)
             )
-            self._stage(Stage.DESCENT, DescentAnswer, partial(self._descent, brick=brick))
-            grasp_pose = self._stage(Stage.GRASP, GraspAnswer, partial(self._grasp, brick=brick))
+            self._stage(Stage.DESCENT, DescentDecision.of, partial(self._descent, brick=brick))
+            grasp_pose = self._stage(Stage.GRASP, GraspAnswer.of, partial(self._grasp, brick=brick))
             try:
                 lifted = self._stage(
-                    Stage.LIFT, LiftAnswer, partial(self._lift, brick=brick, grasp=grasp_pose)
+                    Stage.LIFT, LiftDecision.of, partial(self._lift, brick=brick, grasp=grasp_pose)
                 )
                 self._placement(brick, target, grasp_pose, lifted)
                 break
@@ -185,7 +187,7 @@ class Orchestrator:
                 self._note(regrasp.refusal)
         else:
             raise TrialStopped(FailureCode.GRASP_SLIP, self.memory.step, "re-grasp budget spent")
-        self._stage(Stage.RELEASE, ReleaseAnswer, partial(self._release, brick=brick))
+        self._stage(Stage.RELEASE, ReleaseDecision.of, partial(self._release, brick=brick))
         placed = (*self.memory.placed, PlacedBrick(brick_id=brick, target_index=target))
         self.memory = self.memory.model_copy(
             update={
@@ -212,11 +214,11 @@ class Orchestrator:
     def _stage(
         self,
         key: Stage,
-        answers: type[A],
-        act: Callable[[A, WorldState], T],
+        decide: Callable[[AgentAnswer], D],
+        act: Callable[[D, WorldState], T],
         label: Stage | None = None,
     ) -> T:
-        """Ask agent ``key``, which ``answers`` with that model, until ``act`` accepts its
+        """Ask agent ``key`` until ``act`` accepts the decision ``decide`` makes of its
         answer, within the retry budget.
 
         ``label`` names the finished stage for the stage hook (default: ``key``).
@@ -224,10 +226,9 @@ class Orchestrator:
         self.memory = self.memory.model_copy(update={"step": key})
         reason = FailureCode.BUDGET_EXHAUSTED
         for attempt in range(1, self.budgets.attempts_per_agent + 1):
-            answer, state = self.calls.ask(self.specs[key], self.memory, attempt, answers)
+            answer, state = self.calls.ask(self.specs[key], self.memory, attempt)
             try:
-                self._validate(key, answer, state)
-                outcome = act(answer, state)
+                outcome = act(self._validate(key, answer, state, decide), state)
             except _Refused as refusal:
                 reason = refusal.reason
                 self._remember(key, attempt, refusal.refusal, refusal.category)
@@ -272,21 +273,21 @@ class Orchestrator:
             }
         )
 
-    def _validate(self, key: Stage, answer: AgentAnswer, state: WorldState) -> None:
-        """Refuse an answer that is not valid data (as an LLM's answer is checked): a waypoint
-        outside the workspace, a quaternion that is not unit, an unknown id or tool."""
+    def _validate(
+        self, key: Stage, answer: AgentAnswer, state: WorldState, decide: Callable[[AgentAnswer], D]
+    ) -> D:
+        """The answer's decision, once it is valid data (as an LLM's answer is checked: a
+        waypoint inside the workspace, a unit quaternion, known ids and tools) and complete
+        (``answer_complete``: no decision field left out, as a tool turn leaves them)."""
         try:
             check_answer(answer, self.specs[key], state, WORKSPACE, normalise=False)
         except OutputError as error:
             verdict = _failed(f"{key}_answer", "valid_answer", str(error))
-            self._gate(verdict, key, category=error.category)
-
-    def _require(self, key: Stage, answer: AgentAnswer, fields: Sequence[str]) -> None:
-        """Refuse an answer that leaves a decision field of its stage empty."""
-        missing = [name for name in fields if getattr(answer, name) is None]
-        if missing:
-            note = f"the answer needs {', '.join(fields)}; missing: {', '.join(missing)}"
-            self._gate(_failed(f"{key}_plan", "answer_complete", note), key)
+            self._refuse(verdict, key, category=error.category)
+        try:
+            return complete(decide, answer)
+        except OutputError as error:
+            self._refuse(_failed(f"{key}_plan", "answer_complete", str(error)), key)
 
     def _gate(
         self,
@@ -300,14 +301,18 @@ class Orchestrator:
         if not self.calls.judge(verdict).passed:
             raise _Refused(verdict.refusal(key), reason, category)
 
+    def _refuse(
+        self, verdict: GateVerdict, key: Stage, category: ErrorCategory | None = None
+    ) -> NoReturn:
+        """Record a failed verdict and refuse the answer of ``key`` (an invalid output)."""
+        self.calls.judge(verdict)
+        raise _Refused(verdict.refusal(key), category=category)
+
     # --- the agents' acts ---------------------------------------------------------------
     def _pre_grasp(
-        self, answer: PreGraspAnswer, state: WorldState, supports: Mapping[int, tuple[int, ...]]
+        self, answer: PreGraspDecision, state: WorldState, supports: Mapping[int, tuple[int, ...]]
     ) -> tuple[int, int]:
         key = Stage.PRE_GRASP
-        self._require(key, answer, ("brick_id", "target_index", "waypoint"))
-        assert answer.brick_id is not None and answer.target_index is not None
-        assert answer.waypoint is not None
         self._gate(
             self._choice(answer.brick_id, answer.target_index, state, supports),
             key,
@@ -367,10 +372,8 @@ class Orchestrator:
             measured=Measured(e_x_m=offset[0], e_y_m=offset[1], e_theta_deg=yaw_error),
         )
 
-    def _descent(self, answer: DescentAnswer, state: WorldState, brick: int) -> None:
+    def _descent(self, answer: DescentDecision, state: WorldState, brick: int) -> None:
         key = Stage.DESCENT
-        self._require(key, answer, ("gripper_opening_m", "waypoint"))
-        assert answer.gripper_opening_m is not None and answer.waypoint is not None
         waypoint = _checked(key, answer.waypoint, path="linear")
         held = state.brick(brick)
         tool = state.robot.ee_pose
@@ -451,11 +454,9 @@ class Orchestrator:
         return at
 
     def _lift(
-        self, answer: LiftAnswer, state: WorldState, brick: int, grasp: WaypointProposal
+        self, answer: LiftDecision, state: WorldState, brick: int, grasp: WaypointProposal
     ) -> WaypointProposal:
         key = Stage.LIFT
-        self._require(key, answer, ("waypoint",))
-        assert answer.waypoint is not None
         waypoint = _checked(key, answer.waypoint, path="linear")
         self._gate(self._lift_plan(state, brick, waypoint), key, FailureCode.COLLISION)
         self.world.move(waypoint)
@@ -529,12 +530,12 @@ class Orchestrator:
         back = partial(self._set_aside, brick, grasp, lifted)
         place = partial(self._carry_over_slot, brick=brick, target=target, back=back)
         self._placement_phase(PlacementPhase.CARRY)
-        self._stage(Stage.PLACEMENT, PlacementAnswer, place, label=Stage.TRANSFER)
+        self._stage(Stage.PLACEMENT, placement_decision, place, label=Stage.TRANSFER)
         self._placement_phase(PlacementPhase.SET_DOWN)
         place = partial(self._set_down, brick=brick, target=target, back=back)
         failed = ""  # the last sigma_5 verdict's failed checks: the failure's detail
         for _ in range(self.budgets.placement_attempts):
-            slot, motion = self._stage(Stage.PLACEMENT, PlacementAnswer, place)
+            slot, motion = self._stage(Stage.PLACEMENT, placement_decision, place)
             state = self.world.observe(Progress(current_brick=brick, step=Stage.PLACEMENT))
             errors = self.calls.measure(
                 state, ALIGNMENT, AlignmentQuery(brick_id=brick, target_index=target)
@@ -563,7 +564,7 @@ class Orchestrator:
 
     def _carry_over_slot(
         self,
-        answer: PlacementAnswer,
+        answer: PlacementDecision | RegraspRequest,
         state: WorldState,
         brick: int,
         target: int,
@@ -578,7 +579,7 @@ class Orchestrator:
 
     def _set_down(
         self,
-        answer: PlacementAnswer,
+        answer: PlacementDecision | RegraspRequest,
         state: WorldState,
         brick: int,
         target: int,
@@ -597,10 +598,14 @@ class Orchestrator:
         return slot, down
 
     def _slot(
-        self, answer: PlacementAnswer, state: WorldState, brick: int, back: Callable[[], None]
+        self,
+        answer: PlacementDecision | RegraspRequest,
+        state: WorldState,
+        brick: int,
+        back: Callable[[], None],
     ) -> WaypointProposal:
         """The answer's slot pose; a re-grasp, if that is what Ag5 asked for."""
-        if answer.regrasp:
+        if isinstance(answer, RegraspRequest):
             tilt = self.calls.measure(state, SLIP, BrickQuery(brick_id=brick)).tilt_in_hand_deg
             back()
             raise _Regrasp(
@@ -612,8 +617,6 @@ class Orchestrator:
                 ),
                 ErrorCategory.GRASP,
             )
-        self._require(Stage.PLACEMENT, answer, ("waypoint",))
-        assert answer.waypoint is not None
         return _checked(Stage.PLACEMENT, answer.waypoint)
 
     def _check_slot(
@@ -674,10 +677,8 @@ class Orchestrator:
         )
         return self.calls.measure(state, COLLISION, query)
 
-    def _release(self, answer: ReleaseAnswer, state: WorldState, brick: int) -> None:
+    def _release(self, answer: ReleaseDecision, state: WorldState, brick: int) -> None:
         key = Stage.RELEASE
-        self._require(key, answer, ("gripper_opening_m", "waypoint"))
-        assert answer.gripper_opening_m is not None and answer.waypoint is not None
         ready = _checked(key, answer.waypoint)
         home = state.robot.ready_pose
         self._gate(

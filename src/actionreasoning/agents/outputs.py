@@ -3,14 +3,23 @@
 Every answer is data (JSON), validated before anything runs: a waypoint is a position and
 a unit quaternion (x, y, z, w) in the world frame, a gripper command and how to move;
 tool calls name whitelisted tools with their arguments. Never code.
+
+Each agent has two kinds of model. Its answer model (``PreGraspAnswer``, ...) is the schema
+a model is shown and sent: every decision field may be left out, since an answer that
+lists ``tool_calls`` is a tool turn. Its decision (``PreGraspDecision``, ...) is the same
+answer complete: a subclass whose decision fields are required, validated from the answer
+(:meth:`AgentAnswer.of`) and refused, naming what is missing, if it leaves one out.
+:data:`DECISIONS` says which decision each answer model must make once it calls no tools.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any, Literal
+from collections.abc import Callable, Mapping
+from typing import Annotated, Any, ClassVar, Final, Literal, Self
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic_core import PydanticCustomError
 
 from actionreasoning.world.geometry import QUAT_NORM_TOLERANCE, QuatXYZW, Vec3
 from actionreasoning.world.motion import MAX_MOVE_S
@@ -60,6 +69,12 @@ def unit_waypoint(waypoint: WaypointProposal, path: str | None = None) -> Waypoi
     )
 
 
+#: A brick's id or a target's index, as an answer names it.
+Index = Annotated[int, Field(ge=0)]
+#: A gripper opening (m) within the gripper's range.
+Opening = Annotated[float, Field(ge=GRIPPER_GAP_M[0], le=GRIPPER_GAP_M[1])]
+
+
 class AgentAnswer(_Output):
     """Fields every agent answers with."""
 
@@ -68,20 +83,63 @@ class AgentAnswer(_Output):
     )
     rationale: str = Field("", max_length=600, description="One or two sentences: why.")
 
+    @classmethod
+    def of(cls, answer: AgentAnswer) -> Self:
+        """``answer``'s fields validated as this model (raises pydantic's ValidationError)."""
+        return cls.model_validate(dict(answer))
+
+
+class Decision(AgentAnswer):
+    """A complete decision: an answer model's subclass whose decision fields are required.
+
+    Validation refuses an answer that leaves one out (or null) with one error of type
+    ``answer_complete`` whose message is ``incomplete``, filled in with the fields it
+    ``needs`` and those ``missing``.
+    """
+
+    incomplete: ClassVar[str] = "the answer needs {needs}; missing: {missing}"
+
+    @model_validator(mode="before")
+    @classmethod
+    def _complete(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        needs = [name for name, field in cls.model_fields.items() if field.is_required()]
+        missing = [name for name in needs if data.get(name) is None]
+        if missing:
+            context = {"needs": ", ".join(needs), "missing": ", ".join(missing)}
+            raise PydanticCustomError("answer_complete", cls.incomplete, context)
+        return data
+
 
 class PreGraspAnswer(AgentAnswer):
     """Agent 1: which brick goes to which target next, and the approach pose above it."""
 
-    brick_id: int | None = Field(None, ge=0)
-    target_index: int | None = Field(None, ge=0)
+    brick_id: Index | None = None
+    target_index: Index | None = None
     waypoint: WaypointProposal | None = None
+
+
+class PreGraspDecision(PreGraspAnswer, Decision):
+    """Agent 1's decision: the brick, its target and the approach pose."""
+
+    brick_id: Index
+    target_index: Index
+    waypoint: WaypointProposal
 
 
 class DescentAnswer(AgentAnswer):
     """Agent 2: the gripper opening and the grasp pose to descend to."""
 
-    gripper_opening_m: float | None = Field(None, ge=GRIPPER_GAP_M[0], le=GRIPPER_GAP_M[1])
+    gripper_opening_m: Opening | None = None
     waypoint: WaypointProposal | None = None
+
+
+class DescentDecision(DescentAnswer, Decision):
+    """Agent 2's decision: the opening and the grasp pose."""
+
+    gripper_opening_m: Opening
+    waypoint: WaypointProposal
 
 
 class GraspAnswer(AgentAnswer):
@@ -102,6 +160,12 @@ class LiftAnswer(AgentAnswer):
     waypoint: WaypointProposal | None = None
 
 
+class LiftDecision(LiftAnswer, Decision):
+    """Agent 4's decision: the safe-lift pose."""
+
+    waypoint: WaypointProposal
+
+
 class PlacementAnswer(AgentAnswer):
     """Agent 5: the slot pose to set the brick down at, or a re-grasp."""
 
@@ -112,11 +176,36 @@ class PlacementAnswer(AgentAnswer):
     )
 
 
+class PlacementDecision(PlacementAnswer, Decision):
+    """Agent 5's decision to place: the slot pose (``regrasp`` false)."""
+
+    waypoint: WaypointProposal
+
+
+class RegraspRequest(PlacementAnswer, Decision):
+    """Agent 5's decision to grasp the brick again (``regrasp`` true); a waypoint given with
+    it is not used."""
+
+
+def placement_decision(answer: AgentAnswer) -> PlacementDecision | RegraspRequest:
+    """Agent 5's answer as its decision: a re-grasp if it asks for one, else a placement."""
+    if isinstance(answer, PlacementAnswer) and answer.regrasp:
+        return RegraspRequest.of(answer)
+    return PlacementDecision.of(answer)
+
+
 class ReleaseAnswer(AgentAnswer):
     """Agent 6: the opening to release with and the ready pose to return to."""
 
-    gripper_opening_m: float | None = Field(None, ge=GRIPPER_GAP_M[0], le=GRIPPER_GAP_M[1])
+    gripper_opening_m: Opening | None = None
     waypoint: WaypointProposal | None = None
+
+
+class ReleaseDecision(ReleaseAnswer, Decision):
+    """Agent 6's decision: the opening and the ready pose."""
+
+    gripper_opening_m: Opening
+    waypoint: WaypointProposal
 
 
 #: The single agent's steps: every stage in order, then ``done``.
@@ -142,8 +231,39 @@ class SingleAgentAnswer(AgentAnswer):
     """
 
     step: SingleAgentStep
-    brick_id: int | None = Field(None, ge=0)
-    target_index: int | None = Field(None, ge=0)
+    brick_id: Index | None = None
+    target_index: Index | None = None
     waypoint: WaypointProposal | None = None
     gripper: Literal["open", "close", "hold"] = "hold"
-    gripper_opening_m: float | None = Field(None, ge=GRIPPER_GAP_M[0], le=GRIPPER_GAP_M[1])
+    gripper_opening_m: Opening | None = None
+
+
+class SingleAgentPick(SingleAgentAnswer, Decision):
+    """The single agent's ``pre_grasp``: it names the brick and the target."""
+
+    incomplete: ClassVar[str] = "pre_grasp names no brick_id or target_index"
+
+    brick_id: Index
+    target_index: Index
+
+
+def single_agent_decision(answer: AgentAnswer) -> SingleAgentPick | SingleAgentAnswer:
+    """The single agent's answer as its decision: a pick at ``pre_grasp``; any other step
+    decides nothing it could leave out."""
+    if isinstance(answer, SingleAgentAnswer) and answer.step == Stage.PRE_GRASP:
+        return SingleAgentPick.of(answer)
+    return SingleAgentAnswer.of(answer)
+
+
+#: Each answer model's decision, as a function of an answer that calls no more tools (it
+#: raises pydantic's ValidationError on an incomplete one). Agent 3 decides nothing it
+#: could leave out: close or not, where the tool is or at a waypoint.
+DECISIONS: Final[Mapping[type[AgentAnswer], Callable[[AgentAnswer], AgentAnswer]]] = {
+    PreGraspAnswer: PreGraspDecision.of,
+    DescentAnswer: DescentDecision.of,
+    GraspAnswer: GraspAnswer.of,
+    LiftAnswer: LiftDecision.of,
+    PlacementAnswer: placement_decision,
+    ReleaseAnswer: ReleaseDecision.of,
+    SingleAgentAnswer: single_agent_decision,
+}

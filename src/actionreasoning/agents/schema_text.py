@@ -9,9 +9,10 @@ the server as the response format, and every answer is validated against it.
 from __future__ import annotations
 
 import types
-from typing import Any, Literal, Union, get_args, get_origin
+from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
 from pydantic import BaseModel
+from pydantic.fields import FieldInfo
 from pydantic_core import PydanticUndefined
 
 from actionreasoning.agents.outputs import ToolCall, WaypointProposal
@@ -26,7 +27,7 @@ def describe_fields(model: type[BaseModel], indent: str = "") -> list[str]:
     lines = []
     for name, field in model.model_fields.items():
         line = f"{indent}- {name}: {type_name(field.annotation)}"
-        bounds = _bounds(field.metadata)
+        bounds = _bounds(_constraints(field))
         if bounds:
             line += f" ({bounds})"
         if field.default is not PydanticUndefined and not field.is_required():
@@ -44,6 +45,8 @@ def type_name(annotation: Any) -> str:
     if annotation in NAMED:
         return NAMED[annotation]
     origin, args = get_origin(annotation), get_args(annotation)
+    if origin is Annotated:
+        return type_name(args[0])
     if origin is Literal:
         return "|".join(f'"{a}"' for a in args)
     if origin in (Union, types.UnionType):
@@ -76,6 +79,17 @@ def _nested_models(annotation: Any) -> list[type[BaseModel]]:
                 found.append(item)
             continue
         stack.extend(a for a in get_args(item) if a is not Ellipsis)
+    return found
+
+
+def _constraints(field: FieldInfo) -> list[Any]:
+    """The field's constraints, and those of a constrained type it holds or null (as
+    ``Index | None``)."""
+    found = list(field.metadata)
+    for member in get_args(field.annotation):
+        if get_origin(member) is Annotated:
+            for item in get_args(member)[1:]:
+                found.extend(item.metadata if isinstance(item, FieldInfo) else [item])
     return found
 
 

@@ -2,16 +2,14 @@
 
 One agent holds all six roles, tools and thinking chains and answers the next waypoint of
 the cycle with a gripper command. Its answers are validated as any model answer is
-(``agents/validation.py``: schema, workspace box, unit quaternion, known brick and target)
-and the controller's limits still hold (an unreachable pose is refused), but nothing is
-verified or gated: no collision check before a move, no force
-check after the grasp, no slip or alignment check, no retries with feedback. An answer
-refused by either ends the trial: its call fails with the error's category.
+(``agents/validation.py``: schema, workspace box, unit quaternion, known brick and target,
+a ``pre_grasp`` that names both) and the controller's limits still hold (an unreachable
+pose is refused), but nothing is verified or gated: no collision check before a move, no
+force check after the grasp, no slip or alignment check, no retries with feedback. An
+answer refused by either ends the trial: its call fails with the error's category.
 """
 
 from __future__ import annotations
-
-from typing import cast
 
 from actionreasoning.agents.calls import (
     BUILD_STOPPERS,
@@ -24,12 +22,17 @@ from actionreasoning.agents.calls import (
 )
 from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.memory import PlacedBrick, TaskMemory
-from actionreasoning.agents.outputs import SingleAgentAnswer
+from actionreasoning.agents.outputs import (
+    AgentAnswer,
+    SingleAgentPick,
+    SingleAgentStep,
+    single_agent_decision,
+)
 from actionreasoning.agents.reasoner import Reasoner
 from actionreasoning.agents.spec import SINGLE_AGENT_START, single_agent_spec
 from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
 from actionreasoning.agents.transcript import Outcome
-from actionreasoning.agents.validation import OutputError, check_answer
+from actionreasoning.agents.validation import OutputError, check_answer, complete
 from actionreasoning.agents.world import World
 from actionreasoning.errors import UnreachableError
 from actionreasoning.records import FailureCode
@@ -69,14 +72,14 @@ class SingleAgent:
         budget = WAYPOINTS_PER_BRICK * len(goal.targets) + 1
         try:
             for call in range(budget):
-                answer, state = self.calls.ask(self.spec, self.memory, call + 1, SingleAgentAnswer)
+                answer, state = self.calls.ask(self.spec, self.memory, call + 1)
                 try:
-                    self._execute(answer, state)
+                    step = self._execute(answer, state)
                 except UnreachableError as error:
                     self.calls.conclude(Outcome.FAILED, str(error), ErrorCategory.UNREACHABLE)
                     raise
                 self.calls.conclude(Outcome.EXECUTED)
-                if answer.step == "done":
+                if step == "done":
                     return self.result
             raise TrialStopped(
                 FailureCode.BUDGET_EXHAUSTED, self.spec.key, f"{budget} waypoints spent"
@@ -85,35 +88,34 @@ class SingleAgent:
             self.result.failure = failure_of(error, self.spec.key)
         return self.result
 
-    def _execute(self, answer: SingleAgentAnswer, state: WorldState) -> None:
-        """Check the answer's data (as any model answer is checked), move, grip, and keep the
-        memory of the cycle."""
+    def _execute(self, answer: AgentAnswer, state: WorldState) -> SingleAgentStep:
+        """Check the answer's data (as any model answer is checked) and that it is a complete
+        decision, move, grip, and keep the memory of the cycle; returns the step done."""
         try:
-            answer = cast(SingleAgentAnswer, check_answer(answer, self.spec, state, WORKSPACE))
+            checked = check_answer(answer, self.spec, state, WORKSPACE)
+            decision = complete(single_agent_decision, checked)
         except OutputError as error:
             raise self._refused(str(error), error.category) from None
-        update: dict[str, object] = {"step": answer.step}
-        if answer.step == Stage.PRE_GRASP:
-            if answer.brick_id is None or answer.target_index is None:
-                detail = "pre_grasp names no brick_id or target_index"
-                raise self._refused(detail, ErrorCategory.SCHEMA)
-            update |= {"current_brick": answer.brick_id, "current_target": answer.target_index}
-        if answer.waypoint is not None:
-            self.world.move(answer.waypoint)
-        if answer.gripper == "open":
-            self.world.grip(answer.gripper_opening_m or FULL_OPENING_M)
-        elif answer.gripper == "close":
+        update: dict[str, object] = {"step": decision.step}
+        if isinstance(decision, SingleAgentPick):
+            update |= {"current_brick": decision.brick_id, "current_target": decision.target_index}
+        if decision.waypoint is not None:
+            self.world.move(decision.waypoint)
+        if decision.gripper == "open":
+            self.world.grip(decision.gripper_opening_m or FULL_OPENING_M)
+        elif decision.gripper == "close":
             self.world.grip(None)
         self.memory = self.memory.model_copy(update=update)
         brick, target = self.memory.current_brick, self.memory.current_target
         if brick is None or target is None:
-            return
-        if answer.step == Stage.RELEASE:
+            return decision.step
+        if decision.step == Stage.RELEASE:
             self.result.placements[target] = brick
             placed = (*self.memory.placed, PlacedBrick(brick_id=brick, target_index=target))
             self.memory = self.memory.model_copy(update={"placed": placed})
         if self.on_stage is not None:
-            self.on_stage(brick, answer.step)
+            self.on_stage(brick, decision.step)
+        return decision.step
 
     def _refused(self, detail: str, category: ErrorCategory) -> TrialStopped:
         """The error that ends the trial on an invalid answer, whose call fails with

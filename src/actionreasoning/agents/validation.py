@@ -4,7 +4,8 @@ LLM output is data. It is parsed as JSON (never evaluated), validated against th
 output schema, and checked against physical bounds: finite numbers, tool positions inside
 the workspace box, unit quaternions (normalised within a tolerance, else refused), brick
 ids and target indexes that exist, and tool calls to whitelisted tools of the agent's
-knowledge base with typed arguments. A failure is an :class:`OutputError` whose message is
+knowledge base with typed arguments. An answer that calls no tools must then be a complete
+decision (``outputs.DECISIONS``). A failure is an :class:`OutputError` whose message is
 short enough to send back to the model for a repair, and whose ``category`` says what kind
 of error it is.
 """
@@ -13,12 +14,18 @@ from __future__ import annotations
 
 import json
 import re
-from typing import Any
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 from pydantic import ValidationError
 
 from actionreasoning.agents.error_kinds import ErrorCategory
-from actionreasoning.agents.outputs import AgentAnswer, WaypointProposal, unit_waypoint
+from actionreasoning.agents.outputs import (
+    DECISIONS,
+    AgentAnswer,
+    WaypointProposal,
+    unit_waypoint,
+)
 from actionreasoning.agents.spec import AgentSpec
 from actionreasoning.errors import ActionReasoningError
 from actionreasoning.tools.registry import TOOLS
@@ -28,6 +35,8 @@ from actionreasoning.world.scene_spec import WORKSPACE, WorkspaceBox
 MAX_ANSWER_CHARS = 20_000
 MAX_ERRORS_SHOWN = 3
 _FENCE = re.compile(r"^```(?:json)?\s*(.*?)\s*```$", re.S)
+
+D = TypeVar("D", bound=AgentAnswer)
 
 
 class OutputError(ActionReasoningError):
@@ -47,13 +56,26 @@ def parse_answer(
     normalise: bool = True,
 ) -> AgentAnswer:
     """The answer in ``text`` as ``spec``'s output model, checked and normalised (see
-    :func:`check_answer` for ``normalise``)."""
+    :func:`check_answer` for ``normalise``): a tool turn (it lists ``tool_calls``), or else
+    its agent's complete decision."""
     data = _json_object(text)
     try:
         answer = spec.output_model.model_validate(data)
     except ValidationError as error:
         raise OutputError(_describe(error), ErrorCategory.SCHEMA) from None
-    return check_answer(answer, spec, state, workspace, normalise)
+    checked = check_answer(answer, spec, state, workspace, normalise)
+    if checked.tool_calls:
+        return checked
+    return complete(DECISIONS[spec.output_model], checked)
+
+
+def complete(decide: Callable[[AgentAnswer], D], answer: AgentAnswer) -> D:
+    """``answer`` as the decision ``decide`` makes of it (a function of ``DECISIONS``);
+    an incomplete one is an OutputError (``schema``) that names the fields it leaves out."""
+    try:
+        return decide(answer)
+    except ValidationError as error:
+        raise OutputError(_describe(error), ErrorCategory.SCHEMA) from None
 
 
 def check_answer(
@@ -140,11 +162,12 @@ def _json_object(text: str) -> dict[str, Any]:
 
 
 def _describe(error: ValidationError) -> str:
-    """The first few schema errors, one line each, without echoing long inputs."""
+    """The first few schema errors, one line each, without echoing long inputs; an error of
+    the whole answer (an incomplete decision) as its message alone."""
     parts = []
     for item in error.errors()[:MAX_ERRORS_SHOWN]:
-        where = ".".join(str(part) for part in item["loc"]) or "answer"
-        parts.append(f"{where}: {item['msg']}")
+        where = ".".join(str(part) for part in item["loc"])
+        parts.append(f"{where}: {item['msg']}" if where else item["msg"])
     more = len(error.errors()) - MAX_ERRORS_SHOWN
     return "; ".join(parts) + (f"; and {more} more" if more > 0 else "")
 

@@ -75,10 +75,11 @@ class ReadState(_Arguments):
 
 class SubmitAnswer(_Arguments):
     """Submit the waiting agent's answer. It is validated as a language model's answer is
-    (schema, finite numbers, workspace, unit quaternions, ids, tools): a refused one moves
-    nothing. An answer with tool_calls gets their results back. A decision is checked by
-    the agent's gate before the arm moves: the verdict comes back with every check, the
-    outcome and the feedback, once the next agent waits or the trial has ended."""
+    (schema, finite numbers, workspace, unit quaternions, ids, tools; without tool_calls,
+    every field of a complete decision): a refused one moves nothing. An answer with
+    tool_calls gets their results back. A decision is checked by the agent's gate before
+    the arm moves: the verdict comes back with every check, the outcome and the feedback,
+    once the next agent waits or the trial has ended."""
 
     answer: dict[str, Any] | str = Field(
         description="The answer: the object the agent's answer_schema asks for, or its JSON text."

@@ -21,13 +21,15 @@ from scipy.spatial.transform import Rotation
 from actionreasoning.agents.memory import PlacementPhase, TaskMemory
 from actionreasoning.agents.outputs import (
     AgentAnswer,
-    DescentAnswer,
+    DescentDecision,
     GraspAnswer,
-    LiftAnswer,
-    PlacementAnswer,
-    PreGraspAnswer,
-    ReleaseAnswer,
+    LiftDecision,
+    PlacementDecision,
+    PreGraspDecision,
+    RegraspRequest,
+    ReleaseDecision,
     SingleAgentAnswer,
+    SingleAgentPick,
     WaypointProposal,
 )
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest, Briefing
@@ -105,7 +107,7 @@ class _Grasp:
     option: GraspOption | None = None  # grasp_options' report of it (solve tier)
 
 
-def _pre_grasp(briefing: Briefing) -> AgentAnswer:
+def _pre_grasp(briefing: Briefing) -> PreGraspDecision:
     view, memory = briefing.view, briefing.memory
     built = {p.target_index for p in memory.placed}
     used = {p.brick_id for p in memory.placed}
@@ -133,7 +135,7 @@ def _pre_grasp(briefing: Briefing) -> AgentAnswer:
     refused = _refused_in_a_row(memory, "sigma1_pre_grasp")
     candidates = (grasp for grasp in ordered if usable(briefing, target, grasp))
     best = next(islice(candidates, refused, None), grasps(free[0])[0])
-    return PreGraspAnswer(
+    return PreGraspDecision(
         brick_id=best.brick.id,
         target_index=target.index,
         waypoint=_proposal(best.approach),
@@ -258,19 +260,19 @@ def _in_the_way(memory: TaskMemory) -> int | None:
     return int(found.group(1)) if found else None
 
 
-def _descent(briefing: Briefing) -> AgentAnswer:
+def _descent(briefing: Briefing) -> DescentDecision:
     view = briefing.view
     brick = view.brick(_current(briefing.memory))
     down = top_down_quat(quat_yaw(view.robot.tool_pose.quat_xyzw))  # at its present yaw
     grasp = formulas.grasp_pose(brick.pose, brick.size_m, down)
-    return DescentAnswer(
+    return DescentDecision(
         gripper_opening_m=_descent_opening(brick),
         waypoint=_proposal(grasp, path="linear"),
         rationale="open 4 cm past the brick's width, straight down to its centre",
     )
 
 
-def _grasp(briefing: Briefing) -> AgentAnswer:
+def _grasp(briefing: Briefing) -> GraspAnswer:
     refusals = briefing.memory.refusals
     if not refusals or refusals[-1].gate != "sigma3_grasp":
         return GraspAnswer(close=True, rationale="at the grasp pose: close")
@@ -293,7 +295,7 @@ def _grasp(briefing: Briefing) -> AgentAnswer:
     )
 
 
-def _lift(briefing: Briefing) -> AgentAnswer:
+def _lift(briefing: Briefing) -> LiftDecision:
     view, tol = briefing.view, briefing.tolerances
     tool = view.robot.tool_pose
     x, y, _ = tool.position_m
@@ -306,20 +308,20 @@ def _lift(briefing: Briefing) -> AgentAnswer:
     )
     rise = z - tool.position_m[2]
     speed = max(tol.v_lift_mps / 2**slips, rise / MAX_MOVE_S)
-    return LiftAnswer(
+    return LiftDecision(
         waypoint=_proposal(lift, path="linear", duration_s=_seconds(rise / speed)),
         rationale=f"straight up over every brick at {speed:.3g} m/s, at most v_lift_mps"
         + (f", halved for each of {slips} slips" if slips else ""),
     )
 
 
-def _placement(briefing: Briefing) -> AgentAnswer:
+def _placement(briefing: Briefing) -> PlacementDecision | RegraspRequest:
     phase, tol = briefing.memory.phase, briefing.tolerances
     if phase is None:
         raise ValueError("memory shows no placement phase")
     plan = _slot_plan(briefing, "linear" if phase == PlacementPhase.SET_DOWN else "joint")
     if not plan.clear:
-        return PlacementAnswer(
+        return RegraspRequest(
             regrasp=True,
             rationale=f"set level as it sits in the hand (rolled {plan.tilt_deg:.1f} deg), the "
             f"brick's way to the slot collides or is out of reach ({plan.closest}): grasp it "
@@ -327,7 +329,7 @@ def _placement(briefing: Briefing) -> AgentAnswer:
         )
     dx, dy, turn, misses = _misses(briefing)
     if math.hypot(dx, dy) > tol.max_offset_m or abs(turn) > tol.max_rotation_deg:
-        return PlacementAnswer(
+        return RegraspRequest(
             regrasp=True,
             rationale=f"the set-downs missed by ({1000 * dx:+.1f}, {1000 * dy:+.1f}) mm and "
             f"{turn:+.2f} deg in all: more than a correction within the success rule: grasp "
@@ -340,7 +342,7 @@ def _placement(briefing: Briefing) -> AgentAnswer:
         if misses
         else ""
     )
-    return PlacementAnswer(
+    return PlacementDecision(
         waypoint=_slot(briefing, slot),
         rationale=f"the slot pose for the brick as it sits in the hand, rolled "
         f"{plan.tilt_deg:.1f} deg and set level by tilting the tool" + note,
@@ -434,16 +436,16 @@ def _slot(briefing: Briefing, slot: Pose) -> WaypointProposal:
     return _proposal(slot, duration_s=carry)
 
 
-def _release(briefing: Briefing) -> AgentAnswer:
+def _release(briefing: Briefing) -> ReleaseDecision:
     brick = briefing.view.brick(_current(briefing.memory))
-    return ReleaseAnswer(
+    return ReleaseDecision(
         gripper_opening_m=brick.size_m[1] + 2 * RELEASE_SIDE_M,
         waypoint=_proposal(_ready(briefing)),
         rationale="open 1 cm past the brick's width, then to the ready pose",
     )
 
 
-def _single_agent(briefing: Briefing) -> AgentAnswer:
+def _single_agent(briefing: Briefing) -> SingleAgentAnswer:
     """The merged agent: the same policies, one waypoint of the cycle per call."""
     memory, view = briefing.memory, briefing.view
     step = NEXT_STEP[memory.step]
@@ -457,9 +459,8 @@ def _single_agent(briefing: Briefing) -> AgentAnswer:
     here = view.robot.tool_pose
     if step == Stage.PRE_GRASP:
         pick = _pre_grasp(briefing)
-        assert isinstance(pick, PreGraspAnswer) and pick.brick_id is not None
         opening = _descent_opening(view.brick(pick.brick_id))
-        return SingleAgentAnswer(
+        return SingleAgentPick(
             step=step,
             brick_id=pick.brick_id,
             target_index=pick.target_index,
@@ -470,7 +471,6 @@ def _single_agent(briefing: Briefing) -> AgentAnswer:
         )
     if step in (Stage.DESCENT, Stage.LIFT):
         moved = _descent(briefing) if step == Stage.DESCENT else _lift(briefing)
-        assert isinstance(moved, DescentAnswer | LiftAnswer)
         return SingleAgentAnswer(step=step, waypoint=moved.waypoint, rationale=moved.rationale)
     if step == Stage.GRASP:
         return SingleAgentAnswer(step=step, gripper="close", rationale="close on the brick")
@@ -493,7 +493,6 @@ def _single_agent(briefing: Briefing) -> AgentAnswer:
         )
     if step == Stage.RELEASE:
         release = _release(briefing)
-        assert isinstance(release, ReleaseAnswer)
         return SingleAgentAnswer(
             step=step,
             gripper="open",

@@ -6,7 +6,8 @@ RATE by one kind of mistake (:class:`~actionreasoning.agents.answer_errors.Corru
 drawn uniformly among the configured kinds that apply to it; an answer none applies to (a
 tool-only answer, the single agent's ``done``) is left as it is. The draws come from the
 trial's seed and the call's index alone, so the same trial is corrupted the same way, and a
-retry (a new call) draws anew. A corrupted answer is built with ``model_copy`` (no
+retry (a new call) draws anew. A corrupted answer is built in the agent's answer model
+(whose decision fields may be left out, where a decision's may not) with ``model_copy`` (no
 validation), so it may be invalid: the orchestrator's checks must catch it.
 """
 
@@ -89,7 +90,7 @@ def corruption(
     update, detail = group[rng.integers(len(group))]
     original = answer.model_dump(mode="json")
     corrupted = AnswerCorruption(kind=kind, detail=detail, original=original)
-    return answer.model_copy(update=update), corrupted
+    return request.spec.output_model.of(answer).model_copy(update=update), corrupted
 
 
 # --- the kinds: what each can change in an answer -------------------------------------
