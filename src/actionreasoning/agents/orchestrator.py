@@ -528,14 +528,14 @@ class Orchestrator:
         the cycle starts again at Ag1 (a brick that rolled in the hand is grasped level).
         """
         back = partial(self._set_aside, brick, grasp, lifted)
-        place = partial(self._carry_over_slot, brick=brick, target=target, back=back)
+        carry = partial(self._carry_over_slot, brick=brick, target=target, back=back)
         self._placement_phase(PlacementPhase.CARRY)
-        self._stage(Stage.PLACEMENT, placement_decision, place, label=Stage.TRANSFER)
+        self._stage(Stage.PLACEMENT, placement_decision, carry, label=Stage.TRANSFER)
         self._placement_phase(PlacementPhase.SET_DOWN)
-        place = partial(self._set_down, brick=brick, target=target, back=back)
+        set_down = partial(self._set_down, brick=brick, target=target, back=back)
         failed = ""  # the last sigma_5 verdict's failed checks: the failure's detail
         for _ in range(self.budgets.placement_attempts):
-            slot, motion = self._stage(Stage.PLACEMENT, placement_decision, place)
+            slot, motion = self._stage(Stage.PLACEMENT, placement_decision, set_down)
             state = self.world.observe(Progress(current_brick=brick, step=Stage.PLACEMENT))
             errors = self.calls.measure(
                 state, ALIGNMENT, AlignmentQuery(brick_id=brick, target_index=target)

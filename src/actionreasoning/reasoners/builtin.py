@@ -284,7 +284,7 @@ def _grasp(briefing: Briefing) -> GraspAnswer:
     spin = Rotation.from_euler("z", turn, degrees=True) * Rotation.from_quat(tool.quat_xyzw)
     at = Pose(
         position_m=(x + dx, y + dy, z + dz),
-        quat_xyzw=tuple(float(q) for q in spin.as_quat()),  # type: ignore[arg-type]
+        quat_xyzw=tuple(float(q) for q in spin.as_quat()),
     )
     return GraspAnswer(
         close=True,
@@ -425,7 +425,7 @@ def _corrected(briefing: Briefing, slot: Pose, dx: float, dy: float, turn: float
     x, y, z = spin.apply(np.subtract(slot.position_m, target)) + np.asarray(target)
     return Pose(
         position_m=(float(x + dx), float(y + dy), float(z)),
-        quat_xyzw=tuple(float(q) for q in (spin * Rotation.from_quat(slot.quat_xyzw)).as_quat()),  # type: ignore[arg-type]
+        quat_xyzw=tuple(float(q) for q in (spin * Rotation.from_quat(slot.quat_xyzw)).as_quat()),
     )
 
 
@@ -545,6 +545,6 @@ def _proposal(pose: Pose, path: str = "joint", duration_s: float | None = None) 
     return WaypointProposal(
         position_m=pose.position_m,
         quat_xyzw=pose.quat_xyzw,
-        path=path,  # type: ignore[arg-type]
+        path=path,
         duration_s=duration_s,
     )
