@@ -185,6 +185,6 @@ def backend_help() -> str:
 
 
 def _either(items: Iterable[str]) -> str:
-    """ "a, b or c"."""
+    """The items as "a, b or c"."""
     listed = list(items)
     return listed[0] if len(listed) == 1 else f"{', '.join(listed[:-1])} or {listed[-1]}"
