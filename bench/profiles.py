@@ -37,7 +37,8 @@ from actionreasoning.trial.runner import TrialSpec, run_trial, trial_world
 from actionreasoning.world.geometry import quat_yaw, top_down_quat
 from actionreasoning.world.models import Pose
 from actionreasoning.world.patterns import load_pattern
-from actionreasoning.world.physics import PROFILES, PhysicsProfile, load_physics
+from actionreasoning.world.physics import PhysicsProfile
+from actionreasoning.world.scenarios import PHYSICS, load_physics
 from actionreasoning.world.scene_spec import SceneSpec
 from actionreasoning.world.tolerances import SAFE_LIFT_MPS
 
@@ -123,7 +124,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--seeds", type=int, default=24, help="grasps per profile and speed")
     parser.add_argument("--trials", type=int, default=2, help="trials per method for wall time")
-    parser.add_argument("--physics", nargs="*", default=list(PROFILES), help="profiles or files")
+    parser.add_argument("--physics", nargs="*", default=list(PHYSICS), help="profiles or files")
     args = parser.parse_args()
     console = Console()
     slip = Table(title=f"a held brick in the hand ({args.seeds} grasps each)")

@@ -28,7 +28,14 @@ from actionreasoning.errors import UnreachableError
 from actionreasoning.tools.base import ToolContext
 from actionreasoning.tools.ports import ArmModel, ClearanceChecker
 from actionreasoning.world.boxes import Box
-from actionreasoning.world.geometry import Vec3, quat_yaw, tilt_deg, wrap_angle, yaw_quat
+from actionreasoning.world.geometry import (
+    QuatXYZW,
+    Vec3,
+    quat_yaw,
+    tilt_deg,
+    wrap_angle,
+    yaw_quat,
+)
 from actionreasoning.world.models import (
     READY_POSE,
     BrickState,
@@ -182,6 +189,19 @@ class FakeWorld:
             self.ideal_grip(opening_m)
         else:
             deviation.apply(self, opening_m)
+
+    # --- what scoring reads (trial.runner.Bodies) ----------------------------------------
+    @property
+    def ticks(self) -> int:
+        """The simulation ticks the moves would have taken."""
+        return sum(move.motion.ticks for move in self.moves)
+
+    def brick_pose(self, brick: int) -> tuple[Vec3, QuatXYZW]:
+        pose = self.bricks[brick].pose
+        return pose.position_m, pose.quat_xyzw
+
+    def brick_velocity(self, brick: int) -> tuple[Vec3, Vec3]:
+        return self.bricks[brick].velocity_mps, (0.0, 0.0, 0.0)
 
     # --- scripting ----------------------------------------------------------------------
     def script(self, stage: str, deviation: Deviation, times: float = 1) -> None:

@@ -16,9 +16,10 @@ from actionreasoning.sim.scene import Scene
 from actionreasoning.trial.config import TrialConfig
 from actionreasoning.trial.rules import Method
 from actionreasoning.trial.runner import TrialObserver, TrialSpec, run_trial, trial_world
-from actionreasoning.world.noise import LEVELS, NoiseLevel, vary_bricks
+from actionreasoning.world.noise import NoiseLevel, vary_bricks
 from actionreasoning.world.patterns import load_pattern
-from actionreasoning.world.physics import PAPER, PROFILES, PhysicsProfile
+from actionreasoning.world.physics import PAPER, PhysicsProfile
+from actionreasoning.world.scenarios import NOISE, PHYSICS
 from actionreasoning.world.scene_spec import BrickBody, SceneSpec
 from actionreasoning.world.stages import StageEvent
 
@@ -33,10 +34,10 @@ def spec_of(physics: PhysicsProfile, noise: NoiseLevel, seed: int = 3) -> TrialS
     )  # fmt: skip
 
 
-@pytest.mark.parametrize("name", sorted(PROFILES))
+@pytest.mark.parametrize("name", list(PHYSICS))
 def test_each_profile_is_what_pybullet_reads_back(name: str) -> None:
-    profile = PROFILES[name]
-    with trial_world(spec_of(profile, LEVELS["none"])) as world:
+    profile = PHYSICS[name]
+    with trial_world(spec_of(profile, NOISE["none"])) as world:
         scene, cid = world.scene, world.scene.client
         engine = p.getPhysicsEngineParameters(physicsClientId=cid)
         assert engine["fixedTimeStep"] == pytest.approx(profile.time_step_s)
@@ -76,7 +77,7 @@ def test_the_paper_profile_is_pybullets_own_defaults() -> None:
 
 
 def test_variation_is_drawn_from_the_trial_seed_within_its_bounds() -> None:
-    medium = LEVELS["medium"].variation
+    medium = NOISE["medium"].variation
     first = vary_bricks(medium, NOMINAL, 6, trial_seed=5)
     assert first == vary_bricks(medium, NOMINAL, 6, trial_seed=5)
     assert first != vary_bricks(medium, NOMINAL, 6, trial_seed=6)
@@ -88,7 +89,7 @@ def test_variation_is_drawn_from_the_trial_seed_within_its_bounds() -> None:
             max(abs(a - b) for a, b in zip(body.size_m, NOMINAL.size_m, strict=True))
             <= medium.size_m
         )
-    assert vary_bricks(LEVELS["none"].variation, NOMINAL, 2, trial_seed=5) == [NOMINAL] * 2
+    assert vary_bricks(NOISE["none"].variation, NOMINAL, 2, trial_seed=5) == [NOMINAL] * 2
 
 
 def perceived(seed: int, noise: NoiseLevel) -> tuple[list, list]:
@@ -103,7 +104,7 @@ def perceived(seed: int, noise: NoiseLevel) -> tuple[list, list]:
 
 
 def test_perception_noise_is_seeded_and_drawn_anew_per_observation() -> None:
-    medium = LEVELS["medium"]
+    medium = NOISE["medium"]
     seen, (truth, masses) = perceived(3, medium)
     again, (truth_again, masses_again) = perceived(3, medium)
     other, _ = perceived(4, medium)
@@ -113,7 +114,7 @@ def test_perception_noise_is_seeded_and_drawn_anew_per_observation() -> None:
     assert 0.0005 < float(np.std(error)) < 0.005  # medium: 2 mm per axis
     assert seen[0] != other[0]
     assert len(set(masses)) == 6 and all(1.2 <= m <= 1.8 for m in masses)
-    clean, (truth, masses) = perceived(3, LEVELS["none"])
+    clean, (truth, masses) = perceived(3, NOISE["none"])
     assert clean[0] == clean[1] == truth and masses == [1.5] * 6
 
 
@@ -131,7 +132,7 @@ def test_the_same_seed_gives_the_same_line_under_noise_and_metrics_use_true_pose
 
     spec = TrialSpec(
         method=Method.CLASSICAL, pattern_name="small", goal=goal, run_seed=1, trial=0,
-        config=TrialConfig(noise=LEVELS["high"]),
+        config=TrialConfig(noise=NOISE["high"]),
     )  # fmt: skip
     first = run_trial(spec, [AtTheEnd()]).result
     again = run_trial(spec).result

@@ -38,7 +38,8 @@ def run(
 
 
 def test_trial_seeds_depend_only_on_run_seed_and_index() -> None:
-    assert trial_seed(0, 3) == trial_seed(0, 3)
+    # Pinned: run seed 0's trials as every results line of it records them (trial_seed).
+    assert [trial_seed(0, k) for k in range(3)] == [2968811710, 3964924996, 3141116543]
     assert len({trial_seed(s, k) for s in range(5) for k in range(20)}) == 100
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import importlib.util
 import json
 from collections.abc import Iterator
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +22,7 @@ from actionreasoning.errors import ConfigError
 from actionreasoning.gym_env.env import BrickStackEnv
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.trial.rules import Method
+from actionreasoning.world.scenarios import NOISE, PHYSICS, Scenario
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "gym_builtin.py"
 
@@ -50,6 +52,21 @@ def test_check_env_passes_and_render_is_the_overview_picture() -> None:
         image = made.render()
         assert image.shape == (360, 480, 3) and image.dtype == np.uint8
         assert len(np.unique(image.reshape(-1, 3), axis=0)) > 10  # a picture, not a blank
+    finally:
+        made.close()
+
+
+@pytest.mark.parametrize("scenario", actionreasoning.gym_env.SCENARIOS, ids=str)
+def test_every_builtin_scenario_makes_an_env(scenario: Scenario) -> None:
+    """Made only (the scene is built on reset): its conditions are the scenario's."""
+    made = gymnasium.make(actionreasoning.gym_env.ENV_ID, **asdict(scenario))
+    try:
+        env = made.unwrapped
+        assert isinstance(env, BrickStackEnv)
+        config, goal = env.conditions.config, env.conditions.goal
+        assert (env.conditions.pattern_name, goal.name) == (scenario.pattern, scenario.pattern)
+        assert (config.physics, config.noise) == (PHYSICS[scenario.physics], NOISE[scenario.noise])
+        assert env.observation_space["brick_poses"].shape == (len(goal.targets), 7)
     finally:
         made.close()
 

@@ -91,6 +91,21 @@ def test_commands_that_read_files_load_neither_simulator_nor_model_client(
     assert not loaded(run.stderr, *SIMULATOR, *unused)
 
 
+def test_a_classical_eval_loads_no_model_client(tmp_path: Path, small_pattern: Path) -> None:
+    """The backends' clients load when a backend asking a model is built, not before. The
+    trial runs until its step budget (100 steps: past the spawn settle, into the script)."""
+    out = tmp_path / "eval"
+    run = python(
+        *("-X", "importtime", "-m", "actionreasoning", "eval", "--method", "classical"),
+        *("--pattern", str(small_pattern), "--trials", "1", "--max-steps", "100"),
+        *("--out", str(out)),
+    )
+    assert run.returncode == 0, run.stderr
+    assert len((out / "results.jsonl").read_text().splitlines()) == 1
+    assert loaded(run.stderr, "actionreasoning.reasoners.factory", "actionreasoning.sim")
+    assert not loaded(run.stderr, "openai", "llama_cpp", "actionreasoning.reasoners.openai_chat")
+
+
 def _parameters(function: object) -> list[inspect.Parameter]:
     return [p for p in inspect.signature(function).parameters.values() if p.name != "self"]
 

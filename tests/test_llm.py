@@ -11,6 +11,7 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
+from conftest import assert_clean_error
 from conftest import cli as in_process
 
 from actionreasoning.agents.memory import TaskMemory
@@ -258,6 +259,15 @@ def test_the_in_process_backend_answers_in_the_agents_schema(gemma_path: Path) -
     assert result.returncode == 0, result.stdout + result.stderr
     assert "json_object_schema" in result.stdout
     assert "valid: {" in result.stdout
+
+
+def test_a_backend_whose_extra_is_missing_names_the_install(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    monkeypatch.setitem(sys.modules, "llama_cpp", None)  # as if not installed
+    result = in_process("llm", "check", "--llm", f"llamacpp:{tmp_path / 'model.gguf'}")
+    needs = "--llm llamacpp:PATH needs llama-cpp-python: pip install 'actionreasoning[local]'"
+    assert_clean_error(result, needs)
 
 
 def test_a_trial_sampled_at_a_temperature_is_replayed_to_the_same_line(

@@ -14,7 +14,8 @@ import yaml
 from actionreasoning.errors import PatternError
 from actionreasoning.world.geometry import quat_yaw, wrap_angle
 from actionreasoning.world.models import GoalPattern
-from actionreasoning.world.patterns import builtin_pattern_names, load_pattern
+from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.scenarios import PATTERNS
 from actionreasoning.world.scene_spec import SceneSpec
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "patterns"
@@ -73,7 +74,7 @@ def _refused(path: Path, *needles: str) -> str:
 
 
 def test_builtin_names() -> None:
-    assert set(builtin_pattern_names()) == {"pyramid", "grid"}
+    assert set(PATTERNS) == {"pyramid", "grid"}
 
 
 def test_pyramid_geometry() -> None:

@@ -22,7 +22,7 @@ from actionreasoning.agents.prompt import THRESHOLD_LINE, THRESHOLDS_HEADING, re
 from actionreasoning.agents.spec import AgentSpec, agent_specs, parse_agents, single_agent_spec
 from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.agents.view import StateView
-from actionreasoning.world.patterns import builtin_pattern_names
+from actionreasoning.world.scenarios import PATTERNS
 from actionreasoning.world.tolerances import Tolerances
 
 AGENTS_YAML = resources.files("actionreasoning.agents").joinpath("prompts/agents.yaml").read_text()
@@ -36,10 +36,7 @@ def specs(tier: ToolTier) -> dict[int, AgentSpec]:
 
 
 CASES = [
-    (tier, number, pattern)
-    for tier in ToolTier
-    for number in range(7)
-    for pattern in builtin_pattern_names()
+    (tier, number, pattern) for tier in ToolTier for number in range(7) for pattern in PATTERNS
 ]
 
 #: What Python's repr of a dict, string, None or a boolean leaves in text: never a

@@ -22,8 +22,8 @@ from actionreasoning.trial.config import TrialConfig
 from actionreasoning.trial.provenance import Provenance
 from actionreasoning.trial.results import PlacementMetrics, TrialResult
 from actionreasoning.trial.rules import trial_seed
-from actionreasoning.world.noise import LEVELS
 from actionreasoning.world.physics import PRECISE
+from actionreasoning.world.scenarios import NOISE
 from actionreasoning.world.tolerances import Tolerances
 
 
@@ -144,7 +144,7 @@ def test_a_resume_under_other_conditions_is_refused_naming_the_field(tmp_path: P
     with pytest.raises(ConfigError, match=r"physics\.name 'paper' there, 'precise' now"):
         open_run(tmp_path, manifest(physics=PRECISE))
     with pytest.raises(ConfigError, match=r"noise\.perception\.position_std_m 0\.0 there"):
-        open_run(tmp_path, manifest(noise=LEVELS["medium"]))
+        open_run(tmp_path, manifest(noise=NOISE["medium"]))
     assert open_run(tmp_path, MANIFEST) == [result(0)]
 
 
@@ -203,7 +203,7 @@ EARLIER_MANIFEST = {
     "success_rule": "every brick within 2 cm and 5 deg",
     "budget": {"max_steps": 400000, "max_wall_s": 3600.0},
     "physics": PRECISE.model_dump(mode="json"),
-    "noise": LEVELS["none"].model_dump(mode="json"),
+    "noise": NOISE["none"].model_dump(mode="json"),
 }
 
 

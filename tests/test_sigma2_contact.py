@@ -26,8 +26,8 @@ from actionreasoning.trial.runner import TrialSpec, trial_world
 from actionreasoning.trial.sim_world import SimWorld
 from actionreasoning.world.geometry import QuatXYZW, Vec3, quat_yaw, top_down_quat
 from actionreasoning.world.models import GoalPattern, Progress, WorldState
-from actionreasoning.world.noise import LEVELS
 from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.scenarios import NOISE
 from actionreasoning.world.scene_spec import SceneSpec
 from actionreasoning.world.tolerances import Tolerances
 
@@ -54,7 +54,7 @@ def _trial(noise: str = "none", goal: GoalPattern = PYRAMID) -> Iterator[SimWorl
         goal=goal,
         run_seed=0,
         trial=0,
-        config=TrialConfig(noise=LEVELS[noise]),
+        config=TrialConfig(noise=NOISE[noise]),
     )
     with trial_world(spec) as made:
         yield SimWorld(WaypointController(made.scene, made.arm), goal, made.sensor)
@@ -144,7 +144,7 @@ def test_a_pad_that_shoves_the_brick_aside_is_refused_though_it_ends_touching_no
     assert "brick_shift_m = " in verdict.feedback and "sidewall" not in verdict.feedback
     # The feedback says where the brick went, signed, in the world frame: the grasp's
     # correction (measured through the sensor's noise, if any).
-    noise_m = 3.0 * LEVELS[noise].perception.position_std_m * 2**0.5
+    noise_m = 3.0 * NOISE[noise].perception.position_std_m * 2**0.5
     assert verdict.measured.e_x_m == pytest.approx(moved[0], abs=noise_m + 1e-6)
     assert verdict.measured.e_y_m == pytest.approx(moved[1], abs=noise_m + 1e-6)
 

@@ -11,8 +11,8 @@ from conftest import DOCS
 
 from actionreasoning.agents.gates import sigma5_placement
 from actionreasoning.tools.geometry import AlignmentErrors
-from actionreasoning.world.noise import LEVELS
 from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.scenarios import NOISE
 from actionreasoning.world.scene_spec import SceneSpec
 from actionreasoning.world.success import SuccessRule
 from actionreasoning.world.tolerances import Tolerances, derivation_table, derivations
@@ -52,9 +52,9 @@ def test_a_stricter_success_rule_makes_stricter_gates() -> None:
     assert (strict.max_offset_m, strict.max_rotation_deg) == (0.01, 2.0)
 
 
-@pytest.mark.parametrize("level", list(LEVELS))
+@pytest.mark.parametrize("level", list(NOISE))
 def test_noise_widens_what_compares_measurements_and_never_the_success_rule(level: str) -> None:
-    noise = LEVELS[level]
+    noise = NOISE[level]
     p, v = noise.perception, noise.variation
     t = Tolerances().under(noise.sensing())
     d = Tolerances()
@@ -99,9 +99,9 @@ def _alignment(e_xy: float, d_perp: float, e_theta: float, tilt: float) -> Align
     )
 
 
-@pytest.mark.parametrize("level", list(LEVELS))
+@pytest.mark.parametrize("level", list(NOISE))
 def test_sigma5_never_passes_what_the_success_rule_fails(level: str) -> None:
-    t = Tolerances().under(LEVELS[level].sensing())
+    t = Tolerances().under(NOISE[level].sensing())
     refused = 0
     for e_xy in (0.0, 0.005, 0.01, 0.015, 0.019, 0.021, 0.03):
         for d_perp in (0.0, 0.004, 0.008, 0.012, 0.016):
@@ -119,5 +119,5 @@ def test_sigma5_never_passes_what_the_success_rule_fails(level: str) -> None:
 
 def test_the_docs_show_the_derivation_table() -> None:
     goal = load_pattern("pyramid", SceneSpec())
-    run = Tolerances().for_goal(goal).under(LEVELS["medium"].sensing())
+    run = Tolerances().for_goal(goal).under(NOISE["medium"].sensing())
     assert derivation_table(run, "pyramid, noise medium") in (DOCS / "conditions.md").read_text()

@@ -21,8 +21,8 @@ from actionreasoning.tools.geometry import GraspQuery, grasp_candidates
 from actionreasoning.tools.registry import TOOLS, call_tool
 from actionreasoning.world.geometry import top_down_quat, yaw_quat
 from actionreasoning.world.models import BrickState, Pose, RobotState, WorldState
-from actionreasoning.world.noise import LEVELS
 from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.scenarios import NOISE
 from actionreasoning.world.scene_spec import SceneSpec
 
 SPEC = SceneSpec()
@@ -255,7 +255,7 @@ def test_contact_and_slip_of_a_brick_held_in_the_real_gripper(
     arm: KinematicArm, scene: Scene
 ) -> None:
     controller = WaypointController(scene, arm)
-    sensor = Sensor(scene, LEVELS["none"], trial_seed=0)
+    sensor = Sensor(scene, NOISE["none"], trial_seed=0)
     pick_yaw, _ = ClassicalController(controller, sensor).grasp_yaws(
         *sensor.brick_pose(0), GOAL.targets[0].pose
     )

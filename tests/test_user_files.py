@@ -14,8 +14,7 @@ from actionreasoning.errors import ConfigError
 from actionreasoning.runs.layout import RunDir
 from actionreasoning.runs.run_dir import read_results
 from actionreasoning.world.config_files import MAX_FILE_BYTES, read_user_file
-from actionreasoning.world.noise import load_noise
-from actionreasoning.world.physics import load_physics
+from actionreasoning.world.scenarios import load_noise, load_physics
 
 #: The loaders of physics and noise files, by how their errors name the file.
 LOADERS = {"physics file": load_physics, "noise file": load_noise}

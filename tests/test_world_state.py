@@ -10,15 +10,15 @@ from actionreasoning.sim.perceive import Sensor
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import BrickState, Pose, Progress, WorldState
-from actionreasoning.world.noise import LEVELS
 from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.scenarios import NOISE
 from actionreasoning.world.scene_spec import SceneSpec
 
 
 def test_round_trip_of_a_measured_state(scene: Scene) -> None:
     scene.step(30)
     goal = load_pattern("pyramid", scene.spec)
-    sensor = Sensor(scene, LEVELS["none"], trial_seed=0)
+    sensor = Sensor(scene, NOISE["none"], trial_seed=0)
     state = sensor.perceive(goal, Progress(placed_ids=(), current_brick=0, step="pre_grasp"))
     text = state.model_dump_json()
     again = WorldState.model_validate_json(text)

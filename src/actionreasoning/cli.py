@@ -20,15 +20,15 @@ from rich.table import Table
 
 from actionreasoning.agents.tiers import DEFAULT_TIER, TIER_HELP, ToolTier
 from actionreasoning.errors import ActionReasoningError, ConfigError
+from actionreasoning.reasoners.registry import backend_help
 from actionreasoning.reasoners.sampling import MAX_COMPLETION_TOKENS, Effort, Sampling
 from actionreasoning.recording.names import VIDEO_FPS
 from actionreasoning.runs.layout import RunDir
 from actionreasoning.trial.rules import Method
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.geometry import quat_yaw
-from actionreasoning.world.noise import load_noise
 from actionreasoning.world.patterns import load_pattern
-from actionreasoning.world.physics import load_physics
+from actionreasoning.world.scenarios import NOISE, PATTERNS, PHYSICS, load_noise, load_physics
 from actionreasoning.world.scene_spec import SceneSpec
 
 if TYPE_CHECKING:
@@ -44,16 +44,11 @@ app = typer.Typer(
 console = Console()
 err_console = Console(stderr=True)
 
+BUILTIN_PATTERNS = ", ".join(f"'{name}'" for name in PATTERNS)
 PatternOption = Annotated[
-    str, typer.Option(help="'pyramid', 'grid', or a pattern file (JSON/YAML, see README).")
+    str, typer.Option(help=f"{BUILTIN_PATTERNS}, or a pattern file (JSON/YAML, see README).")
 ]
-LLMOption = Annotated[
-    str,
-    typer.Option(
-        help="Reasoning backend: builtin, openai:MODEL (any OpenAI-compatible server), "
-        "llamacpp:PATH (a GGUF file, in process) or replay:FILE (a --record file, offline)."
-    ),
-]
+LLMOption = Annotated[str, typer.Option(help=backend_help())]
 BaseUrlOption = Annotated[
     str | None,
     typer.Option(help="Base URL of an OpenAI-compatible server (default: OPENAI_BASE_URL)."),
@@ -61,14 +56,15 @@ BaseUrlOption = Annotated[
 PhysicsOption = Annotated[
     str,
     typer.Option(
-        help="Physics profile: 'paper' (PyBullet's defaults, the paper's condition), 'precise' "
-        "(tuned until nothing slips) or a profile file (JSON/YAML, see README)."
+        help="Physics profile: "
+        + ", ".join(f"'{entry.name}' ({entry.help})" for entry in PHYSICS.entries)
+        + " or a profile file (JSON/YAML, see README)."
     ),
 ]
 NoiseOption = Annotated[
     str,
     typer.Option(
-        help="Perturbations drawn from each trial's seed: none, low, medium, high (perception "
+        help=f"Perturbations drawn from each trial's seed: {', '.join(NOISE)} (perception "
         "noise and per-brick friction, mass and size; see README) or a noise file."
     ),
 ]
@@ -561,7 +557,7 @@ def schema_command(
 
 @app.command("pattern")
 def pattern_command(
-    pattern: Annotated[str, typer.Argument(help="'pyramid', 'grid', or a pattern file.")],
+    pattern: Annotated[str, typer.Argument(help=f"{BUILTIN_PATTERNS}, or a pattern file.")],
 ) -> None:
     """Validate a goal pattern and print its target poses in the world frame."""
     try:

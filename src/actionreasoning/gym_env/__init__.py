@@ -6,6 +6,11 @@ Importing this package registers it::
     import actionreasoning.gym_env
 
     env = gymnasium.make("actionreasoning/BrickStack-v0", pattern="pyramid")
+
+``pattern``, ``physics`` and ``noise`` take a built-in's name or a file; :data:`SCENARIOS`
+is every combination of built-ins (``world/scenarios.py``)::
+
+    envs = [gymnasium.make(ENV_ID, **dataclasses.asdict(s)) for s in SCENARIOS]
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ except ImportError as error:  # pragma: no cover - depends on the installed extr
     ) from error
 
 from actionreasoning.gym_env.env import BrickStackEnv
+from actionreasoning.world.scenarios import SCENARIOS
 
 ENV_ID = "actionreasoning/BrickStack-v0"
 #: Steps (tool calls and answers) an episode may take before Gymnasium's TimeLimit
@@ -31,4 +37,4 @@ if ENV_ID not in gymnasium.registry:
         max_episode_steps=MAX_EPISODE_STEPS,
     )
 
-__all__ = ["ENV_ID", "MAX_EPISODE_STEPS", "BrickStackEnv"]
+__all__ = ["ENV_ID", "MAX_EPISODE_STEPS", "SCENARIOS", "BrickStackEnv"]

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import json
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -30,6 +30,7 @@ from actionreasoning.trial.provenance import current_provenance, stamp
 from actionreasoning.trial.results import TrialResult
 from actionreasoning.trial.session import Conditions, Refusal, RefusalCode, TrialSession
 from actionreasoning.world.budget import TrialBudget
+from actionreasoning.world.scenarios import NOISE, PATTERNS, PHYSICS
 
 #: What the results line calls the agent that answered.
 AGENT_LABEL = "mcp"
@@ -42,6 +43,11 @@ KNOWLEDGE_TOOLS: tuple[str, ...] = tuple(
 REGISTRY_TOOLS: tuple[str, ...] = tuple(dict.fromkeys(KNOWLEDGE_TOOLS + GATE_MEASUREMENTS))
 
 
+def _named(builtins: Iterable[str]) -> str:
+    """The names of built-ins, quoted: 'a', 'b'."""
+    return ", ".join(f"'{name}'" for name in builtins)
+
+
 class _Arguments(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
 
@@ -50,9 +56,9 @@ class StartTrial(_Arguments):
     """Start trial ``trial`` of ``eval --seed seed`` (the same bricks) under the conditions
     named as on the command line. A trial still running on this connection is abandoned."""
 
-    pattern: str = Field("pyramid", description="'pyramid', 'grid' or a pattern file's path.")
-    physics: str = Field("paper", description="'paper', 'precise' or a profile file's path.")
-    noise: str = Field("none", description="'none', 'low', 'medium', 'high' or a noise file.")
+    pattern: str = Field("pyramid", description=f"{_named(PATTERNS)} or a pattern file's path.")
+    physics: str = Field("paper", description=f"{_named(PHYSICS)} or a profile file's path.")
+    noise: str = Field("none", description=f"{_named(NOISE)} or a noise file.")
     tools: str = Field(
         DEFAULT_TIER.value,
         description="The reasoning tier: "

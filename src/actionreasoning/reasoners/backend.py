@@ -46,7 +46,7 @@ class LLMConfig:
 
     @property
     def kind(self) -> str:
-        """builtin, openai, llamacpp or replay."""
+        """The backend's name, a key of :data:`~actionreasoning.reasoners.registry.BACKENDS`."""
         return self.spec.split(":", 1)[0]
 
     @property

@@ -29,12 +29,8 @@ CONTEXT_TOKENS = 8192
 @cache
 def _load(path: str) -> Any:
     """The model, loaded once per process."""
-    try:
-        from llama_cpp import Llama
-    except ImportError:
-        raise ConfigError(
-            "--llm llamacpp:PATH needs llama-cpp-python: pip install 'actionreasoning[local]'"
-        ) from None
+    from llama_cpp import Llama  # the local extra; registry.py names it when it is missing
+
     if not Path(path).is_file():
         raise ConfigError(f"--llm llamacpp:{path}: no such model file")
     try:

@@ -21,8 +21,9 @@ from actionreasoning.reasoners.backend import LLMConfig
 from actionreasoning.reasoners.llm import LLMLimits
 from actionreasoning.reasoners.sampling import RecordedSampling, Sampling
 from actionreasoning.world.budget import TrialBudget
-from actionreasoning.world.noise import LEVELS, NoiseLevel
+from actionreasoning.world.noise import NoiseLevel
 from actionreasoning.world.physics import PAPER, PhysicsProfile
+from actionreasoning.world.scenarios import NOISE
 from actionreasoning.world.scene_spec import SceneSpec
 from actionreasoning.world.success import SuccessRule
 from actionreasoning.world.tolerances import Tolerances
@@ -63,7 +64,7 @@ class TrialConfig(BaseModel):
 
     scene: SceneSpec = SceneSpec()
     physics: PhysicsProfile = PAPER
-    noise: NoiseLevel = LEVELS["none"]
+    noise: NoiseLevel = NOISE["none"]
     tolerances: Tolerances = Tolerances()
     retries: Budgets = Budgets()
     budget: TrialBudget = TrialBudget()

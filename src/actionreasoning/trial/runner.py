@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -13,6 +14,7 @@ from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.reasoner import Reasoner
 from actionreasoning.agents.single_agent import SingleAgent
 from actionreasoning.agents.transcript import AgentCall
+from actionreasoning.agents.world import World
 from actionreasoning.control.classical import run_classical
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
 from actionreasoning.errors import ConfigError, TrialAborted, UnreachableError
@@ -36,6 +38,7 @@ from actionreasoning.trial.results import (
 from actionreasoning.trial.rules import Method, trial_seed
 from actionreasoning.trial.sim_world import SimWorld
 from actionreasoning.world.boxes import Box
+from actionreasoning.world.geometry import QuatXYZW, Vec3
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import READY_POSE, GoalPattern
 from actionreasoning.world.noise import vary_bricks
@@ -165,7 +168,8 @@ def run_trial(
         if spec.method is Method.CLASSICAL:
             outcome = _run_classical(controller, world.sensor, spec.goal, stage)
         else:
-            outcome = _run_agents(controller, world.sensor, spec, stage, on_call, reasoner)
+            agents_world = SimWorld(controller, spec.goal, world.sensor)
+            outcome = run_agents(agents_world, spec, stage, on_call, reasoner, scene.deadline)
         try:
             scene.step(scene.ticks_for(FINAL_SETTLE_S))
             scene.check_physics()
@@ -173,7 +177,7 @@ def run_trial(
             outcome.failure = outcome.failure or failure_of(error, None)
         stage(-1, "final")
         llm = None if reasoner is None else reasoner.name
-        return TrialRun(_measure(spec, seed, scene, outcome, llm), tuple(outcome.transcript))
+        return TrialRun(measure(spec, seed, scene, outcome, llm), tuple(outcome.transcript))
 
 
 def _run_classical(
@@ -191,20 +195,21 @@ def _run_classical(
     return BuildResult(placements={t.index: t.index for t in goal.targets}, failure=failure)
 
 
-def _run_agents(
-    controller: WaypointController,
-    sensor: Sensor,
+def run_agents(
+    world: World,
     spec: TrialSpec,
     stage: Callable[[int, str], None],
     on_call: CallHook | None = None,
     reasoner: Reasoner | None = None,
+    deadline: float | None = None,
 ) -> BuildResult:
-    """The six gated agents, or the merged single agent, with ``reasoner`` (default: the
-    spec's), whose answers are corrupted at the rate of ``config.answer_errors``."""
-    config, world = spec.config, SimWorld(controller, spec.goal, sensor)
+    """The six gated agents, or the merged single agent, building ``spec``'s goal in
+    ``world`` with ``reasoner`` (default: the spec's backend, whose answers are given up at
+    ``deadline``), its answers corrupted at the rate of ``config.answer_errors``."""
+    config = spec.config
     assert config.llm is not None  # TrialSpec checks it
     if reasoner is None:
-        reasoner = make_reasoner(config.llm, controller.scene.deadline)
+        reasoner = make_reasoner(config.llm, deadline)
     if config.answer_errors.rate > 0:
         seed = trial_seed(spec.run_seed, spec.trial)
         reasoner = ImperfectReasoner(reasoner, config.answer_errors, seed)
@@ -231,10 +236,25 @@ def _run_agents(
     return runner.build(spec.goal)
 
 
-def _measure(
-    spec: TrialSpec, seed: int, scene: Scene, outcome: BuildResult, llm: str | None
+class Bodies(Protocol):
+    """What scoring reads of a trial's world at its end (a :class:`Scene` has it)."""
+
+    @property
+    def bricks(self) -> Sequence[object]: ...
+
+    @property
+    def ticks(self) -> int: ...
+
+    def brick_pose(self, brick: int) -> tuple[Vec3, QuatXYZW]: ...
+
+    def brick_velocity(self, brick: int) -> tuple[Vec3, Vec3]: ...
+
+
+def measure(
+    spec: TrialSpec, seed: int, scene: Bodies, outcome: BuildResult, llm: str | None
 ) -> TrialResult:
-    """The trial's result line; ``llm`` names the reasoner if not the spec's backend."""
+    """The trial's result line, from the bodies at the end of trial ``seed`` and the build's
+    outcome; ``llm`` names the reasoner if not the spec's backend."""
     config, rule, failure = spec.config, spec.config.success_rule, outcome.failure
     if llm is None:
         llm = "none" if config.llm is None or spec.method is Method.CLASSICAL else config.llm.label

@@ -47,9 +47,8 @@ from actionreasoning.trial.rules import Method
 from actionreasoning.trial.runner import TrialObserver, TrialRun, TrialSpec, run_trial
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.models import GoalPattern, WorldState
-from actionreasoning.world.noise import load_noise
 from actionreasoning.world.patterns import load_pattern
-from actionreasoning.world.physics import load_physics
+from actionreasoning.world.scenarios import load_noise, load_physics
 
 T = TypeVar("T")
 

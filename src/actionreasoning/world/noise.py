@@ -4,17 +4,15 @@ Perception noise is what the robot's sensors add to every measurement the agents
 classical script read (brick positions and yaws, pad forces); the metrics always use the
 true poses. Physical variation makes each brick of a trial a little different (friction,
 mass, size) from the catalogue values the agents are told. Named levels (``--noise
-none|low|medium|high``) and a file form (JSON/YAML, the fields of :class:`NoiseLevel`).
+none|low|medium|high``, in ``scenarios.py``) and a file form (JSON/YAML, the fields of
+:class:`NoiseLevel`).
 """
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from actionreasoning.world.config_files import load_named
 from actionreasoning.world.models import Sensing
 from actionreasoning.world.scene_spec import BrickBody
 
@@ -67,36 +65,9 @@ class NoiseLevel(_Level):
         )
 
 
-LEVELS = {
-    level.name: level
-    for level in (
-        NoiseLevel(name="none"),
-        NoiseLevel(
-            name="low",
-            perception=PerceptionNoise(position_std_m=0.001, yaw_std_deg=0.5, force_rel_std=0.05),
-            variation=PhysicalVariation(friction_rel=0.10, mass_rel=0.10, size_m=0.001),
-        ),
-        NoiseLevel(
-            name="medium",
-            perception=PerceptionNoise(position_std_m=0.002, yaw_std_deg=1.0, force_rel_std=0.10),
-            variation=PhysicalVariation(friction_rel=0.20, mass_rel=0.20, size_m=0.002),
-        ),
-        NoiseLevel(
-            name="high",
-            perception=PerceptionNoise(position_std_m=0.004, yaw_std_deg=2.0, force_rel_std=0.20),
-            variation=PhysicalVariation(friction_rel=0.35, mass_rel=0.35, size_m=0.003),
-        ),
-    )
-}
-
 #: Independent streams of a trial's seed: layout uses the seed itself.
 VARIATION_STREAM = 1
 PERCEPTION_STREAM = 2
-
-
-def load_noise(name_or_path: str | Path) -> NoiseLevel:
-    """A named level, or a noise file (JSON/YAML), validated."""
-    return load_named(name_or_path, LEVELS, NoiseLevel, "noise level")
 
 
 def vary_bricks(

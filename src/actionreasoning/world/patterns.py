@@ -33,6 +33,7 @@ from actionreasoning.world.config_files import parse_model, read_mapping
 from actionreasoning.world.geometry import Vec3, yaw_quat
 from actionreasoning.world.layout import pick_capacity
 from actionreasoning.world.models import GoalPattern, Pose, TargetBrick
+from actionreasoning.world.scenarios import PATTERNS
 from actionreasoning.world.scene_spec import (
     FINGERTIPS_BEYOND_TCP_M,
     GRIPPER_GAP_M,
@@ -58,9 +59,6 @@ PALM_CLEARANCE_M = 0.0075
 #: Every edge of a pattern's brick lies within these shares of the catalogue brick's edge.
 SIZE_SHARES = (0.5, 1.5)
 
-#: Built-ins: bricks per layer (each layer a row centred over the one below) and the gap.
-_BUILTINS = {"pyramid": ((3, 2, 1), 0.05), "grid": ((3, 3), 0.02)}
-
 Finite = Annotated[float, Strict()]
 Positive = Annotated[float, Strict(), Field(gt=0.0)]
 
@@ -85,21 +83,16 @@ class PatternFile(_FileModel):
     bricks: list[BrickEntry] = Field(min_length=1)
 
 
-def builtin_pattern_names() -> tuple[str, ...]:
-    """Names accepted by :func:`load_pattern` besides file paths."""
-    return tuple(_BUILTINS)
-
-
 def builtin_pattern(name: str, spec: SceneSpec) -> PatternFile:
     """The built-in ``name`` as a pattern file in the build-area frame (no origin)."""
-    if name not in _BUILTINS:
-        raise PatternError(f"unknown built-in pattern '{name}' (known: {', '.join(_BUILTINS)})")
-    layers, gap = _BUILTINS[name]
+    if name not in PATTERNS:
+        raise PatternError(f"unknown built-in pattern '{name}' (known: {', '.join(PATTERNS)})")
+    rows = PATTERNS[name]
     length, _, height = spec.brick_size_m
-    pitch = length + gap
+    pitch = length + rows.gap_m
     bricks = [
         {"position": [(i - (count - 1) / 2.0) * pitch, 0.0, (k + 0.5) * height], "yaw_deg": 0.0}
-        for k, count in enumerate(layers)
+        for k, count in enumerate(rows.layers)
         for i in range(count)
     ]
     data = {"name": name, "brick_size": list(spec.brick_size_m), "bricks": bricks}
@@ -107,9 +100,10 @@ def builtin_pattern(name: str, spec: SceneSpec) -> PatternFile:
 
 
 def load_pattern(name_or_path: str | Path, spec: SceneSpec) -> GoalPattern:
-    """A built-in (by name) or a pattern file, placed in the world and validated."""
-    if isinstance(name_or_path, str) and name_or_path in _BUILTINS:
-        source, gap = f"built-in pattern '{name_or_path}'", _BUILTINS[name_or_path][1]
+    """A built-in (by name, of :data:`~actionreasoning.world.scenarios.PATTERNS`) or a
+    pattern file, placed in the world and validated."""
+    if isinstance(name_or_path, str) and name_or_path in PATTERNS:
+        source, gap = f"built-in pattern '{name_or_path}'", PATTERNS[name_or_path].gap_m
         pattern = builtin_pattern(name_or_path, spec)
     else:
         source, gap = str(name_or_path), None

@@ -1,7 +1,7 @@
 """Physics profiles: the simulator settings a trial runs under, named and recorded.
 
-Two built-ins (``--physics paper|precise``) and a file form (JSON/YAML, the fields of
-:class:`PhysicsProfile`). A profile has three parts:
+Two built-ins (``--physics paper|precise``, registered in ``scenarios.py``) and a file form
+(JSON/YAML, the fields of :class:`PhysicsProfile`). A profile has three parts:
 
 * the engine: time step, solver iterations, contact breaking threshold, friction anchors;
 * the contact properties of the bricks and the ground;
@@ -19,12 +19,9 @@ simulator's floor, not the benchmark.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field
-
-from actionreasoning.world.config_files import load_named
 
 NonNegative = Annotated[float, Field(ge=0.0)]
 
@@ -93,10 +90,3 @@ PRECISE = PhysicsProfile(
     brick_rolling_friction=0.0,
     ground_lateral_friction=0.8,
 )
-
-PROFILES = {profile.name: profile for profile in (PAPER, PRECISE)}
-
-
-def load_physics(name_or_path: str | Path) -> PhysicsProfile:
-    """A built-in profile by name, or a profile file (JSON/YAML), validated."""
-    return load_named(name_or_path, PROFILES, PhysicsProfile, "physics profile")
