@@ -46,7 +46,8 @@ err_console = Console(stderr=True)
 
 BUILTIN_PATTERNS = ", ".join(f"'{name}'" for name in PATTERNS)
 PatternOption = Annotated[
-    str, typer.Option(help=f"{BUILTIN_PATTERNS}, or a pattern file (JSON/YAML, see README).")
+    str,
+    typer.Option(help=f"{BUILTIN_PATTERNS}, or a pattern file (JSON/YAML, see docs/patterns.md)."),
 ]
 LLMOption = Annotated[str, typer.Option(help=backend_help())]
 BaseUrlOption = Annotated[
@@ -58,14 +59,14 @@ PhysicsOption = Annotated[
     typer.Option(
         help="Physics profile: "
         + ", ".join(f"'{entry.name}' ({entry.help})" for entry in PHYSICS.entries)
-        + " or a profile file (JSON/YAML, see README)."
+        + " or a profile file (JSON/YAML, see docs/conditions.md)."
     ),
 ]
 NoiseOption = Annotated[
     str,
     typer.Option(
         help=f"Perturbations drawn from each trial's seed: {', '.join(NOISE)} (perception "
-        "noise and per-brick friction, mass and size; see README) or a noise file."
+        "noise and per-brick friction, mass and size; see docs/conditions.md) or a noise file."
     ),
 ]
 
@@ -166,9 +167,9 @@ def _summary_table(summary: RunSummary) -> Table:
 
     def cell(metric: str, scale: float = 1.0) -> str:
         stats = s[metric]
-        return (
-            "n/a" if stats.mean is None else f"{stats.mean * scale:.3f} ± {stats.std * scale:.3f}"
-        )
+        if stats.mean is None or stats.std is None:
+            return "n/a"
+        return f"{stats.mean * scale:.3f} ± {stats.std * scale:.3f}"
 
     table.add_row(
         cell("rotation_error_deg"),
@@ -219,7 +220,8 @@ def eval_command(
         typer.Option(
             metavar="RATE",
             help="Corrupt each answer of the reasoner with this probability (0 to 1), drawn from "
-            "the trial's seed, with a mistake models make (see README): what the gates catch.",
+            "the trial's seed, with a mistake models make (see docs/agents-and-gates.md): what "
+            "the gates catch.",
         ),
     ] = 0.0,
     repairs: Annotated[
@@ -547,11 +549,17 @@ def schema_command(
     """Print the JSON Schema of an eval directory's records, to check or load them elsewhere."""
     import json
 
+    from pydantic import BaseModel
+
     from actionreasoning.runs.summary import RunSummary
     from actionreasoning.trial.config import TrialConfig
     from actionreasoning.trial.results import TrialResult
 
-    models = {Schema.RESULTS: TrialResult, Schema.SUMMARY: RunSummary, Schema.CONFIG: TrialConfig}
+    models: dict[Schema, type[BaseModel]] = {
+        Schema.RESULTS: TrialResult,
+        Schema.SUMMARY: RunSummary,
+        Schema.CONFIG: TrialConfig,
+    }
     print(json.dumps(models[records].model_json_schema(mode="serialization"), indent=2))
 
 
