@@ -29,6 +29,7 @@ from enum import StrEnum
 from pathlib import Path
 from typing import Any, TypeVar
 
+import numpy as np
 from pydantic import BaseModel, Field
 
 from actionreasoning.agents.error_kinds import ErrorCategory
@@ -38,10 +39,12 @@ from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.agents.validation import OutputError, parse_answer
 from actionreasoning.errors import ActionReasoningError, ConfigError, LLMError, ToolError
 from actionreasoning.records import FailureCode
+from actionreasoning.sim.camera import overview, render
 from actionreasoning.sim.scene import Scene
 from actionreasoning.tools.base import ToolModel
 from actionreasoning.tools.registry import GATE_MEASUREMENTS, ToolSchema, tool_schema
 from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.placed import PlacedCount
 from actionreasoning.trial.results import TrialResult
 from actionreasoning.trial.rules import Method
 from actionreasoning.trial.runner import TrialObserver, TrialRun, TrialSpec, run_trial
@@ -50,6 +53,7 @@ from actionreasoning.world.models import GoalPattern, WorldState
 from actionreasoning.world.noise import load_noise
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import load_physics
+from actionreasoning.world.stages import StageEvent
 
 T = TypeVar("T")
 
@@ -57,6 +61,15 @@ T = TypeVar("T")
 class SessionError(ActionReasoningError):
     """The session cannot do what was asked now (the trial has ended, a request was
     already answered)."""
+
+
+class AgentLabel(StrEnum):
+    """What the results line (``llm``) calls a session's outside agent: the door it came
+    through."""
+
+    OUTSIDE = "outside"  # none: the session itself, called from Python
+    GYM = "gym"  # the Gymnasium environment
+    MCP = "mcp"  # the MCP server
 
 
 class RefusalCode(StrEnum):
@@ -158,11 +171,18 @@ class TrialSession:
     """One trial, its agents answered by the caller; results name the reasoner ``agent``.
 
     The constructor returns when the first agent asks (or the trial has ended). Use it as a
-    context manager, or call :meth:`close`; a session dropped unclosed is closed too.
+    context manager, or call :meth:`close`; a session dropped unclosed is closed too. With
+    ``final_picture``, it keeps the overview picture of the trial's final scene for
+    :meth:`picture`.
     """
 
     def __init__(
-        self, spec: TrialSpec, observers: Sequence[TrialObserver] = (), agent: str = "outside"
+        self,
+        spec: TrialSpec,
+        observers: Sequence[TrialObserver] = (),
+        agent: str = AgentLabel.OUTSIDE,
+        *,
+        final_picture: bool = False,
     ) -> None:
         self.spec = spec
         self._inbox: queue.Queue[object] = queue.Queue()
@@ -172,10 +192,13 @@ class TrialSession:
         self._run: TrialRun | None = None
         self._ended = False
         self._watch = _Watch()
-        outside = _OutsideAgent(agent, self._inbox, self._outbox, self._watch)
+        self._placed = PlacedCount(spec.goal, spec.config.success_rule)
+        self._final = _FinalPicture() if final_picture else None
+        watchers = (self._watch, self._placed, *([self._final] if self._final else []))
+        outside = _OutsideAgent(str(agent), self._inbox, self._outbox, self._watch)
         self._thread = threading.Thread(
             target=_run,
-            args=(spec, (self._watch, *observers), outside, self._outbox),
+            args=(spec, (*watchers, *observers), outside, self._outbox),
             name=f"trial {spec.run_seed}/{spec.trial}",
             daemon=True,
         )
@@ -205,6 +228,14 @@ class TrialSession:
     def result(self) -> TrialResult | None:
         """The finished trial's result line, as ``eval`` writes it (None while it runs)."""
         return None if self._run is None else self._run.result
+
+    @property
+    def placed(self) -> int:
+        """Bricks within the success rule of their targets: while the trial runs, as counted
+        after its last accepted release (``placed.py``); once it has ended, its result's
+        ``bricks_placed`` (after the final settle)."""
+        result = self.result
+        return self._placed.count if result is None else result.bricks_placed
 
     @property
     def request(self) -> AgentRequest | None:
@@ -288,6 +319,15 @@ class TrialSession:
         if isinstance(outcome, _Failed):
             raise outcome.error
         return outcome  # type: ignore[return-value]
+
+    def picture(self) -> np.ndarray:
+        """The overview camera's picture (height x width x 3, uint8) of the scene now, or,
+        once the trial has ended, of its final scene (kept with ``final_picture``)."""
+        if not self._ended:
+            return self.in_scene(_overview)
+        if self._final is None or self._final.image is None:
+            raise SessionError("the trial has ended and its final picture was not kept")
+        return self._final.image
 
     def close(self) -> TrialRun | None:
         """End the trial (``abandoned`` if an agent still waits) and return it."""
@@ -382,6 +422,21 @@ class _Watch(TrialObserver):
 
     def call(self, scene: Scene, call: AgentCall) -> None:
         self.last_call = call
+
+
+class _FinalPicture(TrialObserver):
+    """The overview picture of the trial's final scene (rendered in the trial's thread)."""
+
+    def __init__(self) -> None:
+        self.image: np.ndarray | None = None
+
+    def stage(self, scene: Scene, event: StageEvent) -> None:
+        if event.brick < 0:
+            self.image = _overview(scene)
+
+
+def _overview(scene: Scene) -> np.ndarray:
+    return render(scene, overview(scene))
 
 
 class _OutsideAgent:
