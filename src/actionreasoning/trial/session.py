@@ -32,12 +32,14 @@ from typing import Any, TypeVar
 import numpy as np
 from pydantic import BaseModel, Field
 
+from actionreasoning.agents.answer_errors import AnswerErrors
 from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest, ToolRunner
 from actionreasoning.agents.tiers import DEFAULT_TIER, load_tier
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.agents.validation import OutputError, parse_answer
 from actionreasoning.errors import ActionReasoningError, ConfigError, LLMError, ToolError
+from actionreasoning.reasoners.backend import LLMConfig
 from actionreasoning.records import FailureCode
 from actionreasoning.sim.camera import overview, render
 from actionreasoning.sim.scene import Scene
@@ -124,9 +126,9 @@ class Turn(BaseModel):
 
 @dataclass(frozen=True)
 class Conditions:
-    """What ``eval --method agents`` runs a pattern under, loaded as the command loads it
-    (a pattern name or file, a physics profile, a noise level, the trial's budget, the
-    reasoning tier)."""
+    """What ``eval`` runs a pattern under, loaded as the command loads it (a pattern name
+    or file, a physics profile, a noise level, the trial's budget, the reasoning tier, and
+    for eval's own trials the reasoning backend and its answer errors)."""
 
     pattern_name: str
     goal: GoalPattern
@@ -140,14 +142,19 @@ class Conditions:
         noise: str = "none",
         budget: TrialBudget = TrialBudget(),
         tools: str = DEFAULT_TIER,
+        *,
+        llm: LLMConfig | None = LLMConfig(),
+        answer_errors: AnswerErrors = AnswerErrors(),
     ) -> Conditions:
         """The conditions named as on the command line; a bad name or file is refused."""
-        if Path(pattern).is_file():  # as eval names it: ./x.json is x.json
+        if Path(pattern).is_file():  # one file, however it is spelled: ./x.json is x.json
             pattern = os.path.normpath(pattern)
         config = TrialConfig(
+            llm=llm,
             budget=budget,
             physics=load_physics(physics),
             noise=load_noise(noise),
+            answer_errors=answer_errors,
             tools=load_tier(tools),
         )
         return cls(pattern_name=pattern, goal=load_pattern(pattern, config.scene), config=config)
