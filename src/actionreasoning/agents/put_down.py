@@ -25,7 +25,7 @@ from actionreasoning.tools.grasp_plan import GRASP_OPTIONS, GraspOptionsQuery
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import Vec3, quat_yaw, top_down_quat, yaw_quat
 from actionreasoning.world.ground import free_spots
-from actionreasoning.world.models import Pose, WorldState
+from actionreasoning.world.models import BrickStatus, Pose, WorldState
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M, ReachBand
 
 GRIPPER_OPEN_M = GRIPPER_GAP_M[1]
@@ -67,7 +67,7 @@ class PutDown:
         must be to press it flat. A brick no longer in the hand is left where it fell, and
         the open gripper goes up clear of it."""
         state = observe()
-        held = state.brick(brick).status == "grasped"
+        held = state.brick(brick).status == BrickStatus.GRASPED
         if not held:
             self.world.grip(GRIPPER_OPEN_M)
         width = state.brick(brick).size_m[1]
@@ -87,7 +87,7 @@ class PutDown:
             over = WaypointProposal(position_m=(*press[:2], height), quat_xyzw=spot.quat_xyzw)
             self._gently(over, math.dist(here[:2], press[:2]))
             state = observe()
-            if state.brick(brick).status != "grasped":
+            if state.brick(brick).status != BrickStatus.GRASPED:
                 self.world.grip(GRIPPER_OPEN_M)
                 return
             again = _pressing_point(state, brick, spot)
@@ -149,7 +149,7 @@ class PutDown:
         lying = state.brick(brick).model_copy(
             update={
                 "pose": Pose(position_m=spot.position_m, quat_xyzw=yaw_quat(yaw)),
-                "status": "dropped",
+                "status": BrickStatus.DROPPED,
             }
         )
         there = state.model_copy(
