@@ -470,10 +470,10 @@ def report_command(
     content; others are set side by side, and the report names the fields that differ.
     """
     from actionreasoning.report.build import build_report
-    from actionreasoning.runs.run_dir import output_directory
+    from actionreasoning.runs.run_dir import check_output_path
 
     try:
-        output_directory(out)
+        check_output_path(out)  # before reading the runs; created once they are read
         report = build_report(runs, out, gifs=gif)
     except (ActionReasoningError, OSError) as error:
         _fail(error, out)
