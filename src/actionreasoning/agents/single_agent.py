@@ -40,7 +40,6 @@ from actionreasoning.world.tolerances import Tolerances
 
 #: Waypoints the agent may spend per brick (a full cycle takes eight), plus one to finish.
 WAYPOINTS_PER_BRICK = 12
-FULL_OPENING_M = GRIPPER_GAP_M[1]
 
 
 class SingleAgent:
@@ -101,7 +100,7 @@ class SingleAgent:
         if answer.waypoint is not None:
             self.world.move(answer.waypoint)
         if answer.gripper == "open":
-            self.world.grip(answer.gripper_opening_m or FULL_OPENING_M)
+            self.world.grip(answer.gripper_opening_m or GRIPPER_GAP_M[1])
         elif answer.gripper == "close":
             self.world.grip(None)
         self.memory = self.memory.model_copy(update=update)
