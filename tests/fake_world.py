@@ -405,17 +405,17 @@ class FakeWorld:
         pose = self.bricks[brick].pose
         x, y, z = pose.position_m
         if brick == self.held:
-            return "grasped"
+            return BrickStatus.GRASPED
         if tilt_deg(pose.quat_xyzw) > TOPPLED_DEG:
-            return "toppled"
+            return BrickStatus.TOPPLED
         if brick in progress.placed_ids:
-            return "placed"
+            return BrickStatus.PLACED
         radius, azimuth = math.hypot(x, y), math.degrees(math.atan2(y, x))
         (r_low, r_high), (a_low, a_high) = self.spec.pick_radius_m, self.spec.pick_azimuth_deg
         on_ground = z < self.bricks[brick].size_m[2]
         if r_low <= radius <= r_high and a_low <= azimuth <= a_high and on_ground:
-            return "in_pick_area"
-        return "dropped"
+            return BrickStatus.IN_PICK_AREA
+        return BrickStatus.DROPPED
 
 
 def motion(

@@ -141,6 +141,7 @@ def test_trials_on_a_local_ray_cluster_give_the_serial_results_recordings_and_vi
     assert videos == [b"ftyp"] * 3
 
 
+@pytest.mark.slow  # starts a Ray client in a process of its own, as the other Ray tests
 def test_a_ray_address_where_nothing_listens_is_refused_at_once(
     pattern: Path, tmp_path: Path
 ) -> None:

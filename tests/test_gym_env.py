@@ -87,6 +87,7 @@ def test_reset_seed_and_trial_are_those_of_eval(env: BrickStackEnv) -> None:
         env.reset(options={"trials": 2})
 
 
+@pytest.mark.slow  # two whole trials
 def test_the_builtin_reasoners_answers_reproduce_the_eval_line(
     tmp_path: Path, small_pattern: Path
 ) -> None:

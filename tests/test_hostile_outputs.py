@@ -123,6 +123,7 @@ def assert_within_bounds(answer: Any, tools: tuple[str, ...]) -> None:
     assert all(call.name in tools for call in answer.tool_calls)
 
 
+@pytest.mark.slow  # 2000 cases, most of the time spent drawing them
 @settings(max_examples=EXAMPLES, deadline=None, suppress_health_check=list(HealthCheck))
 @given(text=texts, which=st.integers(0, len(SPECS) - 1))
 def test_hostile_text_is_refused_with_an_output_error_or_accepted_within_bounds(

@@ -98,6 +98,7 @@ def test_the_tools_are_listed_with_their_schemas(tmp_path: Path) -> None:
     }  # fmt: skip
 
 
+@pytest.mark.slow  # two whole trials
 def test_the_builtin_reasoners_answers_build_a_brick_and_give_evals_line(
     tmp_path: Path, one_brick: Path
 ) -> None:

@@ -148,7 +148,16 @@ def test_the_html_page_renders_in_chromium(runs: list[Path], report: Path) -> No
 
 
 def test_a_directory_without_results_is_refused(tmp_path: Path) -> None:
-    assert_clean_error(cli("report", str(tmp_path)), "holds no results.jsonl")
+    assert_clean_error(cli("report", str(tmp_path), cwd=tmp_path), "holds no results.jsonl")
+
+
+def test_a_report_that_refuses_its_input_creates_nothing(tmp_path: Path) -> None:
+    run, here, out = tmp_path / "run", tmp_path / "here", tmp_path / "new" / "report"
+    run.mkdir()
+    here.mkdir()
+    assert_clean_error(cli("report", str(run), cwd=here), "holds no results.jsonl")
+    assert_clean_error(cli("report", str(run), "--out", str(out)), "holds no results.jsonl")
+    assert not any(here.iterdir()) and not out.parent.exists()
 
 
 def test_llm_cost_and_the_failure_taxonomy_are_reported(tmp_path: Path) -> None:

@@ -7,6 +7,7 @@ import json
 import math
 import threading
 
+import numpy as np
 import pytest
 
 from actionreasoning.agents.outputs import PreGraspAnswer
@@ -19,7 +20,7 @@ from actionreasoning.tools.grasp_plan import GraspOptions
 from actionreasoning.tools.reach import ReachReport
 from actionreasoning.tools.registry import GATE_MEASUREMENTS
 from actionreasoning.trial.runner import TrialObserver
-from actionreasoning.trial.session import Conditions, SessionError, TrialSession
+from actionreasoning.trial.session import AgentLabel, Conditions, SessionError, TrialSession
 
 SPEC = Conditions.load("pyramid", tools="solve").spec(seed=0, trial=0)  # grasp_options
 
@@ -126,20 +127,31 @@ def test_a_request_answers_through_the_session_and_goes_stale_once_answered() ->
 
 
 def test_closing_ends_the_trial_as_abandoned_and_its_thread() -> None:
-    session = TrialSession(SPEC, agent="mcp")
+    session = TrialSession(SPEC, agent=AgentLabel.MCP)
     assert session.in_scene(lambda scene: scene.ticks) > 0
     with pytest.raises(ZeroDivisionError):
         session.in_scene(lambda scene: 1 / 0)  # the caller's error, raised at the caller
+    assert session.placed == 0
     run = session.close()
     assert run is not None and session.done and not trial_threads()
     assert run.result.failure.reason == "abandoned" and run.result.failure.agent == "pre_grasp"
-    assert run.result.llm == "mcp" and run.result.bricks_placed == 0
+    assert run.result.llm == "mcp" and run.result.bricks_placed == session.placed == 0
+    with pytest.raises(SessionError, match="final picture was not kept"):
+        session.picture()
     assert session.close() is run
     assert session.answer("{}").refusal.code == "trial_over"
     assert session.call_tool("grasp_options", {}).refusal.code == "trial_over"
     assert session.turn() is None and session.request is None
     with pytest.raises(SessionError, match="ended"):
         session.in_scene(lambda scene: scene.ticks)
+
+
+def test_the_picture_is_the_overview_of_the_scene_now_and_of_the_final_scene() -> None:
+    with TrialSession(SPEC, final_picture=True) as session:
+        now = session.picture()
+        assert now.shape == (360, 480, 3) and now.dtype == np.uint8
+        assert len(np.unique(now.reshape(-1, 3), axis=0)) > 10  # a picture, not a blank
+    assert session.picture().shape == now.shape
 
 
 def test_a_trial_that_crashes_raises_at_the_caller_and_leaves_no_thread() -> None:

@@ -134,12 +134,19 @@ def test_grasp_options_check_both_grasps_for_pick_and_place(arm: KinematicArm) -
     usable = [o for o in (first, second) if o.reachable]
     assert usable and all(o.approach_clearance_m > 0.02 for o in usable)
     assert all(o.descent_clearance_m > 0.0 for o in usable)
-    assert all(0.0 <= o.wrist_deg <= 180.0 for o in usable)
+    assert all(o.wrist_deg is not None and 0.0 <= o.wrist_deg <= 180.0 for o in usable)
     # A second brick 12 cm to the side: the open fingers come down on it.
     beside = Pose(position_m=(0.3 + 0.06, -0.5 - 0.104, H / 2), quat_xyzw=yaw_quat(yaw))
     crowded = world(free.bricks[0].pose, beside)
     options = run(arm, crowded, "grasp_options", brick_id=0, target_index=0).options
     assert all(o.descent_clearance_m < 0.0 for o in options)
+
+
+def test_grasp_options_out_of_reach_measure_no_wrist_turn(arm: KinematicArm) -> None:
+    far = world(Pose(position_m=(1.5, 0.0, H / 2)))
+    options = run(arm, far, "grasp_options", brick_id=0, target_index=0).options
+    assert all(not o.reachable and o.wrist_deg is None for o in options)
+    assert '"wrist_deg":null' in options[0].model_dump_json()  # what a model reads
 
 
 def test_support_on_the_ground_and_on_two_bricks(arm: KinematicArm) -> None:

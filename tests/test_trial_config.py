@@ -101,6 +101,7 @@ def test_a_changed_default_is_refused_and_the_same_defaults_resume(
     assert (out / "results.jsonl").read_bytes() == lines
 
 
+@pytest.mark.slow  # three whole trials
 def test_the_safety_limits_and_success_rule_of_the_config_are_the_ones_applied(
     pattern: Path,
 ) -> None:

@@ -47,8 +47,8 @@ def check_video(out: Path, line: str) -> None:
 @pytest.mark.parametrize(
     "method",
     [
-        Method.CLASSICAL,
-        pytest.param(Method.AGENTS, marks=pytest.mark.slow),  # about 10 s each
+        pytest.param(Method.CLASSICAL, marks=pytest.mark.slow),  # two whole trials each
+        pytest.param(Method.AGENTS, marks=pytest.mark.slow),
         pytest.param(Method.SINGLE_AGENT, marks=pytest.mark.slow),
     ],
 )
@@ -70,6 +70,7 @@ def test_videos_come_back_from_worker_processes(tmp_path: Path, one_brick: Path)
     assert len(list((tmp_path / "videos").glob("*.mp4"))) == 2
 
 
+@pytest.mark.slow  # two whole trials
 def test_the_report_shows_failed_trials_videos_first(tmp_path: Path, one_brick: Path) -> None:
     common = ["eval", "--method", "classical", "--pattern", str(one_brick), "--trials", "1"]
     common += ["--physics", "precise", "--video"]  # where the classical script succeeds
@@ -119,6 +120,7 @@ def test_a_caption_names_the_agent_the_gate_and_the_checks_that_failed() -> None
     assert verdict_text(call) == "descent: sigma2_descent passed"
 
 
+@pytest.mark.slow  # a whole trial
 def test_a_script_without_a_main_guard_films(tmp_path: Path, one_brick: Path) -> None:
     """The film process is no ``multiprocessing`` child: it does not import the script."""
     script = tmp_path / "film_it.py"

@@ -35,7 +35,8 @@ def test_json_schema_describes_every_part() -> None:
     assert set(schema["required"]) >= {"time_s", "robot", "bricks", "goal"}
     for part in ("Pose", "RobotState", "PadContact", "BrickState", "GoalPattern", "Progress"):
         assert part in schema["$defs"]
-    statuses = schema["$defs"]["BrickState"]["properties"]["status"]["enum"]
+    assert schema["$defs"]["BrickState"]["properties"]["status"]["$ref"] == "#/$defs/BrickStatus"
+    statuses = schema["$defs"]["BrickStatus"]["enum"]
     assert statuses == ["in_pick_area", "grasped", "placed", "dropped", "toppled"]
 
 

@@ -7,7 +7,6 @@ load neither the simulator nor a model client.
 from __future__ import annotations
 
 import math
-import os
 import signal
 from enum import StrEnum
 from pathlib import Path
@@ -28,13 +27,15 @@ from actionreasoning.trial.rules import Method
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.geometry import quat_yaw
 from actionreasoning.world.patterns import load_pattern
-from actionreasoning.world.scenarios import NOISE, PATTERNS, PHYSICS, load_noise, load_physics
+from actionreasoning.world.scenarios import NOISE, PATTERNS, PHYSICS, load_noise
 from actionreasoning.world.scene_spec import SceneSpec
 
 if TYPE_CHECKING:
     from actionreasoning.reasoners.backend import LLMConfig
     from actionreasoning.report.tables import Table as ComparisonTable
+    from actionreasoning.runs.run import RunConfig
     from actionreasoning.runs.summary import RunSummary
+    from actionreasoning.trial.session import Conditions
 
 app = typer.Typer(
     help="LLM action reasoning for robot brick stacking: simulate, evaluate, report.",
@@ -180,100 +181,117 @@ def _summary_table(summary: RunSummary) -> Table:
     return table
 
 
+OutOption = Annotated[
+    Path,
+    typer.Option(
+        help="Output directory. Created if new; if it holds this run already, the trials "
+        "finished there are kept and only the missing ones run."
+    ),
+]
+MethodOption = Annotated[Method, typer.Option(help="Reasoning method.")]
+TrialsOption = Annotated[int, typer.Option(min=1, help="Number of trials.")]
+RecordOption = Annotated[
+    Path | None,
+    typer.Option(help="Append every exchange with the model to this file, for replay:FILE."),
+]
+FallbackOption = Annotated[
+    Fallback, typer.Option(help="Who answers a step once the model's repair budget is spent.")
+]
+RetriesOption = Annotated[
+    int, typer.Option(min=0, help="Retries on connection errors, 429 and 5xx (backoff).")
+]
+AnswerErrorsOption = Annotated[
+    float,
+    typer.Option(
+        metavar="RATE",
+        help="Corrupt each answer of the reasoner with this probability (0 to 1), drawn from "
+        "the trial's seed, with a mistake models make (see docs/agents-and-gates.md): what "
+        "the gates catch.",
+    ),
+]
+RepairsOption = Annotated[
+    int, typer.Option(min=0, help="Invalid answers sent back to the model per step.")
+]
+ToolTurnsOption = Annotated[
+    int, typer.Option(min=0, help="Rounds of tool calls a model may make per step.")
+]
+WorkersOption = Annotated[
+    int, typer.Option(min=1, help="Trials in parallel, one worker process each.")
+]
+MaxStepsOption = Annotated[
+    int,
+    typer.Option(min=1, help="Simulation steps a trial may take (of the profile's time step)."),
+]
+MaxTrialSOption = Annotated[
+    float, typer.Option(min=0.0, callback=_finite, help="Wall-clock seconds a trial may take.")
+]
+RayOption = Annotated[
+    str | None,
+    typer.Option(
+        metavar="ADDRESS",
+        help="Run trials as tasks on the Ray cluster at ADDRESS ('auto': the one started "
+        "on this machine with `ray start`). Needs the ray extra.",
+    ),
+]
+SnapshotsOption = Annotated[
+    bool, typer.Option(help="Write per-stage PNG snapshots of every trial.")
+]
+TranscriptsOption = Annotated[
+    bool,
+    typer.Option(
+        help="Write every agent call of trial k (prompt size, answer, tool calls, gate "
+        "verdicts with measured values, retries) to transcripts/trial_k.jsonl."
+    ),
+]
+RerunOption = Annotated[
+    bool,
+    typer.Option(
+        help="Write a Rerun recording of trial k (the scene in 3D, every agent call and "
+        "gate check, forces and slip, on the simulated timeline) to rerun/trial_k.rrd; "
+        "open it with `rerun FILE`. Needs the rerun extra."
+    ),
+]
+VideoOption = Annotated[
+    bool,
+    typer.Option(
+        help=f"Film every trial from above, {VIDEO_FPS} frames per simulated second, to "
+        "videos/trial_k_OUTCOME.mp4 (OUTCOME: ok or the failure code)."
+    ),
+]
+
+
 @app.command("eval")
 def eval_command(
-    out: Annotated[
-        Path,
-        typer.Option(
-            help="Output directory. Created if new; if it holds this run already, the trials "
-            "finished there are kept and only the missing ones run."
-        ),
-    ],
-    method: Annotated[Method, typer.Option(help="Reasoning method.")] = Method.AGENTS,
+    out: OutOption,
+    method: MethodOption = Method.AGENTS,
     pattern: PatternOption = "pyramid",
-    trials: Annotated[int, typer.Option(min=1, help="Number of trials.")] = 10,
+    trials: TrialsOption = 10,
     seed: SeedOption = 0,
     llm: LLMOption = "builtin",
     physics: PhysicsOption = "paper",
     noise: NoiseOption = "none",
     tools: ToolsOption = DEFAULT_TIER,
     base_url: BaseUrlOption = None,
-    record: Annotated[
-        Path | None,
-        typer.Option(help="Append every exchange with the model to this file, for replay:FILE."),
-    ] = None,
-    fallback: Annotated[
-        Fallback,
-        typer.Option(help="Who answers a step once the model's repair budget is spent."),
-    ] = Fallback.NONE,
+    record: RecordOption = None,
+    fallback: FallbackOption = Fallback.NONE,
     llm_timeout: TimeoutOption = 60.0,
-    llm_retries: Annotated[
-        int, typer.Option(min=0, help="Retries on connection errors, 429 and 5xx (backoff).")
-    ] = 2,
+    llm_retries: RetriesOption = 2,
     temperature: TemperatureOption = 0.0,
     top_p: TopPOption = None,
     max_tokens: MaxTokensOption = MAX_COMPLETION_TOKENS,
     llm_seed: LLMSeedOption = 0,
     reasoning_effort: EffortOption = None,
-    answer_errors: Annotated[
-        float,
-        typer.Option(
-            metavar="RATE",
-            help="Corrupt each answer of the reasoner with this probability (0 to 1), drawn from "
-            "the trial's seed, with a mistake models make (see docs/agents-and-gates.md): what "
-            "the gates catch.",
-        ),
-    ] = 0.0,
-    repairs: Annotated[
-        int, typer.Option(min=0, help="Invalid answers sent back to the model per step.")
-    ] = 2,
-    tool_turns: Annotated[
-        int, typer.Option(min=0, help="Rounds of tool calls a model may make per step.")
-    ] = 2,
-    workers: Annotated[
-        int, typer.Option(min=1, help="Trials in parallel, one worker process each.")
-    ] = 1,
-    max_steps: Annotated[
-        int,
-        typer.Option(min=1, help="Simulation steps a trial may take (of the profile's time step)."),
-    ] = TrialBudget().max_steps,
-    max_trial_s: Annotated[
-        float,
-        typer.Option(min=0.0, callback=_finite, help="Wall-clock seconds a trial may take."),
-    ] = TrialBudget().max_wall_s,
-    ray: Annotated[
-        str | None,
-        typer.Option(
-            metavar="ADDRESS",
-            help="Run trials as tasks on the Ray cluster at ADDRESS ('auto': the one started "
-            "on this machine with `ray start`). Needs the ray extra.",
-        ),
-    ] = None,
-    snapshots: Annotated[
-        bool, typer.Option(help="Write per-stage PNG snapshots of every trial.")
-    ] = False,
-    transcripts: Annotated[
-        bool,
-        typer.Option(
-            help="Write every agent call of trial k (prompt size, answer, tool calls, gate "
-            "verdicts with measured values, retries) to transcripts/trial_k.jsonl."
-        ),
-    ] = False,
-    rerun: Annotated[
-        bool,
-        typer.Option(
-            help="Write a Rerun recording of trial k (the scene in 3D, every agent call and "
-            "gate check, forces and slip, on the simulated timeline) to rerun/trial_k.rrd; "
-            "open it with `rerun FILE`. Needs the rerun extra."
-        ),
-    ] = False,
-    video: Annotated[
-        bool,
-        typer.Option(
-            help=f"Film every trial from above, {VIDEO_FPS} frames per simulated second, to "
-            "videos/trial_k_OUTCOME.mp4 (OUTCOME: ok or the failure code)."
-        ),
-    ] = False,
+    answer_errors: AnswerErrorsOption = 0.0,
+    repairs: RepairsOption = 2,
+    tool_turns: ToolTurnsOption = 2,
+    workers: WorkersOption = 1,
+    max_steps: MaxStepsOption = TrialBudget().max_steps,
+    max_trial_s: MaxTrialSOption = TrialBudget().max_wall_s,
+    ray: RayOption = None,
+    snapshots: SnapshotsOption = False,
+    transcripts: TranscriptsOption = False,
+    rerun: RerunOption = False,
+    video: VideoOption = False,
 ) -> None:
     """Run randomized trials of one method on one pattern and write results and summaries.
 
@@ -282,11 +300,13 @@ def eval_command(
     an OpenAI-compatible server comes from OPENAI_API_KEY only, extra headers (a JSON
     object) from ACTIONREASONING_LLM_HEADERS.
     """
+    from actionreasoning.agents.answer_errors import AnswerErrors
     from actionreasoning.reasoners.backend import LLMConfig, ServerOptions
     from actionreasoning.reasoners.llm import LLMLimits
+    from actionreasoning.trial.session import Conditions
 
     try:
-        config = LLMConfig(
+        backend = LLMConfig(
             spec=llm,
             server=ServerOptions(base_url=base_url, timeout_s=llm_timeout, max_retries=llm_retries),
             limits=LLMLimits(tool_turns=tool_turns, repairs=repairs),
@@ -294,27 +314,26 @@ def eval_command(
             record=record,
             sampling=Sampling(temperature, top_p, max_tokens, llm_seed, reasoning_effort),
         )
-        _check_options(method, config, transcripts, answer_errors)
+        _check_options(method, backend, transcripts, answer_errors)
+        budget = TrialBudget(max_steps=max_steps, max_wall_s=max_trial_s)
+        errors = AnswerErrors(rate=answer_errors)
+        conditions = Conditions.load(
+            pattern, physics, noise, budget, tools, llm=backend, answer_errors=errors
+        )
     except ActionReasoningError as error:
         _fail(error)
     _evaluate(
         method,
-        pattern,
+        conditions,
         trials,
         seed,
         out,
-        llm=config,
         snapshots=snapshots,
         transcripts=transcripts,
         rerun=rerun,
         video=video,
         workers=workers,
         ray=ray,
-        budget=TrialBudget(max_steps=max_steps, max_wall_s=max_trial_s),
-        physics=physics,
-        noise=noise,
-        answer_errors=answer_errors,
-        tools=tools,
     )
 
 
@@ -335,25 +354,14 @@ def demo(
     animation of the build. It writes only into a new or empty directory, which it marks as
     its own (.actionreasoning-demo), or into an earlier demo's, whose files it replaces.
     """
-    from actionreasoning.reasoners.backend import LLMConfig
     from actionreasoning.report.demo import write_demo_pages
     from actionreasoning.runs.demo_dir import demo_directory
+    from actionreasoning.trial.session import Conditions
 
     try:
         with demo_directory(out):
-            _evaluate(
-                Method.AGENTS,
-                pattern,
-                1,
-                seed,
-                out,
-                llm=LLMConfig(),
-                snapshots=True,
-                video=True,
-                physics=physics,
-                noise=noise,
-                tools=tools,
-            )
+            conditions = Conditions.load(pattern, physics, noise, tools=tools)
+            _evaluate(Method.AGENTS, conditions, 1, seed, out, snapshots=True, video=True)
             pages = write_demo_pages(RunDir(out))
             console.print(
                 f"report: {pages.markdown} and {pages.html}", highlight=False, markup=False
@@ -364,66 +372,42 @@ def demo(
 
 def _evaluate(
     method: Method,
-    pattern: str,
+    conditions: Conditions,
     trials: int,
     seed: int,
     out: Path,
     *,
-    llm: LLMConfig,
     snapshots: bool,
     transcripts: bool = False,
     rerun: bool = False,
     video: bool = False,
     workers: int = 1,
     ray: str | None = None,
-    budget: TrialBudget = TrialBudget(),
-    physics: str = "paper",
-    noise: str = "none",
-    answer_errors: float = 0.0,
-    tools: ToolTier = DEFAULT_TIER,
 ) -> RunSummary:
-    """Load the pattern and conditions, run the trials with progress, print the table; errors
-    end the command."""
-    from actionreasoning.agents.answer_errors import AnswerErrors
+    """Run the trials under ``conditions`` with progress, print the table; errors end the
+    command."""
     from actionreasoning.runs.jobs import RESUME_HINT
     from actionreasoning.runs.progress import ConsoleProgress
     from actionreasoning.runs.run import RunConfig, run_eval
-    from actionreasoning.trial.config import TrialConfig
 
-    if Path(pattern).is_file():  # one file, however it is spelled: ./x.json is x.json
-        pattern = os.path.normpath(pattern)
+    run = RunConfig(
+        method=method,
+        pattern_name=conditions.pattern_name,
+        goal=conditions.goal,
+        trials=trials,
+        seed=seed,
+        out=out,
+        config=conditions.config,
+        snapshots=snapshots,
+        transcripts=transcripts,
+        rerun=rerun,
+        video=video,
+        workers=workers,
+        ray=ray,
+    )
     try:
-        trials_under = TrialConfig(
-            llm=llm,
-            budget=budget,
-            physics=load_physics(physics),
-            noise=load_noise(noise),
-            answer_errors=AnswerErrors(rate=answer_errors),
-            tools=tools,
-        )
-        config = RunConfig(
-            method=method,
-            pattern_name=pattern,
-            goal=load_pattern(pattern, trials_under.scene),
-            trials=trials,
-            seed=seed,
-            out=out,
-            config=trials_under,
-            snapshots=snapshots,
-            transcripts=transcripts,
-            rerun=rerun,
-            video=video,
-            workers=workers,
-            ray=ray,
-        )
-        physics_name, noise_name = trials_under.physics.name, trials_under.noise.name
-        title = f"{method} / {pattern} / {physics_name} / noise {noise_name}"
-        if method is not Method.CLASSICAL:
-            title += f" / tools {tools}"
-        if answer_errors:
-            title += f" / answer errors {answer_errors:g}"
-        with ConsoleProgress(console, title) as progress:
-            summary = run_eval(config, progress)
+        with ConsoleProgress(console, _title(run)) as progress:
+            summary = run_eval(run, progress)
     except (ActionReasoningError, OSError) as error:
         _fail(error, out)
     except KeyboardInterrupt:
@@ -434,6 +418,17 @@ def _evaluate(
         f"wall time {summary.wall_time_s:.1f} s; results in {out}/", highlight=False, markup=False
     )
     return summary
+
+
+def _title(run: RunConfig) -> str:
+    """The progress display's title: the method and what its trials run under."""
+    config = run.config
+    title = f"{run.method} / {run.pattern_name} / {config.physics.name} / noise {config.noise.name}"
+    if run.method is not Method.CLASSICAL:
+        title += f" / tools {config.tools}"
+    if config.answer_errors.rate:
+        title += f" / answer errors {config.answer_errors.rate:g}"
+    return title
 
 
 def _comparison(table: ComparisonTable) -> Table:
@@ -474,10 +469,10 @@ def report_command(
     content; others are set side by side, and the report names the fields that differ.
     """
     from actionreasoning.report.build import build_report
-    from actionreasoning.runs.run_dir import output_directory
+    from actionreasoning.runs.run_dir import check_output_path
 
     try:
-        output_directory(out)
+        check_output_path(out)  # before reading the runs; created once they are read
         report = build_report(runs, out, gifs=gif)
     except (ActionReasoningError, OSError) as error:
         _fail(error, out)
@@ -509,19 +504,14 @@ def prompt_command(
     """Print the prompt agent N is first sent in trial 0 (the built-in reasoner answers
     the agents before it), to read and tune it."""
     from actionreasoning.agents.spec import agent_specs, single_agent_spec
-    from actionreasoning.trial.config import TrialConfig
     from actionreasoning.trial.first_prompt import first_prompt
-    from actionreasoning.trial.runner import TrialSpec
+    from actionreasoning.trial.session import Conditions
 
     try:
-        config = TrialConfig(physics=load_physics(physics), noise=load_noise(noise), tools=tools)
-        goal = load_pattern(pattern, config.scene)
+        trial = Conditions.load(pattern, physics, noise, tools=tools).spec(seed, 0)
     except ActionReasoningError as error:
         _fail(error)
     spec = agent_specs(tools)[agent - 1] if agent else single_agent_spec(tools)
-    trial = TrialSpec(
-        method=Method.AGENTS, pattern_name=pattern, goal=goal, run_seed=seed, trial=0, config=config
-    )
     try:
         print(first_prompt(trial, spec.key), end="")
     except ActionReasoningError as error:

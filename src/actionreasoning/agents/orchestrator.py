@@ -69,7 +69,14 @@ from actionreasoning.tools.placement import (
     carried_pose,
 )
 from actionreasoning.world.geometry import quat_yaw, rotation_deg, wrap_angle
-from actionreasoning.world.models import BrickState, GoalPattern, Pose, Progress, WorldState
+from actionreasoning.world.models import (
+    BrickState,
+    BrickStatus,
+    GoalPattern,
+    Pose,
+    Progress,
+    WorldState,
+)
 from actionreasoning.world.motion import Motion
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M, RETREAT_M, WORKSPACE
 from actionreasoning.world.stages import Stage
@@ -343,7 +350,7 @@ class Orchestrator:
         if missing:
             notes.append(f"target {target} rests on targets {missing}, not built yet")
         if not free:
-            status = "placed" if brick in used else state.brick(brick).status
+            status = BrickStatus.PLACED if brick in used else state.brick(brick).status
             notes.append(f"brick {brick} is {status}, neither in the pick area nor on the ground")
         return GateVerdict(
             f"{Stage.PRE_GRASP}_choice",
@@ -510,7 +517,7 @@ class Orchestrator:
         built = {p.target_index for p in self.memory.placed}
         height = lifted.position_m[2]
         spot = None
-        if state.brick(brick).status == "grasped":
+        if state.brick(brick).status == BrickStatus.GRASPED:
             target = self.memory.current_target or 0
             spot = self.put_down.free_spot(state, brick, target, built, height)
         self.put_down.put_back(self._observer(brick), brick, spot or _as_pose(grasp), height)

@@ -25,10 +25,9 @@ from actionreasoning.tools.grasp_plan import GRASP_OPTIONS, GraspOptionsQuery
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import Vec3, quat_yaw, top_down_quat, yaw_quat
 from actionreasoning.world.ground import free_spots
-from actionreasoning.world.models import Pose, WorldState
+from actionreasoning.world.models import BrickStatus, Pose, WorldState
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M, ReachBand
 
-GRIPPER_OPEN_M = GRIPPER_GAP_M[1]
 #: Mean speed of every move with a brick to put down, and the shortest move.
 PUT_BACK_SPEED_MPS = 0.05
 MIN_MOVE_S = 0.1
@@ -67,9 +66,9 @@ class PutDown:
         must be to press it flat. A brick no longer in the hand is left where it fell, and
         the open gripper goes up clear of it."""
         state = observe()
-        held = state.brick(brick).status == "grasped"
+        held = state.brick(brick).status == BrickStatus.GRASPED
         if not held:
-            self.world.grip(GRIPPER_OPEN_M)
+            self.world.grip(GRIPPER_GAP_M[1])
         width = state.brick(brick).size_m[1]
         x, y, z = state.robot.ee_pose.position_m
         height = max(z, height)
@@ -87,8 +86,8 @@ class PutDown:
             over = WaypointProposal(position_m=(*press[:2], height), quat_xyzw=spot.quat_xyzw)
             self._gently(over, math.dist(here[:2], press[:2]))
             state = observe()
-            if state.brick(brick).status != "grasped":
-                self.world.grip(GRIPPER_OPEN_M)
+            if state.brick(brick).status != BrickStatus.GRASPED:
+                self.world.grip(GRIPPER_GAP_M[1])
                 return
             again = _pressing_point(state, brick, spot)
             settled = math.dist(again[:2], press[:2]) <= PRESS_TOLERANCE_M
@@ -98,7 +97,7 @@ class PutDown:
         down = WaypointProposal(position_m=press, quat_xyzw=spot.quat_xyzw, path="linear")
         self._gently(down, height - press[2])
         # Just past the brick's width: pads swung wide drag a loose brick over.
-        self.world.grip(min(width + PUT_DOWN_SLACK_M, GRIPPER_OPEN_M))
+        self.world.grip(min(width + PUT_DOWN_SLACK_M, GRIPPER_GAP_M[1]))
         self.world.move(down.model_copy(update={"position_m": (*press[:2], height)}))
 
     def free_spot(
@@ -149,7 +148,7 @@ class PutDown:
         lying = state.brick(brick).model_copy(
             update={
                 "pose": Pose(position_m=spot.position_m, quat_xyzw=yaw_quat(yaw)),
-                "status": "dropped",
+                "status": BrickStatus.DROPPED,
             }
         )
         there = state.model_copy(

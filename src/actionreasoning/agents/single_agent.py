@@ -43,7 +43,6 @@ from actionreasoning.world.tolerances import Tolerances
 
 #: Waypoints the agent may spend per brick (a full cycle takes eight), plus one to finish.
 WAYPOINTS_PER_BRICK = 12
-FULL_OPENING_M = GRIPPER_GAP_M[1]
 
 
 class SingleAgent:
@@ -102,7 +101,7 @@ class SingleAgent:
         if decision.waypoint is not None:
             self.world.move(decision.waypoint)
         if decision.gripper == "open":
-            self.world.grip(decision.gripper_opening_m or FULL_OPENING_M)
+            self.world.grip(decision.gripper_opening_m or GRIPPER_GAP_M[1])
         elif decision.gripper == "close":
             self.world.grip(None)
         self.memory = self.memory.model_copy(update=update)

@@ -132,7 +132,7 @@ class StateView(_View):
             if scope is Scope.PICK:
                 return brick.id not in placed
             near = any(math.dist(brick.pose.position_m[:2], c[:2]) <= NEAR_M for c in centres)
-            return near or brick.status not in ("in_pick_area", "placed")
+            return near or brick.status not in (BrickStatus.IN_PICK_AREA, BrickStatus.PLACED)
 
         return cls(
             robot=RobotView(

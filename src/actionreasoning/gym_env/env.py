@@ -29,12 +29,10 @@ from actionreasoning.gym_env.observation import (
     observation,
     observation_space,
 )
-from actionreasoning.gym_env.reward import PlacedCount
+from actionreasoning.gym_env.reward import PlacedReward
 from actionreasoning.records import FailureCode
-from actionreasoning.sim.camera import overview, render
-from actionreasoning.sim.scene import Scene
-from actionreasoning.trial.runner import TrialObserver
 from actionreasoning.trial.session import (
+    AgentLabel,
     Conditions,
     Refusal,
     RefusalCode,
@@ -44,12 +42,9 @@ from actionreasoning.trial.session import (
 )
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.models import WorldState
-from actionreasoning.world.stages import StageEvent
 
 #: Trial ends that are budgets outside the task (Gymnasium's truncation), not its outcome.
 TRUNCATIONS = frozenset({FailureCode.STEP_BUDGET, FailureCode.TIME_BUDGET})
-#: What the results line calls the agent that answered.
-AGENT_LABEL = "gym"
 
 
 class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
@@ -78,9 +73,7 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
         self._run_seed: int | None = None
         self._trial = -1
         self._state: WorldState | None = None
-        self._placed: PlacedCount | None = None
-        self._potential = 0
-        self._final_frame: _FinalFrame | None = None
+        self._reward = PlacedReward()
 
     # --- Gymnasium's API ----------------------------------------------------------------
     def reset(
@@ -102,13 +95,10 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
         spec = self.conditions.spec(self._run_seed, trial)
         self._close_session()
         self._trial = trial
-        self._placed = PlacedCount(self.conditions.goal, self.conditions.config.success_rule)
-        self._potential = 0
-        observers: list[TrialObserver] = [self._placed]
-        if self.render_mode == "rgb_array":
-            self._final_frame = _FinalFrame()
-            observers.append(self._final_frame)
-        self.session = TrialSession(spec, observers, agent=AGENT_LABEL)
+        self._reward = PlacedReward()
+        self.session = TrialSession(
+            spec, agent=AgentLabel.GYM, final_picture=self.render_mode == "rgb_array"
+        )
         request = self.session.request
         if request is None:
             raise SessionError(f"trial {trial} ended before an agent asked: {self.session.result}")
@@ -134,20 +124,16 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
         request = session.request
         if request is not None:
             self._state = request.state
-        reward = self._reward()
+        reward = self._reward.step(session)
         terminated, truncated = self._ends()
         return self._observation(), reward, terminated, truncated, self._info(**info)
 
-    def render(self) -> np.ndarray | None:  # type: ignore[override]
+    def render(self) -> np.ndarray | None:
         """The overview camera's picture (height x width x 3, uint8) of the scene now, or of
         the final scene once the trial has ended."""
         if self.render_mode is None:
             return None
-        session = self._session()
-        if session.done:
-            assert self._final_frame is not None
-            return self._final_frame.image
-        return session.in_scene(_overview)
+        return self._session().picture()
 
     def close(self) -> None:
         """End the trial in progress (``abandoned``), if any."""
@@ -168,13 +154,6 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
         assert self._state is not None and self.session is not None
         request = self.session.request
         return observation(self._state, None if request is None else str(request.spec.key))
-
-    def _reward(self) -> float:
-        assert self.session is not None and self._placed is not None
-        result = self.session.result
-        potential = self._placed.count if result is None else result.bricks_placed
-        reward, self._potential = potential - self._potential, potential
-        return float(reward)
 
     def _ends(self) -> tuple[bool, bool]:
         """(terminated, truncated) in Gymnasium's sense."""
@@ -205,18 +184,3 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
             "seed": self._run_seed,
             "trial": self._trial,
         }
-
-
-class _FinalFrame(TrialObserver):
-    """The overview picture of the trial's final scene (rendered in the trial's thread)."""
-
-    def __init__(self) -> None:
-        self.image: np.ndarray | None = None
-
-    def stage(self, scene: Scene, event: StageEvent) -> None:
-        if event.brick < 0:
-            self.image = _overview(scene)
-
-
-def _overview(scene: Scene) -> np.ndarray:
-    return render(scene, overview(scene))

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 import string
-from typing import Any, get_args
+from typing import Any
 
 import numpy as np
 from gymnasium import spaces
@@ -18,7 +18,7 @@ from actionreasoning.world.models import BrickStatus, Pose, WorldState
 #: ``len(AGENTS)`` once no agent waits (the trial has ended).
 AGENTS: tuple[str, ...] = tuple(str(spec.key) for spec in agent_specs())
 #: Brick statuses; ``brick_status`` holds indexes into it.
-STATUSES: tuple[str, ...] = get_args(BrickStatus)
+STATUSES: tuple[BrickStatus, ...] = tuple(BrickStatus)
 #: The characters of JSON text as the environment writes it (ASCII; others escaped).
 CHARSET = string.printable
 #: The longest action: an answer as long as a model's may be, and its wrapper.

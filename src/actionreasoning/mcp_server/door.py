@@ -28,12 +28,16 @@ from actionreasoning.errors import ActionReasoningError
 from actionreasoning.tools.registry import GATE_MEASUREMENTS, tool_schema
 from actionreasoning.trial.provenance import current_provenance, stamp
 from actionreasoning.trial.results import TrialResult
-from actionreasoning.trial.session import Conditions, Refusal, RefusalCode, TrialSession
+from actionreasoning.trial.session import (
+    AgentLabel,
+    Conditions,
+    Refusal,
+    RefusalCode,
+    TrialSession,
+)
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.scenarios import NOISE, PATTERNS, PHYSICS
 
-#: What the results line calls the agent that answered.
-AGENT_LABEL = "mcp"
 #: The tools of the six agents' knowledge bases together, in pipeline order, in any tier
 #: (an agent is served only those of its own knowledge base in the trial's tier).
 KNOWLEDGE_TOOLS: tuple[str, ...] = tuple(
@@ -184,7 +188,7 @@ class Door:
         except ActionReasoningError as error:
             return Reply.refusal(RefusalCode.INVALID_ACTION, f"start_trial: {error}")
         previous = self._end()
-        session = self._session = TrialSession(spec, agent=AGENT_LABEL)
+        session = self._session = TrialSession(spec, agent=AgentLabel.MCP)
         self._trial = start.model_dump(exclude={"max_trial_s"}) | {"pattern": spec.pattern_name}
         return Reply.of(self._view(session) | {"previous_result": previous})
 

@@ -151,7 +151,7 @@ def _grasps(briefing: Briefing, target: TargetView, brick: BrickView) -> list[_G
     if briefing.tier is ToolTier.SOLVE:
         options = sorted(
             _grasp_options(briefing, target, brick),
-            key=lambda o: o.wrist_deg if o.reachable else math.inf,
+            key=lambda o: o.wrist_deg if o.reachable and o.wrist_deg is not None else math.inf,
         )
         return [_Grasp(brick, o.gripper_yaw_deg, o.approach_pose, o) for o in options]
     yaws = sorted(

@@ -31,6 +31,7 @@ from actionreasoning.agents.outputs import (
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest, Reasoner
 from actionreasoning.agents.view import target_supports
 from actionreasoning.world.geometry import QuatXYZW, Vec3, as_vec3
+from actionreasoning.world.models import BrickStatus
 from actionreasoning.world.stages import Stage
 
 #: The stream of a trial's seed that answer errors draw from (world/noise.py has 1 and 2).
@@ -131,7 +132,7 @@ def _into_obstacle(answer: AgentAnswer, request: AgentRequest) -> Choices:
     waypoint = _waypoint(answer)
     if waypoint is None:
         return []
-    placed = [b for b in request.state.bricks if b.status == "placed"]
+    placed = [b for b in request.state.bricks if b.status == BrickStatus.PLACED]
     if placed:
         return [
             [_moved_to(waypoint, b.pose.position_m, f"the centre of placed brick {b.id}")]
@@ -191,7 +192,7 @@ def _wrong_choice(answer: AgentAnswer, request: AgentRequest) -> Choices:
         [
             ({"brick_id": b.id}, f"brick_id {brick} -> {b.id} (placed)")
             for b in state.bricks
-            if b.status == "placed" and b.id != brick
+            if b.status == BrickStatus.PLACED and b.id != brick
         ],
         [({"target_index": t}, f"target_index {target} -> {t} (built)") for t in sorted(built)],
         [

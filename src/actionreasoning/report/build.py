@@ -37,6 +37,7 @@ from actionreasoning.report.tables import (
     to_latex,
     to_markdown,
 )
+from actionreasoning.runs.run_dir import output_directory
 from actionreasoning.runs.summary import categories_in
 from actionreasoning.trial.results import Refusals, TrialResult
 
@@ -63,9 +64,10 @@ def _slug(text: str) -> str:
 
 
 def build_report(directories: Sequence[Path], out: Path, gifs: bool = False) -> Report:
-    """Read the runs in ``directories`` and write the report into ``out``."""
+    """Read the runs in ``directories`` and write the report into ``out`` (created once
+    they are read)."""
     groups = load_groups(directories)
-    out.mkdir(parents=True, exist_ok=True)
+    output_directory(out)
     table = comparison_table(groups)
     report = Report(directory=out, groups=groups, table=table)
     for name, text in (

@@ -224,10 +224,15 @@ def digest(text: str) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def output_directory(out: Path) -> None:
-    """Create ``out`` if new; a path that is no directory, or cannot be made one, is refused."""
+def check_output_path(out: Path) -> None:
+    """Refuse ``out`` if it exists and is no directory; create nothing."""
     if out.exists() and not out.is_dir():
         raise ConfigError(f"--out {out} exists and is not a directory")
+
+
+def output_directory(out: Path) -> None:
+    """Create ``out`` if new; a path that is no directory, or cannot be made one, is refused."""
+    check_output_path(out)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as error:

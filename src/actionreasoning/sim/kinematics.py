@@ -4,11 +4,14 @@ The copy lives in its own PyBullet client, so solving IK never touches the physi
 client: the simulation's sequence of calls (and so its outcome) does not depend on how
 often the planner asks for IK. A null-space solve whose base-joint rest angle follows the
 target's azimuth is refined by damped least squares until the pose error is below tolerance.
+A solution depends on its query alone, so each arm keeps the latest ones: a trial asks for
+the same poses again and again (a gate checks again what a tool measured).
 """
 
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,6 +40,8 @@ from actionreasoning.world.geometry import (
 REST_POSE_RAD = (0.0, 0.55, 0.0, -1.55, 0.0, 1.05, 0.0)
 POSITION_TOLERANCE_M = 1e-4
 ORIENTATION_TOLERANCE_DEG = 0.05
+#: Solutions an arm keeps, the least recently asked for dropped first.
+SOLUTIONS_KEPT = 4096
 
 
 @dataclass(frozen=True)
@@ -72,6 +77,7 @@ class KinematicArm:
             if p.getJointInfo(self._robot, j, physicsClientId=self._client)[2] != p.JOINT_FIXED
         ]
         self._n_movable = len(movable)
+        self._solved: OrderedDict[bytes, IKSolution] = OrderedDict()
 
     @property
     def client(self) -> int:
@@ -121,7 +127,27 @@ class KinematicArm:
         rest_rad: Joints | None = None,
         refine_iterations: int = 30,
     ) -> IKSolution:
-        """Joint angles putting the tool centre point at the pose; ``rest_rad`` seeds and biases."""
+        """Joint angles putting the tool centre point at the pose; ``rest_rad`` seeds and biases.
+        Leaves the kinematic copy in the solution's configuration."""
+        key = _query_key(position_m, quat_xyzw, rest_rad, refine_iterations)
+        solution = self._solved.get(key)
+        if solution is not None:
+            self._solved.move_to_end(key)
+            self._set(solution.joints_rad)  # where solving it again would leave the copy
+            return solution
+        solution = self._solve(position_m, quat_xyzw, rest_rad, refine_iterations)
+        self._solved[key] = solution
+        if len(self._solved) > SOLUTIONS_KEPT:
+            self._solved.popitem(last=False)
+        return solution
+
+    def _solve(
+        self,
+        position_m: Vec3,
+        quat_xyzw: QuatXYZW,
+        rest_rad: Joints | None,
+        refine_iterations: int,
+    ) -> IKSolution:
         rest = (
             list(rest_rad)
             if rest_rad is not None
@@ -172,3 +198,12 @@ class KinematicArm:
     def _set(self, joints_rad: Joints) -> None:
         for joint, angle in zip(ARM_JOINTS, joints_rad, strict=False):
             p.resetJointState(self._robot, joint, float(angle), physicsClientId=self._client)
+
+
+def _query_key(
+    position_m: Vec3, quat_xyzw: QuatXYZW, rest_rad: Joints | None, iterations: int
+) -> bytes:
+    """An IK query's values, bit for bit (-0.0 is not 0.0: it can turn an azimuth by 2 pi)."""
+    rest = () if rest_rad is None else tuple(rest_rad)
+    values = (*position_m, *quat_xyzw, rest_rad is None, iterations, *rest)
+    return np.asarray(values, dtype=np.float64).tobytes()

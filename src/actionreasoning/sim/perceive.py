@@ -149,11 +149,11 @@ def _status(
     scene: Scene, brick: int, position: Vec3, quat: QuatXYZW, held: bool, progress: Progress
 ) -> BrickStatus:
     if held:
-        return "grasped"
+        return BrickStatus.GRASPED
     if tilt_deg(quat) > TOPPLED_TILT_DEG:
-        return "toppled"
+        return BrickStatus.TOPPLED
     if brick in progress.placed_ids:
-        return "placed"
+        return BrickStatus.PLACED
     spec = scene.spec
     radius = math.hypot(position[0], position[1])
     azimuth = math.degrees(math.atan2(position[1], position[0]))
@@ -162,4 +162,4 @@ def _status(
         and spec.pick_azimuth_deg[0] - 5.0 <= azimuth <= spec.pick_azimuth_deg[1] + 5.0
         and position[2] < scene.bodies[brick].size_m[2]
     )
-    return "in_pick_area" if in_pick_area else "dropped"
+    return BrickStatus.IN_PICK_AREA if in_pick_area else BrickStatus.DROPPED

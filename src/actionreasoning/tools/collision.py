@@ -22,7 +22,7 @@ from actionreasoning.world.clearance import (
     SEARCH_DISTANCE_M,
     Clearance,
 )
-from actionreasoning.world.models import BrickState, Pose, WorldState
+from actionreasoning.world.models import BrickState, BrickStatus, Pose, WorldState
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M
 
 
@@ -55,7 +55,9 @@ class CollisionReport(ToolModel):
 
 
 def _obstacles(state: WorldState, ignore: int | None) -> tuple[list[Box], BrickState | None]:
-    held = next((b for b in state.bricks if b.status == "grasped" and b.id != ignore), None)
+    held = next(
+        (b for b in state.bricks if b.status == BrickStatus.GRASPED and b.id != ignore), None
+    )
     boxes = [
         Box(b.pose.position_m, b.pose.quat_xyzw, b.size_m, id=b.id)
         for b in state.bricks

@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation
 from actionreasoning.tools.base import ToolContext, ToolModel, tool
 from actionreasoning.tools.geometry import BrickQuery, brick_state
 from actionreasoning.world.geometry import axis_angle_deg
+from actionreasoning.world.models import BrickStatus
 from actionreasoning.world.physics import GRAVITY_MPS2
 
 
@@ -67,7 +68,7 @@ def finger_contacts(context: ToolContext, query: BrickQuery) -> ContactForces:
     mu = robot.finger_friction * brick.friction
     return ContactForces(
         brick_id=brick.id,
-        held=brick.status == "grasped",
+        held=brick.status == BrickStatus.GRASPED,
         normal_n=normal,
         tangential_n=tangential,
         friction_coefficient=mu,

@@ -43,7 +43,9 @@ class GraspOption(ToolModel):
     approach_pose: Pose = Field(description="12 cm above the grasp pose.")
     grasp_pose: Pose = Field(description="At the brick's centre (half its height up).")
     reachable: bool = Field(description="The arm reaches both and the place pose.")
-    wrist_deg: float = Field(description="Largest wrist-joint turn of the three (1e9 if not).")
+    wrist_deg: float | None = Field(
+        description="Largest wrist-joint turn of the three (null if one is out of reach)."
+    )
     approach_clearance_m: float = Field(description="Of the joint move to approach_pose.")
     descent_clearance_m: float = Field(description="Of the straight descent to grasp_pose.")
 
@@ -101,12 +103,12 @@ def grasp_options(context: ToolContext, query: GraspOptionsQuery) -> GraspOption
                 approach_pose=approach,
                 grasp_pose=grasp,
                 reachable=reachable and to_approach.reachable and descent.reachable,
-                wrist_deg=1e9 if wrist is None else math.degrees(wrist),
+                wrist_deg=None if wrist is None else math.degrees(wrist),
                 approach_clearance_m=to_approach.clearance_m,
                 descent_clearance_m=descent.clearance_m,
             )
         )
-    return GraspOptions(options=tuple(options))  # type: ignore[arg-type]
+    return GraspOptions(options=tuple(options))
 
 
 GRASP_OPTIONS = tool("grasp_options", grasp_options)

@@ -26,7 +26,7 @@ from actionreasoning.tools.geometry import (
     target_of,
 )
 from actionreasoning.world.geometry import axis_angle_deg
-from actionreasoning.world.models import Pose, WorldState
+from actionreasoning.world.models import BrickStatus, Pose, WorldState
 
 #: The way down is checked to this far above the seat: the set-down ends in contact.
 SEAT_CLEARANCE_M = 0.003
@@ -70,7 +70,7 @@ def held_pose(context: ToolContext, query: BrickQuery) -> HeldPose:
     tool_pose = state.robot.ee_pose
     offset, turn = in_hand(tool_pose, brick.pose)
     return HeldPose(
-        held=brick.status == "grasped",
+        held=brick.status == BrickStatus.GRASPED,
         offset_in_hand_m=offset,
         quat_in_hand_xyzw=turn,
         tilt_in_hand_deg=axis_angle_deg(brick.pose.quat_xyzw, tool_pose.quat_xyzw),

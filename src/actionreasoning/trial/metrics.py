@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation
 from actionreasoning.trial.results import PlacementMetrics
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import QuatXYZW, Vec3
+from actionreasoning.world.models import TargetBrick
 
 #: The symmetries of a box with three different side lengths, in its own frame:
 #: identity and the half turns about its x, y and z axes.
@@ -95,4 +96,13 @@ def brick_metrics(brick: Box, target: Box) -> PlacementMetrics:
             brick.quat_xyzw, target.quat_xyzw
         ),
         iou=box_iou(brick, target),
+    )
+
+
+def placement_of(position_m: Vec3, quat_xyzw: QuatXYZW, target: TargetBrick) -> PlacementMetrics:
+    """A brick at this pose against ``target``, both of the target's size: the metrics the
+    success rule judges, for the results line and for the count of bricks placed so far."""
+    return brick_metrics(
+        Box(position_m, quat_xyzw, target.size_m),
+        Box(target.pose.position_m, target.pose.quat_xyzw, target.size_m),
     )

@@ -25,7 +25,7 @@ from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.perceive import Sensor
 from actionreasoning.sim.scene import Scene
 from actionreasoning.trial.config import TrialConfig
-from actionreasoning.trial.metrics import brick_metrics
+from actionreasoning.trial.metrics import placement_of
 from actionreasoning.trial.results import (
     AnswerErrorCounts,
     BrickResult,
@@ -37,7 +37,6 @@ from actionreasoning.trial.results import (
 )
 from actionreasoning.trial.rules import Method, trial_seed
 from actionreasoning.trial.sim_world import SimWorld
-from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import QuatXYZW, Vec3
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import READY_POSE, GoalPattern
@@ -265,10 +264,7 @@ def measure(
         brick = outcome.placements.get(target.index)
         brick = next(unplaced) if brick is None else brick
         position, quat = scene.brick_pose(brick)
-        m = brick_metrics(
-            Box(position, quat, target.size_m),
-            Box(target.pose.position_m, target.pose.quat_xyzw, target.size_m),
-        )
+        m = placement_of(position, quat, target)
         bricks.append(
             BrickResult(
                 id=brick,

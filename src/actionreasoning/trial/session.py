@@ -29,19 +29,24 @@ from enum import StrEnum
 from pathlib import Path
 from typing import Any, TypeVar
 
+import numpy as np
 from pydantic import BaseModel, Field
 
+from actionreasoning.agents.answer_errors import AnswerErrors
 from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest, ToolRunner
 from actionreasoning.agents.tiers import DEFAULT_TIER, load_tier
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.agents.validation import OutputError, parse_answer
 from actionreasoning.errors import ActionReasoningError, ConfigError, LLMError, ToolError
+from actionreasoning.reasoners.backend import LLMConfig
 from actionreasoning.records import FailureCode
+from actionreasoning.sim.camera import overview, render
 from actionreasoning.sim.scene import Scene
 from actionreasoning.tools.base import ToolModel
 from actionreasoning.tools.registry import GATE_MEASUREMENTS, ToolSchema, tool_schema
 from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.placed import PlacedCount
 from actionreasoning.trial.results import TrialResult
 from actionreasoning.trial.rules import Method
 from actionreasoning.trial.runner import TrialObserver, TrialRun, TrialSpec, run_trial
@@ -49,6 +54,7 @@ from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.models import GoalPattern, WorldState
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scenarios import load_noise, load_physics
+from actionreasoning.world.stages import StageEvent
 
 T = TypeVar("T")
 
@@ -56,6 +62,15 @@ T = TypeVar("T")
 class SessionError(ActionReasoningError):
     """The session cannot do what was asked now (the trial has ended, a request was
     already answered)."""
+
+
+class AgentLabel(StrEnum):
+    """What the results line (``llm``) calls a session's outside agent: the door it came
+    through."""
+
+    OUTSIDE = "outside"  # none: the session itself, called from Python
+    GYM = "gym"  # the Gymnasium environment
+    MCP = "mcp"  # the MCP server
 
 
 class RefusalCode(StrEnum):
@@ -110,9 +125,9 @@ class Turn(BaseModel):
 
 @dataclass(frozen=True)
 class Conditions:
-    """What ``eval --method agents`` runs a pattern under, loaded as the command loads it
-    (a pattern name or file, a physics profile, a noise level, the trial's budget, the
-    reasoning tier)."""
+    """What ``eval`` runs a pattern under, loaded as the command loads it (a pattern name
+    or file, a physics profile, a noise level, the trial's budget, the reasoning tier, and
+    for eval's own trials the reasoning backend and its answer errors)."""
 
     pattern_name: str
     goal: GoalPattern
@@ -126,14 +141,19 @@ class Conditions:
         noise: str = "none",
         budget: TrialBudget = TrialBudget(),
         tools: str = DEFAULT_TIER,
+        *,
+        llm: LLMConfig | None = LLMConfig(),
+        answer_errors: AnswerErrors = AnswerErrors(),
     ) -> Conditions:
         """The conditions named as on the command line; a bad name or file is refused."""
-        if Path(pattern).is_file():  # as eval names it: ./x.json is x.json
+        if Path(pattern).is_file():  # one file, however it is spelled: ./x.json is x.json
             pattern = os.path.normpath(pattern)
         config = TrialConfig(
+            llm=llm,
             budget=budget,
             physics=load_physics(physics),
             noise=load_noise(noise),
+            answer_errors=answer_errors,
             tools=load_tier(tools),
         )
         return cls(pattern_name=pattern, goal=load_pattern(pattern, config.scene), config=config)
@@ -157,11 +177,18 @@ class TrialSession:
     """One trial, its agents answered by the caller; results name the reasoner ``agent``.
 
     The constructor returns when the first agent asks (or the trial has ended). Use it as a
-    context manager, or call :meth:`close`; a session dropped unclosed is closed too.
+    context manager, or call :meth:`close`; a session dropped unclosed is closed too. With
+    ``final_picture``, it keeps the overview picture of the trial's final scene for
+    :meth:`picture`.
     """
 
     def __init__(
-        self, spec: TrialSpec, observers: Sequence[TrialObserver] = (), agent: str = "outside"
+        self,
+        spec: TrialSpec,
+        observers: Sequence[TrialObserver] = (),
+        agent: str = AgentLabel.OUTSIDE,
+        *,
+        final_picture: bool = False,
     ) -> None:
         self.spec = spec
         self._inbox: queue.Queue[object] = queue.Queue()
@@ -171,10 +198,13 @@ class TrialSession:
         self._run: TrialRun | None = None
         self._ended = False
         self._watch = _Watch()
-        outside = _OutsideAgent(agent, self._inbox, self._outbox, self._watch)
+        self._placed = PlacedCount(spec.goal, spec.config.success_rule)
+        self._final = _FinalPicture() if final_picture else None
+        watchers = (self._watch, self._placed, *([self._final] if self._final else []))
+        outside = _OutsideAgent(str(agent), self._inbox, self._outbox, self._watch)
         self._thread = threading.Thread(
             target=_run,
-            args=(spec, (self._watch, *observers), outside, self._outbox),
+            args=(spec, (*watchers, *observers), outside, self._outbox),
             name=f"trial {spec.run_seed}/{spec.trial}",
             daemon=True,
         )
@@ -204,6 +234,14 @@ class TrialSession:
     def result(self) -> TrialResult | None:
         """The finished trial's result line, as ``eval`` writes it (None while it runs)."""
         return None if self._run is None else self._run.result
+
+    @property
+    def placed(self) -> int:
+        """Bricks within the success rule of their targets: while the trial runs, as counted
+        after its last accepted release (``placed.py``); once it has ended, its result's
+        ``bricks_placed`` (after the final settle)."""
+        result = self.result
+        return self._placed.count if result is None else result.bricks_placed
 
     @property
     def request(self) -> AgentRequest | None:
@@ -286,7 +324,16 @@ class TrialSession:
         outcome = self._send(_InScene(do))
         if isinstance(outcome, _Failed):
             raise outcome.error
-        return outcome  # type: ignore[return-value]
+        return outcome
+
+    def picture(self) -> np.ndarray:
+        """The overview camera's picture (height x width x 3, uint8) of the scene now, or,
+        once the trial has ended, of its final scene (kept with ``final_picture``)."""
+        if not self._ended:
+            return self.in_scene(_overview)
+        if self._final is None or self._final.image is None:
+            raise SessionError("the trial has ended and its final picture was not kept")
+        return self._final.image
 
     def close(self) -> TrialRun | None:
         """End the trial (``abandoned`` if an agent still waits) and return it."""
@@ -381,6 +428,21 @@ class _Watch(TrialObserver):
 
     def call(self, scene: Scene, call: AgentCall) -> None:
         self.last_call = call
+
+
+class _FinalPicture(TrialObserver):
+    """The overview picture of the trial's final scene (rendered in the trial's thread)."""
+
+    def __init__(self) -> None:
+        self.image: np.ndarray | None = None
+
+    def stage(self, scene: Scene, event: StageEvent) -> None:
+        if event.brick < 0:
+            self.image = _overview(scene)
+
+
+def _overview(scene: Scene) -> np.ndarray:
+    return render(scene, overview(scene))
 
 
 class _OutsideAgent:

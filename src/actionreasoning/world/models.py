@@ -8,14 +8,22 @@ origin is the arm's base on the ground with z up.
 
 from __future__ import annotations
 
-from typing import Literal
+from enum import StrEnum
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.world.geometry import QuatXYZW, Vec3, top_down_quat
 from actionreasoning.world.physics import GRIP_FORCE_N, PAD_FRICTION
 
-BrickStatus = Literal["in_pick_area", "grasped", "placed", "dropped", "toppled"]
+
+class BrickStatus(StrEnum):
+    """Where a brick is, as measured."""
+
+    IN_PICK_AREA = "in_pick_area"
+    GRASPED = "grasped"
+    PLACED = "placed"  # on a target it was released at
+    DROPPED = "dropped"  # anywhere else, lying flat
+    TOPPLED = "toppled"  # tilted
 
 
 class _Model(BaseModel):
@@ -33,10 +41,10 @@ class Pose(_Model):
 READY_POSE = Pose(position_m=(0.45, -0.25, 0.40), quat_xyzw=top_down_quat(0.0))
 
 
-def is_pickable(status: str, position_m: Vec3, size_m: Vec3) -> bool:
+def is_pickable(status: BrickStatus, position_m: Vec3, size_m: Vec3) -> bool:
     """Free to be picked: in the pick area, or dropped but lying on the ground."""
     on_ground = position_m[2] < size_m[2]
-    return status == "in_pick_area" or (status == "dropped" and on_ground)
+    return status == BrickStatus.IN_PICK_AREA or (status == BrickStatus.DROPPED and on_ground)
 
 
 class PadContact(_Model):
@@ -92,7 +100,7 @@ class BrickState(_Model):
     pose: Pose
     linear_velocity_mps: Vec3 = (0.0, 0.0, 0.0)
     angular_velocity_radps: Vec3 = (0.0, 0.0, 0.0)
-    status: BrickStatus = "in_pick_area"
+    status: BrickStatus = BrickStatus.IN_PICK_AREA
 
     @property
     def pickable(self) -> bool:
