@@ -33,7 +33,7 @@ import rerun_cli
 from playwright.sync_api import Error as PlaywrightError
 from playwright.sync_api import Page, sync_playwright
 
-APPLICATION_ID = "actionreasoning"  # as the recordings have it (eval/rerun_log.py)
+APPLICATION_ID = "actionreasoning"  # as the recordings have it (recording/rerun_log.py)
 TIMELINE = "sim"
 CHROMIUM_ARGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist"]
 #: The camera: beside the pyramid, the arm behind it, the spare bricks on the left.

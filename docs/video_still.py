@@ -7,7 +7,7 @@ Makes ``docs/video_still.png``, from the repository's root::
     python docs/video_still.py runs/film/videos/trial_001_ok.mp4 --time 34.4 \
         --out docs/video_still.png
 
-A video has a frame at the start and one every 1/FPS simulated seconds (``eval/video.py``),
+A video has a frame at the start and one every 1/FPS simulated seconds (``recording/video.py``),
 so the frame shown at ``--time`` seconds is number ``round(time * FPS)``.
 """
 

@@ -156,7 +156,7 @@ def test_the_film_process_ends_when_its_run_is_killed(tmp_path: Path, one_brick:
         env={**os.environ, "TMPDIR": str(temp)},
     )
     deadline = time.monotonic() + 120
-    while not (films := {c for c in children(process.pid) if "eval.film" in cmdline(c)}):
+    while not (films := {c for c in children(process.pid) if "recording.film" in cmdline(c)}):
         assert process.poll() is None and time.monotonic() < deadline, "no film process started"
         time.sleep(0.05)
     process.kill()

@@ -1,6 +1,6 @@
 """What the orchestrator needs from the world, as a protocol: observe, run tools, move, grip.
 
-The simulator side implements it (``eval/sim_world.py``); the agents never touch PyBullet.
+The simulator side implements it (``trial/sim_world.py``); the agents never touch PyBullet.
 """
 
 from __future__ import annotations

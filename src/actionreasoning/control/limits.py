@@ -1,5 +1,5 @@
 """The waypoint controller's limits, apart from the controller so that a configuration
-(``eval/trial_config.py``) can name them without loading the simulator."""
+(``trial/config.py``) can name them without loading the simulator."""
 
 from __future__ import annotations
 

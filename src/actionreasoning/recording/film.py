@@ -1,7 +1,7 @@
 """The film process: renders a trial's frames and encodes them as an MP4, beside the trial.
 
 ``python -m actionreasoning.recording.film MP4`` reads pickles from its standard input, written
-by its parent (``eval/video.py``): a :class:`Reel` (what the scene looks like, from where),
+by its parent (``recording/video.py``): a :class:`Reel` (what the scene looks like, from where),
 then one :class:`Frame` per frame, then ``None``; if the input ends before ``None``, the
 parent is gone (killed, say) and the film process ends, leaving no file. It poses a look-alike
 of the scene (:class:`Replica`) for each frame, renders it with TinyRenderer over a ground

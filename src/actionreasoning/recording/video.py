@@ -3,7 +3,7 @@ as an MP4.
 
 Every ``FRAME_S`` (``1 / FPS``) simulated seconds the recorder reads where the arm's joints
 and the bricks are (a :class:`ScenePose`, some 50 microseconds) and hands it, with the
-frame's caption, to the film process (``eval/film.py``), which renders and encodes on
+frame's caption, to the film process (``recording/film.py``), which renders and encodes on
 another core while the trial runs on. The video plays in real time. Its caption: simulated
 time; the agent at work (brick, attempt) or the stage last done; and the last gate verdict,
 which stays until the next (a gate that judges a motion's outcome is decided at no
