@@ -78,9 +78,9 @@ def test_the_paper_profile_is_pybullets_own_defaults() -> None:
 
 def test_variation_is_drawn_from_the_trial_seed_within_its_bounds() -> None:
     medium = NOISE["medium"].variation
-    first = vary_bricks(medium, NOMINAL, 6, trial_seed=5)
-    assert first == vary_bricks(medium, NOMINAL, 6, trial_seed=5)
-    assert first != vary_bricks(medium, NOMINAL, 6, trial_seed=6)
+    first = vary_bricks(medium, [NOMINAL] * 6, trial_seed=5)
+    assert first == vary_bricks(medium, [NOMINAL] * 6, trial_seed=5)
+    assert first != vary_bricks(medium, [NOMINAL] * 6, trial_seed=6)
     assert len({b.mass_kg for b in first}) == 6
     for body in first:
         assert abs(body.mass_kg / 1.5 - 1.0) <= medium.mass_rel
@@ -89,7 +89,7 @@ def test_variation_is_drawn_from_the_trial_seed_within_its_bounds() -> None:
             max(abs(a - b) for a, b in zip(body.size_m, NOMINAL.size_m, strict=True))
             <= medium.size_m
         )
-    assert vary_bricks(NOISE["none"].variation, NOMINAL, 2, trial_seed=5) == [NOMINAL] * 2
+    assert vary_bricks(NOISE["none"].variation, [NOMINAL] * 2, trial_seed=5) == [NOMINAL] * 2
 
 
 def perceived(seed: int, noise: NoiseLevel) -> tuple[list, list]:

@@ -178,12 +178,12 @@ class WaypointController:
     def _obstacles(self, start: Vec3) -> list[Box]:
         """Every brick a free move must pass above in transit: all but the one in the hand
         (near the tool centre point, or pressed by both pads however far it slid), each of
-        the catalogue size."""
-        size = self.scene.nominal.size_m
+        its catalogue size."""
         obstacles = []
         for brick in range(len(self.scene.bricks)):
             center, quat = self.scene.brick_pose(brick)
             if math.dist(center, start) > HELD_DISTANCE_M and not self.scene.is_held(brick):
+                size = self.scene.nominals[brick].size_m
                 obstacles.append(Box(center, quat, size, id=brick))
         return obstacles
 

@@ -127,8 +127,8 @@ class Sensor:
                 BrickState(
                     id=i,
                     size_m=scene.bodies[i].size_m,
-                    mass_kg=scene.nominal.mass_kg,
-                    friction=scene.nominal.lateral_friction,
+                    mass_kg=scene.nominals[i].mass_kg,
+                    friction=scene.nominals[i].lateral_friction,
                     pose=Pose(position_m=position, quat_xyzw=quat),
                     linear_velocity_mps=linear,
                     angular_velocity_radps=angular,

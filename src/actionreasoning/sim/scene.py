@@ -65,8 +65,8 @@ class FingerContact:
 class Scene:
     """One trial's world. Bricks have ids 0..n-1 in spawn order.
 
-    ``nominal`` is the brick the agents are told of (default: the spec's catalogue brick);
-    ``bodies`` are the bricks spawned (default: the nominal brick, once per pose).
+    ``nominals`` are the bricks the agents are told of, one per pose (default: the spec's
+    catalogue brick); ``bodies`` are the bricks spawned (default: the nominal ones).
     """
 
     def __init__(
@@ -77,12 +77,13 @@ class Scene:
         physics: PhysicsProfile = PAPER,
         budget: TrialBudget = TrialBudget(),
         bodies: Sequence[BrickBody] | None = None,
-        nominal: BrickBody | None = None,
+        nominals: Sequence[BrickBody] | None = None,
     ) -> None:
         self.spec = spec
         self.physics = physics
-        self.nominal = nominal or spec.brick_body(physics.brick_lateral_friction)
-        self.bodies = tuple(bodies) if bodies is not None else (self.nominal,) * len(brick_poses)
+        catalogue = spec.brick_body(physics.brick_lateral_friction)
+        self.nominals = tuple(nominals) if nominals is not None else (catalogue,) * len(brick_poses)
+        self.bodies = tuple(bodies) if bodies is not None else self.nominals
         self.budget = budget
         self._deadline = time.monotonic() + budget.max_wall_s
         self.client = p.connect(p.DIRECT)

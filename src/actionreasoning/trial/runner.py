@@ -38,7 +38,7 @@ from actionreasoning.trial.results import (
 from actionreasoning.trial.rules import Method, trial_seed
 from actionreasoning.trial.sim_world import SimWorld
 from actionreasoning.world.geometry import QuatXYZW, Vec3
-from actionreasoning.world.layout import sample_pick_poses
+from actionreasoning.world.layout import sample_pick_poses, spawn_size
 from actionreasoning.world.models import READY_POSE, GoalPattern
 from actionreasoning.world.noise import vary_bricks
 from actionreasoning.world.stages import StageEvent
@@ -106,10 +106,13 @@ def trial_world(spec: TrialSpec, observers: Sequence[TrialObserver] = ()) -> Ite
     brick of the goal's size per target, its mass scaled from the catalogue brick's. The
     ``observers`` tick from the spawn settle on."""
     config, seed = spec.config, trial_seed(spec.run_seed, spec.trial)
-    count, size = len(spec.goal.targets), spec.goal.brick_size_m
-    nominal = config.scene.brick_body(config.physics.brick_lateral_friction, size)
-    bodies = vary_bricks(config.noise.variation, nominal, count, seed)
-    laid_out = sample_pick_poses(np.random.default_rng(seed), count, config.scene, size)
+    friction = config.physics.brick_lateral_friction
+    sizes = [target.size_m for target in spec.goal.targets]
+    nominals = [config.scene.brick_body(friction, size) for size in sizes]
+    bodies = vary_bricks(config.noise.variation, nominals, seed)
+    laid_out = sample_pick_poses(
+        np.random.default_rng(seed), len(sizes), config.scene, spawn_size(sizes, config.scene)
+    )
     poses = [
         pose.model_copy(update={"position_m": (*pose.position_m[:2], body.size_m[2] / 2.0)})
         for pose, body in zip(laid_out, bodies, strict=True)
@@ -118,7 +121,7 @@ def trial_world(spec: TrialSpec, observers: Sequence[TrialObserver] = ()) -> Ite
         arm = KinematicArm()
         cleanup.callback(arm.close)
         ready = arm.solve(READY_POSE.position_m, READY_POSE.quat_xyzw).joints_rad
-        scene = Scene(config.scene, poses, ready, config.physics, config.budget, bodies, nominal)
+        scene = Scene(config.scene, poses, ready, config.physics, config.budget, bodies, nominals)
         cleanup.callback(scene.close)
         for observer in observers:
             if observer.every_s is not None:

@@ -10,6 +10,7 @@ every seed of a pattern that passed validation can be laid out.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -86,6 +87,12 @@ def pick_slots(spec: SceneSpec, size_m: Vec3) -> list[tuple[float, float]]:
             if all(math.dist(slot, other) >= spacing for other in slots):
                 slots.append(slot)
     return slots
+
+
+def spawn_size(sizes: Sequence[Vec3], spec: SceneSpec) -> Vec3:
+    """The size a pick area of bricks of ``sizes`` is laid out for: every brick is spaced as
+    the one that needs the most room."""
+    return max(sizes, key=spec.pick_spacing_m)
 
 
 def pick_capacity(spec: SceneSpec, size_m: Vec3) -> int:

@@ -10,6 +10,8 @@ none|low|medium|high``, in ``scenarios.py``) and a file form (JSON/YAML, the fie
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -71,12 +73,13 @@ PERCEPTION_STREAM = 2
 
 
 def vary_bricks(
-    variation: PhysicalVariation, nominal: BrickBody, count: int, trial_seed: int
+    variation: PhysicalVariation, nominals: Sequence[BrickBody], trial_seed: int
 ) -> list[BrickBody]:
-    """``count`` bricks, each deviating from ``nominal`` by a draw from the trial's seed."""
+    """One brick per nominal brick, each deviating from it by a draw from the trial's seed
+    (the draws are the same whatever the nominal bricks)."""
     rng = np.random.default_rng([trial_seed, VARIATION_STREAM])
     bodies = []
-    for _ in range(count):
+    for nominal in nominals:
         size, mass, friction = rng.uniform(-1.0, 1.0, size=(3,)), *rng.uniform(-1.0, 1.0, size=2)
         bodies.append(
             BrickBody(

@@ -70,13 +70,18 @@ class BrickBody(BaseModel):
     lateral_friction: float
 
 
+#: The catalogue's bricks by name (m): a pattern's brick may name one instead of its edges.
+BRICK_CATALOGUE: dict[str, Vec3] = {"full": (0.20, 0.095, 0.06), "half": (0.095, 0.095, 0.06)}
+
+
 class SceneSpec(BaseModel):
     """Everything that defines a scene apart from the goal pattern and the seed."""
 
     model_config = ConfigDict(frozen=True)
 
     brick_size_m: Vec3 = Field(
-        (0.20, 0.095, 0.06), description="The catalogue brick; a pattern may use another size."
+        BRICK_CATALOGUE["full"],
+        description="The catalogue's full brick; a pattern may use another size.",
     )
     brick_mass_kg: float = Field(1.5, description="The catalogue brick's mass.")
     build_radius_m: float = 0.58
