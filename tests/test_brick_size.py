@@ -18,7 +18,7 @@ from actionreasoning.trial.rules import Method
 from actionreasoning.trial.runner import TrialObserver, TrialSpec, run_trial, trial_world
 from actionreasoning.world.patterns import GRIP_MARGIN_M, brick_size_limits, load_pattern
 from actionreasoning.world.physics import PRECISE
-from actionreasoning.world.scene_spec import GRIPPER_GAP_M, SceneSpec
+from actionreasoning.world.scene_spec import BRICK_CATALOGUE, GRIPPER_GAP_M, SceneSpec
 from actionreasoning.world.stages import StageEvent
 from actionreasoning.world.tolerances import Tolerances
 
@@ -140,3 +140,67 @@ def test_the_widest_brick_allowed_loads_and_leaves_the_pads_room_to_pass_it(
 def test_the_extreme_sizes_still_allowed_load(tmp_path: Path, size: tuple[float, ...]) -> None:
     goal = load_pattern(write_pattern(tmp_path / "edge.json", size), SPEC)
     assert goal.brick_size_m == size
+
+
+def write_mixed(path: Path, sizes: list[object]) -> Path:
+    """One course of bricks on the ground, each of its own ``size`` (edges or a catalogue
+    name; None: the pattern's full brick), 2 cm apart."""
+    edges = [
+        BRICK_CATALOGUE[s] if isinstance(s, str) else (s or BRICK_CATALOGUE["full"]) for s in sizes
+    ]
+    centres, x = [], 0.0
+    for size in edges:
+        centres.append(x + size[0] / 2)
+        x += size[0] + 0.02
+    bricks = [
+        {"position": [c - x / 2, 0.0, size[2] / 2], **({"size": s} if s is not None else {})}
+        for c, size, s in zip(centres, edges, sizes, strict=True)
+    ]
+    path.write_text(json.dumps({"name": "mixed", "brick_size": "full", "bricks": bricks}))
+    return path
+
+
+def test_each_brick_of_a_pattern_has_its_own_size_or_a_catalogue_name(tmp_path: Path) -> None:
+    goal = load_pattern(write_mixed(tmp_path / "m.json", ["half", None, [0.2, 0.1, 0.065]]), SPEC)
+    assert [t.size_m for t in goal.targets] == [
+        BRICK_CATALOGUE["half"],
+        BRICK_CATALOGUE["full"],
+        (0.2, 0.1, 0.065),
+    ]
+    assert goal.brick_size_m == BRICK_CATALOGUE["full"]
+
+
+def test_a_brick_of_a_size_outside_the_limits_is_refused_naming_its_entry(tmp_path: Path) -> None:
+    path = write_mixed(tmp_path / "m.json", [None, [0.2, 0.2, 0.06]])
+    with pytest.raises(PatternError) as info:
+        load_pattern(path, SPEC)
+    assert str(info.value).startswith(f"{path}: bricks[1].size[1]: width (across the gripper)")
+
+
+def test_an_unknown_catalogue_name_is_refused_in_one_line(tmp_path: Path) -> None:
+    path = write_mixed(tmp_path / "m.json", [None])
+    data = json.loads(path.read_text())
+    data["bricks"][0]["size"] = "quarter"
+    path.write_text(json.dumps(data))
+    with pytest.raises(PatternError) as info:
+        load_pattern(path, SPEC)
+    message = str(info.value)
+    assert (
+        message == f"{path}: bricks[0].size: unknown brick 'quarter' (the catalogue's: full, half)"
+    )
+
+
+@pytest.mark.slow
+def test_a_half_brick_is_spawned_at_its_size_with_its_catalogue_mass(tmp_path: Path) -> None:
+    goal = load_pattern(write_mixed(tmp_path / "m.json", ["half", "full"]), SPEC)
+    spec = TrialSpec(method=Method.AGENTS, pattern_name="mixed", goal=goal, run_seed=3, trial=0)
+    with trial_world(spec) as world:
+        half, full = world.sensor.perceive(goal).bricks
+        spawned = [spawned_size(world.scene, b) for b in range(2)]
+        masses = [spawned_mass(world.scene, b) for b in range(2)]
+    assert (half.size_m, full.size_m) == (BRICK_CATALOGUE["half"], BRICK_CATALOGUE["full"])
+    for size, name in zip(spawned, ("half", "full"), strict=True):
+        assert size == pytest.approx(BRICK_CATALOGUE[name])
+    assert half.mass_kg == pytest.approx(CATALOGUE_DENSITY * math.prod(BRICK_CATALOGUE["half"]))
+    assert masses == pytest.approx([half.mass_kg, full.mass_kg])
+    assert full.mass_kg == SPEC.brick_mass_kg

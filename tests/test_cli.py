@@ -37,8 +37,12 @@ BAD_PATTERNS = {
         "brick 0",
     ),
     "wrong_type.json": (
-        '{"name": "x", "brick_size": "big", "bricks": [{"position": [0, 0, 0.03]}]}',
+        '{"name": "x", "brick_size": 5, "bricks": [{"position": [0, 0, 0.03]}]}',
         "brick_size: Input should be a valid tuple",
+    ),
+    "unknown_brick.json": (
+        '{"name": "x", "brick_size": "big", "bricks": [{"position": [0, 0, 0.03]}]}',
+        "brick_size: unknown brick 'big' (the catalogue's: full, half)",
     ),
     "no_name.json": ('{"brick_size": [0.2, 0.095, 0.06], "bricks": []}', "name: Field required"),
     "no_bricks.json": (

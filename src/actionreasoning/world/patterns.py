@@ -27,9 +27,10 @@ from __future__ import annotations
 import itertools
 import math
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field, Strict
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, Strict
+from pydantic_core import PydanticCustomError
 
 from actionreasoning.errors import PatternError
 from actionreasoning.world.boxes import Box
@@ -72,8 +73,22 @@ class _FileModel(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
 
+def _named_size(size: object) -> object:
+    """A catalogue name as its edges; anything else as it is, for the tuple to validate."""
+    if not isinstance(size, str):
+        return size
+    if size not in BRICK_CATALOGUE:
+        known = ", ".join(BRICK_CATALOGUE)
+        raise PydanticCustomError(
+            "unknown_brick",
+            "unknown brick '{size}' (the catalogue's: {known})",
+            {"size": size, "known": known},
+        )
+    return BRICK_CATALOGUE[size]
+
+
 #: A brick size in a pattern file: its edges (m) or a name of the catalogue.
-BrickSize = tuple[Positive, Positive, Positive] | Literal["full", "half"]
+BrickSize = Annotated[tuple[Positive, Positive, Positive], BeforeValidator(_named_size)]
 
 
 class BrickEntry(_FileModel):
@@ -120,7 +135,7 @@ def load_pattern(name_or_path: str | Path, spec: SceneSpec) -> GoalPattern:
         source, gap = str(name_or_path), None
         pattern = _parse(read_mapping(Path(name_or_path), "pattern file", PatternError), source)
     sizes = brick_sizes(pattern)
-    _check_brick_size(source, "brick_size", edges(pattern.brick_size), spec)
+    _check_brick_size(source, "brick_size", pattern.brick_size, spec)
     for i, brick in enumerate(pattern.bricks):
         if brick.size is not None:
             _check_brick_size(source, f"bricks[{i}].size", sizes[i], spec)
@@ -134,18 +149,13 @@ def load_pattern(name_or_path: str | Path, spec: SceneSpec) -> GoalPattern:
         for b in blocks
     )
     return GoalPattern(
-        name=pattern.name, gap_m=gap, brick_size_m=edges(pattern.brick_size), targets=targets
+        name=pattern.name, gap_m=gap, brick_size_m=pattern.brick_size, targets=targets
     )
-
-
-def edges(size: BrickSize) -> Vec3:
-    """A pattern file's brick size as edge lengths (m): a catalogue name looked up."""
-    return BRICK_CATALOGUE[size] if isinstance(size, str) else size
 
 
 def brick_sizes(pattern: PatternFile) -> list[Vec3]:
     """Each brick's edges (m), in pattern order: its own size, else the pattern's."""
-    return [edges(b.size if b.size is not None else pattern.brick_size) for b in pattern.bricks]
+    return [b.size if b.size is not None else pattern.brick_size for b in pattern.bricks]
 
 
 def _parse(data: dict[str, Any], source: str) -> PatternFile:
