@@ -12,7 +12,9 @@ from actionreasoning.runs.courses import (
     per_course,
     placed_before_first_failure,
 )
+from actionreasoning.runs.summary import RunSummary, summarize, summary_markdown
 from actionreasoning.trial.results import BrickResult, TrialResult
+from actionreasoning.world.physics import PAPER
 from actionreasoning.world.success import SuccessRule
 
 FULL = (0.2, 0.095, 0.06)
@@ -66,3 +68,19 @@ def test_cycle_time_is_simulated_time_over_placed_bricks() -> None:
     assert time.seconds_per_brick == pytest.approx((3000 / 240) / 2)  # 6.25 s
     assert time.bricks_per_hour == pytest.approx(3600 / 6.25)
     assert cycle_time([trial(placed=0)], 1 / 240).seconds_per_brick is None
+
+
+def test_the_summary_gives_courses_bricks_before_the_first_failure_and_cycle_time() -> None:
+    first = trial(brick(0.03, 0.2), brick(0.09, 3.0), steps=2400, placed=1)
+    second = trial(brick(0.03, 0.6), brick(0.09, 1.0), steps=2400, placed=2)
+    summary = summarize([first, second], wall_time_s=1.0, physics=PAPER)
+    assert [(c.course, c.bricks) for c in summary.courses] == [(0, 2), (1, 2)]
+    assert summary.courses[1].center_offset_cm == pytest.approx((2.0, 1.0))
+    assert summary.placed_before_first_failure_mean == pytest.approx(1.5)  # 1 and 2
+    seconds = 4800 * PAPER.time_step_s / 3
+    assert summary.cycle_time is not None
+    assert summary.cycle_time.seconds_per_brick == pytest.approx(seconds)
+    text = summary_markdown(summary)
+    assert "| 1 | 2 | 2.000 ± 1.000 | 1.000 ± 0.500 | 80.00 ± 10.00 |" in text
+    assert f"Cycle time: {seconds:.1f} simulated s per placed brick" in text
+    assert RunSummary.model_validate_json(summary.model_dump_json()) == summary

@@ -12,6 +12,13 @@ from pydantic import BaseModel, ConfigDict, Field
 from actionreasoning.agents.answer_errors import AnswerErrors, CorruptionKind
 from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.records import FailureCode
+from actionreasoning.runs.courses import (
+    CourseMetrics,
+    CycleTime,
+    cycle_time,
+    per_course,
+    placed_before_first_failure,
+)
 from actionreasoning.trial.provenance import Provenance
 from actionreasoning.trial.results import (
     AnswerErrorCounts,
@@ -79,6 +86,11 @@ class RunSummary(Provenance):
     #: Refused and failed answers by agent and category, summed over the trials (absent
     #: when there were none).
     refusals: Refusals = Field(default_factory=dict, exclude_if=lambda counts: not counts)
+    #: Per course, over all trials; absent in summaries written before courses were measured.
+    courses: list[CourseMetrics] = Field(default_factory=list)
+    placed_before_first_failure_mean: float | None = None
+    #: Needs the run's physics (its time step).
+    cycle_time: CycleTime | None = None
 
 
 def describe_rule(rule: SuccessRule) -> str:
@@ -150,6 +162,11 @@ def summarize(
         resumed_trials=resumed_trials,
         answer_errors=_answer_error_totals(results, answer_errors),
         refusals=sum_refusals(r.refusals for r in results),
+        courses=per_course(results),
+        placed_before_first_failure_mean=float(
+            np.mean([placed_before_first_failure(r, rule) for r in results])
+        ),
+        cycle_time=None if physics is None else cycle_time(results, physics.time_step_s),
     )
 
 
@@ -199,6 +216,7 @@ def summary_markdown(summary: RunSummary) -> str:
         f"Bricks placed per trial: {summary.bricks_placed_mean:.2f}.",
         f"Success rule: {summary.success_rule}.",
         "",
+        *_course_lines(summary),
     ]
     if summary.failures:
         lines += ["| Failure reason | Meaning | Trials | Example trial |", "|---|---|---|---|"]
@@ -220,6 +238,37 @@ def summary_markdown(summary: RunSummary) -> str:
     if summary.llm_usage.calls:
         lines += ["", *_llm_lines(summary)]
     return "\n".join(lines) + "\n"
+
+
+def _course_lines(summary: RunSummary) -> list[str]:
+    """Per-course metrics, bricks before the first failure and cycle time, where measured."""
+    lines = []
+    if summary.courses:
+        lines += [
+            "Per course, over all trials' bricks (means ± standard deviations):",
+            "",
+            "| Course | Bricks | Ctr. Off. (cm) | Rot. Err (°) | IoU (%) |",
+            "|---|---|---|---|---|",
+            *(
+                f"| {c.course} | {c.bricks} | {c.center_offset_cm[0]:.3f} ± "
+                f"{c.center_offset_cm[1]:.3f} | {c.rotation_error_deg[0]:.3f} ± "
+                f"{c.rotation_error_deg[1]:.3f} | {100 * c.iou[0]:.2f} ± {100 * c.iou[1]:.2f} |"
+                for c in summary.courses
+            ),
+            "",
+        ]
+    if summary.placed_before_first_failure_mean is not None:
+        lines.append(
+            "Bricks placed before the first brick out of the rule, per trial: "
+            f"{summary.placed_before_first_failure_mean:.2f}."
+        )
+    time = summary.cycle_time
+    if time is not None and time.seconds_per_brick is not None and time.bricks_per_hour:
+        lines.append(
+            f"Cycle time: {time.seconds_per_brick:.1f} simulated s per placed brick "
+            f"({time.bricks_per_hour:.0f} bricks an hour)."
+        )
+    return [*lines, ""] if lines else []
 
 
 def _answer_error_lines(totals: AnswerErrorTotals) -> list[str]:
