@@ -61,6 +61,7 @@ CHECK_CATEGORIES: Final[Mapping[str, ErrorCategory]] = MappingProxyType(
         "answer_complete": _C.SCHEMA,
         "target_buildable": _C.WRONG_CHOICE,
         "brick_free": _C.WRONG_CHOICE,
+        "brick_fits_target": _C.WRONG_CHOICE,
         "grasp_offset_m": _C.MISALIGNMENT,
         "grasp_yaw_deg": _C.MISALIGNMENT,
         "pointing_down_deg": _C.MISALIGNMENT,

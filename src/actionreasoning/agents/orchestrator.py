@@ -68,7 +68,7 @@ from actionreasoning.tools.placement import (
     PlacementQuery,
     carried_pose,
 )
-from actionreasoning.world.geometry import quat_yaw, rotation_deg, wrap_angle
+from actionreasoning.world.geometry import Vec3, quat_yaw, rotation_deg, wrap_angle
 from actionreasoning.world.models import (
     BrickState,
     BrickStatus,
@@ -339,7 +339,8 @@ class Orchestrator:
     def _choice(
         self, brick: int, target: int, state: WorldState, supports: Mapping[int, tuple[int, ...]]
     ) -> GateVerdict:
-        """The target can be built now and the brick is free (Ag1's choice)."""
+        """The target can be built now, the brick is free and, in a pattern of several
+        brick sizes, of the target's size (Ag1's choice)."""
         built = {p.target_index for p in self.memory.placed}
         used = {p.brick_id for p in self.memory.placed}
         missing = [t for t in supports[target] if t not in built]
@@ -352,13 +353,21 @@ class Orchestrator:
         if not free:
             status = BrickStatus.PLACED if brick in used else state.brick(brick).status
             notes.append(f"brick {brick} is {status}, neither in the pick area nor on the ground")
-        return GateVerdict(
-            f"{Stage.PRE_GRASP}_choice",
-            (
-                Check("target_buildable", float(target not in built and not missing), 1.0, False),
-                Check("brick_free", float(free), 1.0, at_most=False),
-            ),
-        ).noted("; ".join(notes))
+        checks = [
+            Check("target_buildable", float(target not in built and not missing), 1.0, False),
+            Check("brick_free", float(free), 1.0, at_most=False),
+        ]
+        if len(state.goal.sizes) > 1:
+            size = state.brick(brick).size_m
+            fits = state.goal.fits(size, target)
+            checks.append(Check("brick_fits_target", float(fits), 1.0, at_most=False))
+            if not fits:
+                wanted = state.goal.targets[target].size_m
+                notes.append(
+                    f"brick {brick} measures {_edges(size)} m; target {target} "
+                    f"takes a brick of {_edges(wanted)} m"
+                )
+        return GateVerdict(f"{Stage.PRE_GRASP}_choice", tuple(checks)).noted("; ".join(notes))
 
     def _over_brick(
         self, gate: str, brick: BrickState, waypoint: WaypointProposal, height: bool
@@ -804,3 +813,7 @@ def _checked(key: Stage, waypoint: WaypointProposal, path: str | None = None) ->
     except ValueError as error:
         refusal = _failed(f"{key}_answer", "valid_answer", str(error)).refusal(key)
         raise _Refused(refusal, category=ErrorCategory.FRAME_UNITS) from None
+
+
+def _edges(size: Vec3) -> str:
+    return " x ".join(f"{edge:.3f}" for edge in size)

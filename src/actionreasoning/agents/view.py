@@ -26,6 +26,7 @@ from actionreasoning.world.models import (
     Sensing,
     WorldState,
     is_pickable,
+    nearest_size,
 )
 from actionreasoning.world.support import carriers
 
@@ -86,6 +87,11 @@ class TargetView(_View):
     index: int
     pose: Pose
     rests_on: tuple[int, ...] = Field(description="Targets it stands on.")
+    size_m: Vec3 | None = Field(
+        None,
+        description="The brick it takes, in a pattern of several brick sizes: a brick is of "
+        "the size its edges are nearest to.",
+    )
 
 
 class StateView(_View):
@@ -103,6 +109,13 @@ class StateView(_View):
                 return brick
         raise KeyError(f"brick {brick_id} is not in the state")
 
+    def fits(self, brick: BrickView, target: int) -> bool:
+        """Whether ``brick`` is of the size target ``target`` takes (always, in a pattern of
+        one brick size, whose targets show none)."""
+        sizes = [t.size_m for t in self.targets if t.size_m is not None]
+        wanted = next(t.size_m for t in self.targets if t.index == target)
+        return wanted is None or nearest_size(brick.size_m, sizes) == wanted
+
     @classmethod
     def of(
         cls, state: WorldState, memory: TaskMemory, scope: Scope, extras: tuple[str, ...] = ()
@@ -114,7 +127,12 @@ class StateView(_View):
         built = {p.target_index for p in memory.placed}
         placed = {p.brick_id for p in memory.placed}
         targets = [
-            TargetView(index=t.index, pose=t.pose, rests_on=supports[t.index])
+            TargetView(
+                index=t.index,
+                pose=t.pose,
+                rests_on=supports[t.index],
+                size_m=t.size_m if len(state.goal.sizes) > 1 else None,
+            )
             for t in state.goal.targets
             if (
                 t.index not in built

@@ -112,7 +112,9 @@ def _pre_grasp(briefing: Briefing) -> PreGraspDecision:
     built = {p.target_index for p in memory.placed}
     used = {p.brick_id for p in memory.placed}
     target = next(t for t in view.targets if t.index not in built and set(t.rests_on) <= built)
-    free = [b for b in view.bricks if b.id not in used and b.pickable]
+    free = [
+        b for b in view.bricks if b.id not in used and b.pickable and view.fits(b, target.index)
+    ]
     if not free:
         raise ValueError("no unused brick can be picked")
     # The brick the last refusal found in the way first, then by id.

@@ -8,6 +8,7 @@ origin is the arm's base on the ground with z up.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from enum import StrEnum
 
 from pydantic import BaseModel, ConfigDict, Field
@@ -123,6 +124,22 @@ class GoalPattern(_Model):
     gap_m: float | None = None
     brick_size_m: Vec3
     targets: tuple[TargetBrick, ...]
+
+    @property
+    def sizes(self) -> tuple[Vec3, ...]:
+        """The pattern's distinct brick sizes, in order of first use."""
+        return tuple(dict.fromkeys(t.size_m for t in self.targets))
+
+    def fits(self, brick_size_m: Vec3, target: int) -> bool:
+        """Whether a brick measured at ``brick_size_m`` is of target ``target``'s size."""
+        return nearest_size(brick_size_m, self.sizes) == self.targets[target].size_m
+
+
+def nearest_size(size_m: Vec3, sizes: Sequence[Vec3]) -> Vec3:
+    """Of ``sizes``, the one nearest to ``size_m`` (by the largest edge difference): the size
+    a measured brick is of. Its edges vary far less than two catalogue sizes differ, so no
+    threshold is needed."""
+    return min(sizes, key=lambda size: max(abs(a - b) for a, b in zip(size, size_m, strict=True)))
 
 
 class Progress(_Model):
