@@ -178,7 +178,7 @@ class Orchestrator:
             self.memory = self.memory.model_copy(
                 update={"retries": {}, "regrasps": regrasps, "steps_done": (), "phase": None}
             )
-            self._check_bricks_left()
+            self._check_bricks_left(supports)
             brick, target = self._stage(
                 Stage.PRE_GRASP, PreGraspDecision.of, partial(self._pre_grasp, supports=supports)
             )
@@ -207,8 +207,9 @@ class Orchestrator:
         )
         self.result.placements[target] = brick
 
-    def _check_bricks_left(self) -> None:
-        """Stop the trial if no unused brick can be picked (each toppled or fell on others)."""
+    def _check_bricks_left(self, supports: Mapping[int, tuple[int, ...]]) -> None:
+        """Stop the trial if no unused brick can be picked (each toppled or fell on others),
+        or, in a pattern of several brick sizes, none that fits a target buildable now."""
         used = tuple(p.brick_id for p in self.memory.placed)
         state = self.world.observe(Progress(placed_ids=used, step=Stage.PRE_GRASP))
         unused = [b for b in state.bricks if b.id not in used]
@@ -216,6 +217,18 @@ class Orchestrator:
             statuses = ", ".join(f"brick {b.id} {b.status}" for b in unused)
             raise TrialStopped(
                 FailureCode.NO_BRICK_LEFT, Stage.PRE_GRASP, f"none can be picked: {statuses}"
+            )
+        built = {p.target_index for p in self.memory.placed}
+        buildable = [
+            t.index
+            for t in state.goal.targets
+            if t.index not in built and set(supports[t.index]) <= built
+        ]
+        if not any(b.pickable and state.goal.fits(b.size_m, t) for b in unused for t in buildable):
+            raise TrialStopped(
+                FailureCode.NO_BRICK_LEFT,
+                Stage.PRE_GRASP,
+                f"none that can be picked fits targets {buildable}, buildable now",
             )
 
     def _stage(

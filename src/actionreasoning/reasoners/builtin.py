@@ -111,10 +111,17 @@ def _pre_grasp(briefing: Briefing) -> PreGraspDecision:
     view, memory = briefing.view, briefing.memory
     built = {p.target_index for p in memory.placed}
     used = {p.brick_id for p in memory.placed}
-    target = next(t for t in view.targets if t.index not in built and set(t.rests_on) <= built)
-    free = [
-        b for b in view.bricks if b.id not in used and b.pickable and view.fits(b, target.index)
-    ]
+    unused = [b for b in view.bricks if b.id not in used and b.pickable]
+    buildable = [t for t in view.targets if t.index not in built and set(t.rests_on) <= built]
+    # The first target buildable now that an unused brick fits (all fit, of one brick size).
+    target, free = next(
+        (
+            (t, fitting)
+            for t in buildable
+            if (fitting := [b for b in unused if view.fits(b, t.index)])
+        ),
+        (buildable[0], []),
+    )
     if not free:
         raise ValueError("no unused brick can be picked")
     # The brick the last refusal found in the way first, then by id.
