@@ -27,6 +27,14 @@ class BrickStatus(StrEnum):
     TOPPLED = "toppled"  # tilted
 
 
+class Supply(StrEnum):
+    """Where the bricks wait to be picked (a pattern's ``supply``)."""
+
+    SCATTERED = "scattered"  # lying on the ground at random poses in the pick area
+    PALLET = "pallet"  # stacked in layers on a pallet in the pick area: the top of a stack
+    FEEDER = "feeder"  # one at a time at a fixed pose, the next fed when it is taken
+
+
 class _Model(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
@@ -124,6 +132,7 @@ class GoalPattern(_Model):
     gap_m: float | None = None
     brick_size_m: Vec3
     targets: tuple[TargetBrick, ...]
+    supply: Supply = Supply.SCATTERED
 
     @property
     def sizes(self) -> tuple[Vec3, ...]:

@@ -3,6 +3,7 @@
 File format (``.json``, ``.yaml`` or ``.yml``; metres; see :class:`PatternFile`)::
 
     {name, brick_size: [x, y, z] or a catalogue name, origin: [x, y, z] (optional),
+     supply: scattered|pallet|feeder (optional, default scattered),
      bricks: [{position, yaw_deg, size (optional: [x, y, z] or a catalogue name)}]}
 
 A brick without ``size`` has the pattern's ``brick_size``; the catalogue names are those of
@@ -37,7 +38,7 @@ from actionreasoning.world.boxes import Box
 from actionreasoning.world.config_files import parse_model, read_mapping
 from actionreasoning.world.geometry import Vec3, yaw_quat
 from actionreasoning.world.layout import pick_capacity, spawn_size
-from actionreasoning.world.models import GoalPattern, Pose, TargetBrick
+from actionreasoning.world.models import GoalPattern, Pose, Supply, TargetBrick
 from actionreasoning.world.scenarios import PATTERNS
 from actionreasoning.world.scene_spec import (
     BRICK_CATALOGUE,
@@ -106,6 +107,7 @@ class PatternFile(_FileModel):
     name: str = Field(min_length=1)
     brick_size: BrickSize
     origin: tuple[Finite, Finite, Finite] | None = None
+    supply: Supply = Supply.SCATTERED
     bricks: list[BrickEntry] = Field(min_length=1)
 
 
@@ -149,7 +151,11 @@ def load_pattern(name_or_path: str | Path, spec: SceneSpec) -> GoalPattern:
         for b in blocks
     )
     return GoalPattern(
-        name=pattern.name, gap_m=gap, brick_size_m=pattern.brick_size, targets=targets
+        name=pattern.name,
+        gap_m=gap,
+        brick_size_m=pattern.brick_size,
+        targets=targets,
+        supply=pattern.supply,
     )
 
 
