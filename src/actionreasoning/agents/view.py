@@ -145,6 +145,8 @@ class StateView(_View):
             centres += [t.pose.position_m for t in targets]
 
         def shown(brick: BrickState) -> bool:
+            if brick.status is BrickStatus.QUEUED:
+                return False
             if scope is Scope.ALL:
                 return True
             if scope is Scope.PICK:

@@ -17,6 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from actionreasoning.sim.robot_model import FINGER_MAX_M, FINGER_MIN_M, FINGER_PAD_BELOW_TCP_M
 from actionreasoning.sim.scene import GRASP_CONTACT_N, FingerContact, Scene
+from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import QuatXYZW, Vec3, as_quat, as_vec3, tilt_deg
 from actionreasoning.world.models import (
     BrickState,
@@ -29,6 +30,8 @@ from actionreasoning.world.models import (
     WorldState,
 )
 from actionreasoning.world.noise import PERCEPTION_STREAM, NoiseLevel
+from actionreasoning.world.supply import PALLET_LAYERS
+from actionreasoning.world.support import carriers
 
 TOPPLED_TILT_DEG = 20.0
 #: The perception sub-stream of the pad forces of bricks other than the held one (not 0:
@@ -120,6 +123,7 @@ class Sensor:
             ee_angular_velocity_radps=angular,
         )
         bricks = []
+        covered = _covered(scene)
         for i in range(len(scene.bricks)):
             position, quat = self.brick_pose(i)
             linear, angular = scene.brick_velocity(i)
@@ -132,7 +136,7 @@ class Sensor:
                     pose=Pose(position_m=position, quat_xyzw=quat),
                     linear_velocity_mps=linear,
                     angular_velocity_radps=angular,
-                    status=_status(scene, i, position, quat, held[i], progress),
+                    status=_status(scene, i, position, quat, held[i], progress, covered),
                 )
             )
         return WorldState(
@@ -145,9 +149,28 @@ class Sensor:
         )
 
 
+def _covered(scene: Scene) -> set[int]:
+    """The bricks another brick lies on (true poses: whether one brick lies on another is
+    plain to see, whatever the noise of its measured position)."""
+    boxes = [
+        Box(*scene.brick_pose(i), scene.bodies[i].size_m, id=i)
+        for i in range(len(scene.bricks))
+        if i not in scene.queue
+    ]
+    return {lower.named_id for upper in boxes for lower, _ in carriers(upper, boxes)}
+
+
 def _status(
-    scene: Scene, brick: int, position: Vec3, quat: QuatXYZW, held: bool, progress: Progress
+    scene: Scene,
+    brick: int,
+    position: Vec3,
+    quat: QuatXYZW,
+    held: bool,
+    progress: Progress,
+    covered: set[int],
 ) -> BrickStatus:
+    if brick in scene.queue:
+        return BrickStatus.QUEUED
     if held:
         return BrickStatus.GRASPED
     if tilt_deg(quat) > TOPPLED_TILT_DEG:
@@ -160,6 +183,8 @@ def _status(
     in_pick_area = (
         spec.pick_radius_m[0] - 0.05 <= radius <= spec.pick_radius_m[1] + 0.05
         and spec.pick_azimuth_deg[0] - 5.0 <= azimuth <= spec.pick_azimuth_deg[1] + 5.0
-        and position[2] < scene.bodies[brick].size_m[2]
+        and position[2] < scene.bodies[brick].size_m[2] * PALLET_LAYERS
     )
-    return BrickStatus.IN_PICK_AREA if in_pick_area else BrickStatus.DROPPED
+    if not in_pick_area:
+        return BrickStatus.DROPPED
+    return BrickStatus.COVERED if brick in covered else BrickStatus.IN_PICK_AREA

@@ -11,6 +11,7 @@ under every profile: it makes a trial repeatable and changes no contact property
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -35,6 +36,7 @@ from actionreasoning.world.geometry import Joints, QuatXYZW, Vec3, as_quat, as_v
 from actionreasoning.world.models import Pose
 from actionreasoning.world.physics import GRAVITY_MPS2, PAPER, PhysicsProfile
 from actionreasoning.world.scene_spec import BrickBody, SceneSpec
+from actionreasoning.world.supply import feeder_pose
 
 #: A pad pressing on a brick with more than this (N) is in contact with it.
 GRASP_CONTACT_N = 1.0
@@ -50,6 +52,11 @@ BRICK_COLORS = (
 
 #: Wall time is looked at every this many steps (and before every agent call).
 WALL_CHECK_TICKS = 240
+#: How often the feeder looks whether to feed (time steps), and how far (m, in the plane)
+#: the last brick and the tool must be from its pose: a brick's length beyond the pick
+#: area's spacing of catalogue bricks.
+FEED_TICKS = 60
+FEED_CLEAR_M = 0.25
 #: A brick farther than this from the base (m, along any axis) was flung away.
 WORLD_HALF_SIZE_M = 3.0
 
@@ -66,7 +73,9 @@ class Scene:
     """One trial's world. Bricks have ids 0..n-1 in spawn order.
 
     ``nominals`` are the bricks the agents are told of, one per pose (default: the spec's
-    catalogue brick); ``bodies`` are the bricks spawned (default: the nominal ones).
+    catalogue brick); ``bodies`` are the bricks spawned (default: the nominal ones). A
+    feeder's ``queue`` (brick ids, next first) waits where its poses put it; every FEED_TICKS
+    the next goes to the feeder's pose once nothing is within FEED_CLEAR_M of it.
     """
 
     def __init__(
@@ -78,6 +87,7 @@ class Scene:
         budget: TrialBudget = TrialBudget(),
         bodies: Sequence[BrickBody] | None = None,
         nominals: Sequence[BrickBody] | None = None,
+        queue: Sequence[int] = (),
     ) -> None:
         self.spec = spec
         self.physics = physics
@@ -91,6 +101,7 @@ class Scene:
         self.robot = load_robot(self.client)
         self._setup_gripper()
         self.bricks = [self._spawn_brick(i, pose) for i, pose in enumerate(brick_poses)]
+        self.queue = list(queue)
         for joint, angle in zip(ARM_JOINTS, ready_joints_rad, strict=False):
             p.resetJointState(self.robot, joint, angle, physicsClientId=self.client)
         self.arm_targets = np.array(ready_joints_rad, dtype=float)
@@ -239,9 +250,28 @@ class Scene:
                 )
             if self.ticks % WALL_CHECK_TICKS == 0:
                 self.check_wall_time()
+            if self.queue and self.ticks % FEED_TICKS == 0:
+                self._feed()
             for every, observer in self._watchers:
                 if self.ticks % every == 0:
                     observer(self)
+
+    def _feed(self) -> None:
+        """Put the feeder's next brick at the feeder's pose if nothing is near it."""
+        feed = feeder_pose()
+        near = [self.tcp_pose()[0]] + [
+            self.brick_pose(i)[0] for i in range(len(self.bricks)) if i not in self.queue
+        ]
+        if any(math.dist(feed.position_m[:2], at[:2]) < FEED_CLEAR_M for at in near):
+            return
+        brick = self.queue.pop(0)
+        x, y, _ = feed.position_m
+        position = (x, y, self.bodies[brick].size_m[2] / 2.0)
+        cid = self.client
+        p.resetBasePositionAndOrientation(
+            self.bricks[brick], position, feed.quat_xyzw, physicsClientId=cid
+        )
+        p.resetBaseVelocity(self.bricks[brick], (0, 0, 0), (0, 0, 0), physicsClientId=cid)
 
     @property
     def deadline(self) -> float:

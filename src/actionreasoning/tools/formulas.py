@@ -45,10 +45,13 @@ def grasp_yaws_deg(brick_quat: QuatXYZW) -> tuple[float, float]:
 
 def grasp_pose(brick: Pose, size_m: Vec3, quat_xyzw: QuatXYZW) -> Pose:
     """The tool at orientation ``quat_xyzw`` (pointing down at a grasp yaw) at a brick's
-    centre: x, y its centre's, z half its height (a brick lies on the ground when it is
-    picked, whatever a noisy measurement of its height says)."""
-    x, y, _ = brick.position_m
-    return Pose(position_m=(x, y, size_m[2] / 2.0), quat_xyzw=quat_xyzw)
+    centre: x, y its centre's, z half its height above the ground or the layer of a stack it
+    lies on (a brick is picked from the ground or a pallet, whatever a noisy measurement of
+    its height says: the whole number of brick heights nearest its measured bottom)."""
+    x, y, z = brick.position_m
+    height = size_m[2]
+    layers = max(0, round((z - height / 2.0) / height))
+    return Pose(position_m=(x, y, (layers + 0.5) * height), quat_xyzw=quat_xyzw)
 
 
 def approach_pose(grasp: Pose) -> Pose:

@@ -38,10 +38,10 @@ from actionreasoning.trial.results import (
 from actionreasoning.trial.rules import Method, trial_seed
 from actionreasoning.trial.sim_world import SimWorld
 from actionreasoning.world.geometry import QuatXYZW, Vec3
-from actionreasoning.world.layout import sample_pick_poses, spawn_size
 from actionreasoning.world.models import READY_POSE, GoalPattern
 from actionreasoning.world.noise import vary_bricks
 from actionreasoning.world.stages import StageEvent
+from actionreasoning.world.supply import lay_out
 
 SPAWN_SETTLE_S = 0.25
 FINAL_SETTLE_S = 1.0
@@ -110,18 +110,27 @@ def trial_world(spec: TrialSpec, observers: Sequence[TrialObserver] = ()) -> Ite
     sizes = [target.size_m for target in spec.goal.targets]
     nominals = [config.scene.brick_body(friction, size) for size in sizes]
     bodies = vary_bricks(config.noise.variation, nominals, seed)
-    laid_out = sample_pick_poses(
-        np.random.default_rng(seed), len(sizes), config.scene, spawn_size(sizes, config.scene)
+    supply = lay_out(
+        spec.goal.supply,
+        sizes,
+        [body.size_m[2] for body in bodies],
+        config.scene,
+        np.random.default_rng(seed),
     )
-    poses = [
-        pose.model_copy(update={"position_m": (*pose.position_m[:2], body.size_m[2] / 2.0)})
-        for pose, body in zip(laid_out, bodies, strict=True)
-    ]
     with ExitStack() as cleanup:
         arm = KinematicArm()
         cleanup.callback(arm.close)
         ready = arm.solve(READY_POSE.position_m, READY_POSE.quat_xyzw).joints_rad
-        scene = Scene(config.scene, poses, ready, config.physics, config.budget, bodies, nominals)
+        scene = Scene(
+            config.scene,
+            supply.poses,
+            ready,
+            config.physics,
+            config.budget,
+            bodies,
+            nominals,
+            queue=supply.queue,
+        )
         cleanup.callback(scene.close)
         for observer in observers:
             if observer.every_s is not None:

@@ -37,7 +37,6 @@ from actionreasoning.errors import PatternError
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.config_files import parse_model, read_mapping
 from actionreasoning.world.geometry import Vec3, yaw_quat
-from actionreasoning.world.layout import pick_capacity, spawn_size
 from actionreasoning.world.models import GoalPattern, Pose, Supply, TargetBrick
 from actionreasoning.world.scenarios import PATTERNS
 from actionreasoning.world.scene_spec import (
@@ -47,6 +46,7 @@ from actionreasoning.world.scene_spec import (
     PALM_BEHIND_TCP_M,
     SceneSpec,
 )
+from actionreasoning.world.supply import capacity_error
 from actionreasoning.world.support import (
     MIN_AREA_M2,
     SUPPORT_TOL_M,
@@ -141,7 +141,7 @@ def load_pattern(name_or_path: str | Path, spec: SceneSpec) -> GoalPattern:
     for i, brick in enumerate(pattern.bricks):
         if brick.size is not None:
             _check_brick_size(source, f"bricks[{i}].size", sizes[i], spec)
-    _check_pick_area(source, sizes, spec)
+    _check_pick_area(source, pattern.supply, sizes, spec)
     blocks = _place(pattern, sizes, spec)
     _validate(source, blocks, spec)
     targets = tuple(
@@ -225,16 +225,11 @@ def _check_brick_size(source: str, field: str, size: Vec3, spec: SceneSpec) -> N
             )
 
 
-def _check_pick_area(source: str, sizes: list[Vec3], spec: SceneSpec) -> None:
-    """Refuse more bricks than the pick area holds for every seed (see world/layout.py),
-    each spaced as the brick that needs the most room."""
-    size = spawn_size(sizes, spec)
-    capacity, count = pick_capacity(spec, size), len(sizes)
-    if count > capacity:
-        raise PatternError(
-            f"{source}: bricks: {count} bricks, but the pick area holds at most {capacity} "
-            f"bricks of {_fmt(size)} m ({spec.pick_spacing_m(size):.3f} m apart)"
-        )
+def _check_pick_area(source: str, supply: Supply, sizes: list[Vec3], spec: SceneSpec) -> None:
+    """Refuse more bricks than the supply holds for every seed (see world/supply.py)."""
+    error = capacity_error(supply, sizes, spec)
+    if error is not None:
+        raise PatternError(f"{source}: bricks: {error}")
 
 
 def _validate(source: str, blocks: list[Box], spec: SceneSpec) -> None:
