@@ -131,8 +131,8 @@ def course_errors(groups: Sequence[Group], path: Path) -> Path | None:
     rows, cols = labels(groups), patterns(shown)
     colours = _colours(len(rows))
     legend_rows = -(-len(shown) // 3)
-    legend_in = 0.15 + 0.22 * legend_rows
-    figure = Figure(figsize=(8.4, 3.5 + legend_in), dpi=110)
+    height_in = 3.6 + 0.3 * legend_rows
+    figure = Figure(figsize=(8.4, height_in), dpi=110)
     axes = figure.subplots(1, len(COURSE_METRICS))
     width = min(0.08, 0.4 / len(shown))  # lines side by side, their bars apart
     for axis, (field, title, limit, unit) in zip(axes, COURSE_METRICS, strict=True):
@@ -164,16 +164,19 @@ def course_errors(groups: Sequence[Group], path: Path) -> Path | None:
         handles, names, loc="lower center", ncol=min(len(shown), 3), fontsize=8, frameon=False
     )
     figure.suptitle("Errors per course over all trials' bricks (mean ± std)")
-    figure.tight_layout(rect=(0, legend_in / (3.5 + legend_in), 1, 1))
+    figure.tight_layout(rect=(0, 0.3 * legend_rows / height_in, 1, 1))
     figure.savefig(path)
     return path
 
 
 def _limits(axis: Axes, limits: Sequence[float], top: float, unit: str) -> None:
     """The success rule's limits on ``axis``: dashed where the errors (up to ``top``) reach
-    LIMIT_SHOWN_FROM of them, else named above the scale."""
-    for k, limit in enumerate(limits):
-        if top >= LIMIT_SHOWN_FROM * limit:
+    LIMIT_SHOWN_FROM of them, else named at the top, above the errors."""
+    above = [limit for limit in limits if top < LIMIT_SHOWN_FROM * limit]
+    if above and top > 0:
+        axis.set_ylim(top=top * (1.15 + 0.1 * len(above)))  # room for the notes
+    for limit in limits:
+        if limit not in above:
             axis.axhline(limit, color="grey", linestyle="--", linewidth=1)
             axis.annotate(
                 f"success limit {limit:g}{unit}",
@@ -189,7 +192,7 @@ def _limits(axis: Axes, limits: Sequence[float], top: float, unit: str) -> None:
         else:
             axis.text(
                 0.98,
-                0.97 - 0.07 * k,
+                0.97 - 0.07 * above.index(limit),
                 f"success limit {limit:g}{unit}, above the scale",
                 transform=axis.transAxes,
                 ha="right",
