@@ -122,7 +122,8 @@ class Table:
     answer_errors: list[AnswerErrorRow]  # the groups run with answer errors
     refusals: dict[tuple[str, str], Refusals]  # (row, pattern) -> refused answers, where any
     pace: list[PaceRow]  # a row per group
-    courses: dict[tuple[str, str], list[CourseMetrics]]  # (row, pattern) -> its courses
+    courses: dict[tuple[str, str], list[CourseMetrics]]  # (row, pattern) -> its courses, if
+    # its lines measured bricks
 
     @property
     def course_plot(self) -> bool:
@@ -189,7 +190,7 @@ def comparison_table(groups: Sequence[Group]) -> Table:
         ],
         refusals={(g.label, g.pattern): g.summary.refusals for g in groups if g.summary.refusals},
         pace=[_pace(g) for g in groups],
-        courses={(g.label, g.pattern): g.summary.courses for g in groups},
+        courses={(g.label, g.pattern): g.summary.courses for g in groups if g.summary.courses},
     )
 
 
