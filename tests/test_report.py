@@ -7,6 +7,7 @@ import csv
 import json
 import os
 import shutil
+import statistics
 from pathlib import Path
 
 import imageio.v3 as iio
@@ -134,7 +135,7 @@ def test_the_html_page_renders_in_chromium(runs: list[Path], report: Path) -> No
         f"{classical['center_offset_cm']['mean']:.3f}",
         f"{classical['iou']['mean'] * 100:.2f}",
     ]
-    assert len(images) == 2 + 1 + 3  # two plots, one stage grid, three GIFs
+    assert len(images) == 3 + 1 + 3  # three plots, one stage grid, three GIFs
     assert all(done and width > 0 and height > 0 for done, width, height in images)
     assert shown is not None and shown["width"] > 100 and shown["height"] > 100
     assert 'src="data:image/png;base64,' in page_path.read_text()  # no picture to fetch
@@ -145,6 +146,113 @@ def test_the_html_page_renders_in_chromium(runs: list[Path], report: Path) -> No
     ]  # copied beside the page; all succeeded, so in table order
     ready, played_s, no_error = played
     assert ready >= 2 and played_s > 0.5 and no_error  # Chromium decodes and plays the MP4
+
+
+def lines_of(run: Path) -> list[dict]:
+    return [json.loads(line) for line in (run / "results.jsonl").read_text().splitlines()]
+
+
+def table_after(text: str, heading: str) -> list[str]:
+    """The rows of the markdown table that follows ``heading``."""
+    block = text.split(heading, 1)[1].split("\n\n", 2)[1]
+    return block.splitlines()[2:]
+
+
+@pytest.mark.slow
+def test_the_course_plot_is_a_png_of_its_size(report: Path) -> None:
+    path = report / "courses.png"
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    image = iio.imread(path)
+    assert image.shape == (429, 924, 4)  # 8.4 x 3.9 in at 110 dpi: one row of legend
+    assert image.std() > 10
+    assert "![Errors per course](courses.png)" in (report / "table.md").read_text()
+
+
+@pytest.mark.slow
+def test_the_course_tables_hold_a_hand_computation_from_the_lines(
+    runs: list[Path], report: Path
+) -> None:
+    """The small pattern's two courses (bottoms at 0 and 6 cm), pooled over each run's
+    trials; bricks before the first one out of 2 cm and 5 deg; simulated time per brick."""
+    markdown, html = (report / "table.md").read_text(), (report / "report.html").read_text()
+    labels = ["classical, precise", "agents (builtin, tools check), precise"]
+    for run, label in zip(runs, labels, strict=True):
+        lines = lines_of(run)
+        by_course: dict[int, list[dict]] = {}
+        for line in lines:
+            for brick in line["bricks"]:
+                bottom = brick["target_position"][2] - brick["size"][2] / 2
+                by_course.setdefault(round(bottom / 0.06), []).append(brick)
+        rows = []
+        for course, bricks in sorted(by_course.items()):
+            cells = [str(course), str(len(bricks))]
+            for field, scale, digits in (
+                ("center_offset_cm", 1, 3), ("rotation_error_deg", 1, 3), ("iou", 100, 2),
+            ):  # fmt: skip
+                values = [b[field] * scale for b in bricks]
+                mean, std = statistics.fmean(values), statistics.pstdev(values)
+                cells.append(f"{mean:.{digits}f} ± {std:.{digits}f}")
+            rows.append(cells)
+        assert [len(by_course[0]), len(by_course[1])] == [2 * len(lines), len(lines)]
+        shown = table_after(markdown, f"Per course of {label} on small (0 on the ground)")
+        assert shown == ["| " + " | ".join(cells) + " |" for cells in rows]
+        html_rows = "".join(f"<td>{cell}</td>" for cells in rows for cell in cells)
+        assert html_rows in html.replace("</tr>\n<tr>", "")
+
+        before = []
+        for line in lines:
+            ok = [
+                b["center_offset_cm"] <= 2 and b["rotation_error_deg"] <= 5 for b in line["bricks"]
+            ]
+            before.append([*ok, False].index(False))
+        step_s = json.loads((run / "run.json").read_text())["config"]["physics"]["time_step_s"]
+        seconds = sum(line["sim_steps"] for line in lines) * step_s
+        per_brick = seconds / sum(line["bricks_placed"] for line in lines)
+        pace = (
+            f"| {label} | small | {statistics.fmean(before):.2f} of 3 | {per_brick:.1f} | "
+            f"{3600 / per_brick:.0f} |"
+        )
+        assert pace in markdown
+        assert pace.replace(" | ", "</td><td>")[2:-2] in html
+
+
+def test_a_run_of_an_earlier_version_gets_its_cycle_time_and_one_course_no_plot(
+    tmp_path: Path,
+) -> None:
+    """Its run.json gives the success rule in words, so bricks before the first failure are
+    not counted; it records the physics, so the cycle time is. All bricks on the ground: a
+    table of one course and no plot."""
+    from test_courses import brick
+    from test_run_dir import EARLIER_MANIFEST, result
+
+    from actionreasoning.trial.provenance import Provenance
+    from actionreasoning.world.physics import PRECISE
+
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "run.json").write_text(json.dumps(EARLIER_MANIFEST))
+    lines = [
+        result(trial).model_copy(
+            update={"bricks": (brick(0.03, 0.5), brick(0.03, 1.5)), "bricks_placed": 2,
+                    "sim_steps": 4800}
+        )
+        for trial in range(2)
+    ]  # fmt: skip
+    exclude = {*Provenance.model_fields, "tools"}
+    (run / "results.jsonl").write_text(
+        "".join(json.dumps(r.model_dump(mode="json", exclude=exclude)) + "\n" for r in lines)
+    )
+    outcome = cli("report", str(run), "--out", str(tmp_path / "report"))
+    assert outcome.returncode == 0, outcome.stderr
+    table = (tmp_path / "report" / "table.md").read_text()
+    assert PRECISE.time_step_s == 1 / 480  # two trials of 10 s, four bricks placed
+    assert "| agents (builtin, tools solve), precise | pyramid | – | 5.0 | 720 |" in table
+    # offsets 0.5, 1.5, 0.5, 1.5: mean 1, std 0.5; rotation half of them, IoU 1 - offset/10
+    assert table_after(table, "Per course of agents") == [
+        "| 0 | 4 | 1.000 ± 0.500 | 0.500 ± 0.250 | 90.00 ± 5.00 |"
+    ]
+    assert not (tmp_path / "report" / "courses.png").exists()
+    assert "courses.png" not in table
 
 
 def test_a_directory_without_results_is_refused(tmp_path: Path) -> None:

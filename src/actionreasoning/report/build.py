@@ -21,6 +21,7 @@ from actionreasoning.recording.names import VIDEO_FPS
 from actionreasoning.report.collect import Group, load_groups, patterns
 from actionreasoning.report.pictures import stage_grid, trial_gif
 from actionreasoning.report.plots import (
+    course_errors,
     error_distributions,
     llm_cost,
     refusal_categories,
@@ -30,6 +31,8 @@ from actionreasoning.report.runs import unique
 from actionreasoning.report.tables import (
     AVERAGE,
     COLUMNS,
+    COURSES_PLOT,
+    PACE_COLUMNS,
     REFUSALS_PLOT,
     Table,
     comparison_table,
@@ -38,10 +41,14 @@ from actionreasoning.report.tables import (
     to_markdown,
 )
 from actionreasoning.runs.run_dir import output_directory
-from actionreasoning.runs.summary import categories_in
+from actionreasoning.runs.summary import COURSE_COLUMNS, categories_in, course_cells
 from actionreasoning.trial.results import Refusals, TrialResult
 
 HTML_FILE = "report.html"
+COURSES_CAPTION = (
+    "Centre offset and rotation error per course (0 on the ground), means ± standard "
+    "deviations over all trials' bricks, with the success rule's limits"
+)
 
 
 @dataclass
@@ -81,6 +88,9 @@ def build_report(directories: Sequence[Path], out: Path, gifs: bool = False) -> 
         (error_distributions(groups, out / "errors.png"), "Per-brick errors by method and pattern")
     )
     report.plots.append((success_rates(groups, out / "success.png"), "Success rate per pattern"))
+    courses = course_errors(groups, out / COURSES_PLOT)
+    if courses is not None:
+        report.plots.append((courses, COURSES_CAPTION))
     cost = llm_cost(groups, out / "llm_cost.png")
     if cost is not None:
         report.plots.append((cost, "LLM tokens per brick and latency per call, by agent"))
@@ -177,6 +187,13 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
         answer_errors=table.answer_errors,
         refusals=[_refusal_table(row, p, counts) for (row, p), counts in table.refusals.items()],
         notes=table.notes,
+        pace_columns=PACE_COLUMNS,
+        pace=[row.cells for row in table.pace],
+        course_columns=COURSE_COLUMNS,
+        courses=[
+            {"label": row, "pattern": pattern, "rows": [course_cells(c) for c in courses]}
+            for (row, pattern), courses in table.courses.items()
+        ],
         plots=[{"data": _data_uri(p), "caption": c} for p, c in report.plots],
         grids=[{"data": _data_uri(p), "caption": c} for p, c in report.grids],
         gifs=[{"data": _data_uri(p), "caption": c} for p, c in report.gifs],

@@ -12,17 +12,22 @@ import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path, PurePath
-from typing import Any
+from typing import Any, TypeVar
+
+from pydantic import TypeAdapter, ValidationError
 
 from actionreasoning.errors import ConfigError
 from actionreasoning.report.runs import Run, read_runs
 from actionreasoning.runs.layout import RunDir
-from actionreasoning.runs.run_dir import AnyManifest
+from actionreasoning.runs.run_dir import AnyManifest, RecordedManifest, RunManifest
 from actionreasoning.runs.summary import RunSummary, summarize
 from actionreasoning.trial.provenance import Provenance
 from actionreasoning.trial.results import TrialResult
+from actionreasoning.world.physics import PhysicsProfile
+from actionreasoning.world.success import SuccessRule
 
 PATTERN_HASH = "pattern_sha256"
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -34,7 +39,8 @@ class Group:
     conditions: dict[str, Any]  # run.json, flattened (see Run.conditions)
     results: tuple[TrialResult, ...]  # ordered by seed and trial
     sources: dict[tuple[int, int], tuple[Path, ...]]  # (seed, trial) -> directories holding it
-    summary: RunSummary
+    summary: RunSummary  # bricks before the first failure and cycle time: where known
+    rule: SuccessRule | None  # None where run.json gave it in words (an earlier version)
     repeated: int = 0  # lines identical to a trial already read from another directory
 
     def snapshot_dir(self, result: TrialResult) -> Path | None:
@@ -148,15 +154,46 @@ def _pool(label: str, pattern: str, runs: Sequence[Run]) -> Group:
                 )
             kept[key], sources[key] = result, (run.directory,)
     results = tuple(kept[key] for key in sorted(kept))
+    manifest = runs[0].manifest
+    rule, physics = _rule_and_physics(manifest)
+    summary = summarize(
+        results,
+        wall_time_s=0.0,
+        rule=rule or SuccessRule(),
+        physics=physics,
+        answer_errors=manifest.answer_errors,
+    )
+    if rule is None:
+        summary = summary.model_copy(update={"placed_before_first_failure_mean": None})
     return Group(
         label=label,
         pattern=pattern,
         conditions=runs[0].conditions(),
         results=results,
         sources=sources,
-        summary=summarize(results, wall_time_s=0.0, answer_errors=runs[0].manifest.answer_errors),
+        summary=summary,
+        rule=rule,
         repeated=repeated,
     )
+
+
+def _rule_and_physics(manifest: AnyManifest) -> tuple[SuccessRule | None, PhysicsProfile | None]:
+    """The success rule and physics profile of a run, None where its run.json records one
+    otherwise than this version reads it (an earlier version gave the rule in words)."""
+    if isinstance(manifest, RunManifest):
+        return manifest.config.success_rule, manifest.config.physics
+    if isinstance(manifest, RecordedManifest):
+        rule, physics = manifest.config.get("success_rule"), manifest.config.get("physics")
+    else:
+        rule, physics = manifest.success_rule, manifest.physics
+    return _read(SuccessRule, rule), _read(PhysicsProfile, physics)
+
+
+def _read(kind: type[T], data: Any) -> T | None:
+    try:
+        return TypeAdapter(kind).validate_python(data)
+    except ValidationError:
+        return None
 
 
 def _same(first: TrialResult, second: TrialResult) -> bool:

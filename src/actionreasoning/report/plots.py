@@ -1,5 +1,5 @@
-"""Report plots as PNG: per-brick errors per method, success per pattern, LLM cost and
-refused answers per agent."""
+"""Report plots as PNG: per-brick errors per method, success per pattern, errors per
+course, LLM cost and refused answers per agent."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib import colormaps
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from actionreasoning.agents.error_kinds import ErrorCategory
@@ -22,6 +23,15 @@ BRICK_METRICS = (
     ("rotation_error_deg", "rotation error (°)", 1.0),
     ("iou", "3D IoU (%)", 100.0),
 )
+
+#: (per-course field, axis title, success rule limit, unit)
+COURSE_METRICS = (
+    ("center_offset_cm", "centre offset (cm)", "max_center_offset_cm", " cm"),
+    ("rotation_error_deg", "rotation error (°)", "max_rotation_error_deg", "°"),
+)
+#: The success rule's limit is drawn if the errors reach this share of it, else named.
+LIMIT_SHOWN_FROM = 0.25
+COURSE_MARKERS = "os^Dv<>p"  # one per pattern
 
 
 def _colours(n: int) -> list[tuple[float, ...]]:
@@ -108,6 +118,88 @@ def success_rates(groups: Sequence[Group], path: Path) -> Path:
     figure.tight_layout(rect=(0, 0.1, 1, 1))
     figure.savefig(path)
     return path
+
+
+def course_errors(groups: Sequence[Group], path: Path) -> Path | None:
+    """Centre offset and rotation error against course (0 on the ground), over all trials'
+    bricks: a line per method (its colour) and pattern (its marker), one standard deviation
+    as error bars, the success rule's limit dashed where it fits the scale. None if no
+    pattern has two courses."""
+    shown = [g for g in groups if len(g.summary.courses) > 1]
+    if not shown:
+        return None
+    rows, cols = labels(groups), patterns(shown)
+    colours = _colours(len(rows))
+    legend_rows = -(-len(shown) // 3)
+    height_in = 3.6 + 0.3 * legend_rows
+    figure = Figure(figsize=(8.4, height_in), dpi=110)
+    axes = figure.subplots(1, len(COURSE_METRICS))
+    width = min(0.08, 0.4 / len(shown))  # lines side by side, their bars apart
+    for axis, (field, title, limit, unit) in zip(axes, COURSE_METRICS, strict=True):
+        top = 0.0
+        for i, group in enumerate(shown):
+            courses = group.summary.courses
+            mean, std = np.array([getattr(c, field) for c in courses]).T
+            axis.errorbar(
+                [c.course + (i - (len(shown) - 1) / 2) * width for c in courses],
+                mean,
+                yerr=std,
+                color=colours[rows.index(group.label)],
+                marker=COURSE_MARKERS[cols.index(group.pattern) % len(COURSE_MARKERS)],
+                markersize=5,
+                capsize=3,
+                label=group.label if len(cols) == 1 else f"{group.label} · {group.pattern}",
+            )
+            top = max(top, float(np.max(mean + std)))
+        limits = {getattr(g.rule, limit) for g in shown if g.rule is not None}
+        _limits(axis, sorted(limits), top, unit)
+        last = max(c.course for g in shown for c in g.summary.courses)
+        axis.set_xticks(range(last + 1))
+        axis.set_xlabel("course (0: on the ground)")
+        axis.set_ylim(bottom=0)
+        axis.set_title(title)
+        axis.grid(axis="y", alpha=0.3)
+    handles, names = axes[0].get_legend_handles_labels()
+    figure.legend(
+        handles, names, loc="lower center", ncol=min(len(shown), 3), fontsize=8, frameon=False
+    )
+    figure.suptitle("Errors per course over all trials' bricks (mean ± std)")
+    figure.tight_layout(rect=(0, 0.3 * legend_rows / height_in, 1, 1))
+    figure.savefig(path)
+    return path
+
+
+def _limits(axis: Axes, limits: Sequence[float], top: float, unit: str) -> None:
+    """The success rule's limits on ``axis``: dashed where the errors (up to ``top``) reach
+    LIMIT_SHOWN_FROM of them, else named at the top, above the errors."""
+    above = [limit for limit in limits if top < LIMIT_SHOWN_FROM * limit]
+    if above and top > 0:
+        axis.set_ylim(top=top * (1.15 + 0.1 * len(above)))  # room for the notes
+    for limit in limits:
+        if limit not in above:
+            axis.axhline(limit, color="grey", linestyle="--", linewidth=1)
+            axis.annotate(
+                f"success limit {limit:g}{unit}",
+                (1.0, limit),
+                xycoords=("axes fraction", "data"),
+                xytext=(-4, 3),
+                textcoords="offset points",
+                ha="right",
+                va="bottom",
+                fontsize=8,
+                color="grey",
+            )
+        else:
+            axis.text(
+                0.98,
+                0.97 - 0.07 * above.index(limit),
+                f"success limit {limit:g}{unit}, above the scale",
+                transform=axis.transAxes,
+                ha="right",
+                va="top",
+                fontsize=8,
+                color="grey",
+            )
 
 
 def llm_cost(groups: Sequence[Group], path: Path) -> Path | None:

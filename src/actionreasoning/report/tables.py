@@ -2,7 +2,8 @@
 centre offset (cm) and IoU (%), means over successful trials; as markdown, CSV and LaTeX.
 Rows and pattern columns are the groups of collect.py; the notes say how runs differ. Runs
 with answer errors get a table of what was corrupted and what caught it, and runs with
-refused answers a table per group of them by agent and error category.
+refused answers a table per group of them by agent and error category. Every group gets its
+bricks placed before the first failure and cycle time, and a table of its errors per course.
 """
 
 from __future__ import annotations
@@ -16,7 +17,8 @@ import numpy as np
 
 from actionreasoning.records import FailureCode
 from actionreasoning.report.collect import Group, condition_notes, labels, patterns
-from actionreasoning.runs.summary import AnswerErrorTotals, category_table
+from actionreasoning.runs.courses import CourseMetrics
+from actionreasoning.runs.summary import AnswerErrorTotals, category_table, course_table
 from actionreasoning.trial.results import Refusals
 
 #: (summary metric, column title, scale, digits, lower is better)
@@ -28,6 +30,15 @@ COLUMNS = (
 AVERAGE = "Average"  # Table I's last column group; for success counts, the total
 #: The chart of refused answers by agent and category, beside the tables.
 REFUSALS_PLOT = "refusals.png"
+#: The plot of errors per course, beside the per-course tables.
+COURSES_PLOT = "courses.png"
+PACE_COLUMNS = (
+    "Method",
+    "Pattern",
+    "Placed before the first failure",
+    "Cycle time (simulated s / brick)",
+    "Bricks an hour",
+)
 
 
 @dataclass(frozen=True)
@@ -71,6 +82,33 @@ class AnswerErrorRow:
 
 
 @dataclass(frozen=True)
+class PaceRow:
+    """How far one method's trials on one pattern built within the success rule, and how
+    fast: the bricks placed before the first brick out of the rule (a mean per trial, None
+    where the rule is unknown), and simulated seconds per placed brick and bricks an hour
+    (None where the physics is unknown or no brick was placed)."""
+
+    label: str
+    pattern: str
+    bricks: int  # the pattern's
+    before_failure: float | None
+    seconds_per_brick: float | None
+    bricks_per_hour: float | None
+
+    @property
+    def cells(self) -> list[str]:
+        """The row as shown: PACE_COLUMNS."""
+        before, seconds, hourly = self.before_failure, self.seconds_per_brick, self.bricks_per_hour
+        return [
+            self.label,
+            self.pattern,
+            "–" if before is None else f"{before:.2f} of {self.bricks}",
+            "–" if seconds is None else f"{seconds:.1f}",
+            "–" if hourly is None else f"{hourly:.0f}",
+        ]
+
+
+@dataclass(frozen=True)
 class Table:
     """Cell values (None where a method has no successful trial on a pattern)."""
 
@@ -83,6 +121,14 @@ class Table:
     notes: list[str]  # how the runs' conditions differ (collect.condition_notes)
     answer_errors: list[AnswerErrorRow]  # the groups run with answer errors
     refusals: dict[tuple[str, str], Refusals]  # (row, pattern) -> refused answers, where any
+    pace: list[PaceRow]  # a row per group
+    courses: dict[tuple[str, str], list[CourseMetrics]]  # (row, pattern) -> its courses, if
+    # its lines measured bricks
+
+    @property
+    def course_plot(self) -> bool:
+        """Whether a pattern has two courses or more, so that plots.course_errors draws."""
+        return any(len(courses) > 1 for courses in self.courses.values())
 
     def best(self, pattern: str, metric: str) -> float | None:
         """The best value of a column, for bold type."""
@@ -143,6 +189,20 @@ def comparison_table(groups: Sequence[Group]) -> Table:
             if g.summary.answer_errors is not None
         ],
         refusals={(g.label, g.pattern): g.summary.refusals for g in groups if g.summary.refusals},
+        pace=[_pace(g) for g in groups],
+        courses={(g.label, g.pattern): g.summary.courses for g in groups if g.summary.courses},
+    )
+
+
+def _pace(group: Group) -> PaceRow:
+    time = group.summary.cycle_time
+    return PaceRow(
+        label=group.label,
+        pattern=group.pattern,
+        bricks=group.summary.bricks_per_trial,
+        before_failure=group.summary.placed_before_first_failure_mean,
+        seconds_per_brick=None if time is None else time.seconds_per_brick,
+        bricks_per_hour=None if time is None else time.bricks_per_hour,
     )
 
 
@@ -224,9 +284,35 @@ def to_markdown(table: Table) -> str:
         ]
     if table.refusals:
         lines += ["", f"![Refused answers by agent and error category]({REFUSALS_PLOT})"]
+    lines += ["", *_pace_and_course_lines(table)]
     if table.notes:
         lines += ["", *(f"- {note}" for note in table.notes)]
     return "\n".join(lines) + "\n"
+
+
+def _pace_and_course_lines(table: Table) -> list[str]:
+    """Bricks before the first failure and cycle time, a row per group; then a table of
+    errors per course for each group, and the plot of them."""
+    lines = [
+        "Bricks placed within the success rule before the first brick out of it (a mean per "
+        "trial), and the cycle time: simulated seconds per placed brick, and the bricks an "
+        "hour that makes:",
+        "",
+        "| " + " | ".join(PACE_COLUMNS) + " |",
+        "|---" * len(PACE_COLUMNS) + "|",
+        *("| " + " | ".join(row.cells) + " |" for row in table.pace),
+    ]
+    for (row, pattern), courses in table.courses.items():
+        lines += [
+            "",
+            f"Per course of {row} on {pattern} (0 on the ground), over all trials' bricks "
+            "(means ± standard deviations):",
+            "",
+            *course_table(courses),
+        ]
+    if table.course_plot:
+        lines += ["", f"![Errors per course]({COURSES_PLOT})"]
+    return lines
 
 
 def to_csv(table: Table) -> str:

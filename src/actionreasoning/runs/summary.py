@@ -247,14 +247,7 @@ def _course_lines(summary: RunSummary) -> list[str]:
         lines += [
             "Per course, over all trials' bricks (means ± standard deviations):",
             "",
-            "| Course | Bricks | Ctr. Off. (cm) | Rot. Err (°) | IoU (%) |",
-            "|---|---|---|---|---|",
-            *(
-                f"| {c.course} | {c.bricks} | {c.center_offset_cm[0]:.3f} ± "
-                f"{c.center_offset_cm[1]:.3f} | {c.rotation_error_deg[0]:.3f} ± "
-                f"{c.rotation_error_deg[1]:.3f} | {100 * c.iou[0]:.2f} ± {100 * c.iou[1]:.2f} |"
-                for c in summary.courses
-            ),
+            *course_table(summary.courses),
             "",
         ]
     if summary.placed_before_first_failure_mean is not None:
@@ -269,6 +262,30 @@ def _course_lines(summary: RunSummary) -> list[str]:
             f"({time.bricks_per_hour:.0f} bricks an hour)."
         )
     return [*lines, ""] if lines else []
+
+
+COURSE_COLUMNS = ("Course", "Bricks", "Ctr. Off. (cm)", "Rot. Err (°)", "IoU (%)")
+
+
+def course_cells(course: CourseMetrics) -> list[str]:
+    """One course's row: its number, bricks, and each metric's mean ± standard deviation."""
+    offset, rotation, iou = course.center_offset_cm, course.rotation_error_deg, course.iou
+    return [
+        str(course.course),
+        str(course.bricks),
+        f"{offset[0]:.3f} ± {offset[1]:.3f}",
+        f"{rotation[0]:.3f} ± {rotation[1]:.3f}",
+        f"{100 * iou[0]:.2f} ± {100 * iou[1]:.2f}",
+    ]
+
+
+def course_table(courses: Sequence[CourseMetrics]) -> list[str]:
+    """A markdown table of per-course metrics, a row per course (COURSE_COLUMNS)."""
+    return [
+        "| " + " | ".join(COURSE_COLUMNS) + " |",
+        "|---" * len(COURSE_COLUMNS) + "|",
+        *("| " + " | ".join(course_cells(c)) + " |" for c in courses),
+    ]
 
 
 def _answer_error_lines(totals: AnswerErrorTotals) -> list[str]:
