@@ -49,9 +49,22 @@ def _text(name: str) -> str:
     return resources.files("actionreasoning.agents").joinpath(f"prompts/{name}").read_text()
 
 
-def conventions(frames: bool) -> str:
-    """Units and formats, and if ``frames`` the brick and tool frames with a worked example."""
-    return _text("conventions.md") + (_text("frames.md") if frames else "")
+def conventions(frames: bool, view: StateView | None = None) -> str:
+    """Units and formats, if ``frames`` the brick and tool frames with a worked example, and
+    the site's notes where ``view`` shows a site beyond the paper's (:func:`site_notes`)."""
+    text = _text("conventions.md") + (_text("frames.md") if frames else "")
+    return text + (site_notes(view) if view is not None else "")
+
+
+def site_notes(view: StateView) -> str:
+    """What a site of several brick sizes or a pallet or feeder supply adds to the
+    conventions: how sizes match, how a supply hands out bricks, how to read what is built.
+    Empty for the paper's patterns (one size, scattered), whose prompts stay as they were."""
+    sizes = any(t.size_m is not None for t in view.targets)
+    if not sizes and view.supply is None:
+        return ""
+    template = _ENVIRONMENT.get_template("site.md.j2")
+    return template.render(sizes=sizes, supply=view.supply)
 
 
 def thresholds_text(tolerances: Tolerances, names: tuple[str, ...]) -> str:
@@ -92,7 +105,7 @@ def render_prompt(
     return template.render(
         number=spec.number,
         name=spec.name,
-        conventions=conventions(spec.frames),
+        conventions=conventions(spec.frames, view),
         role=spec.role,
         gate=spec.gate,
         state_json=compact_json(view.model_dump(mode="json", exclude_none=True)),

@@ -24,6 +24,7 @@ from actionreasoning.world.models import (
     GoalPattern,
     Pose,
     Sensing,
+    Supply,
     WorldState,
     is_pickable,
     nearest_size,
@@ -101,6 +102,9 @@ class StateView(_View):
     bricks: tuple[BrickView, ...]
     targets: tuple[TargetView, ...]
     sensing: Sensing | None = Field(None, description="Sensor noise; absent when exact.")
+    supply: Supply | None = Field(
+        None, description="Where the bricks wait: pallet or feeder; absent when scattered."
+    )
 
     def brick(self, brick_id: int) -> BrickView:
         """The brick ``brick_id`` (KeyError if it is not shown)."""
@@ -168,6 +172,7 @@ class StateView(_View):
             ),
             targets=tuple(targets),
             sensing=None if state.sensing == Sensing() else state.sensing,
+            supply=None if state.goal.supply is Supply.SCATTERED else state.goal.supply,
         )
 
 

@@ -37,6 +37,8 @@ PALLET_LAYERS = 3
 PALLET_PITCH_M = 0.18
 #: The gap between two half bricks sharing a cell (m): their pair is a full brick long.
 HALF_PAIR_GAP_M = BRICK_CATALOGUE["full"][0] - 2 * BRICK_CATALOGUE["half"][0]
+#: How far each half brick of a pair lies from its cell's centre, along the bricks' length.
+PAIR_SHIFT_M = (HALF_PAIR_GAP_M + BRICK_CATALOGUE["half"][0]) / 2.0
 PALLET_JITTER_M = 0.002
 PALLET_JITTER_DEG = 2.0
 #: The feeder's pose: mid-radius of the pick area, in the middle of its azimuths, the brick's
@@ -156,10 +158,12 @@ def _pallet(
     if (error := capacity_error(Supply.PALLET, sizes, spec)) is not None:
         raise ConfigError(error)
     cells = _cells(sizes)[::-1]
-    # The row's half-span along the tangent, as an angle at the pallet's radius; the centre is
-    # drawn where the whole row stays inside the pick area's azimuths.
-    radius = sum(spec.pick_radius_m) / 2.0
-    half_span = math.degrees(math.atan2(PALLET_PITCH_M * (PALLET_STACKS - 1) / 2.0, radius))
+    # The row as far out as keeps every brick's centre (a half brick of a pair lies
+    # PAIR_SHIFT_M off its stack's centre) inside the pick area's radii; the row's centre is
+    # drawn where its ends stay inside the pick area's azimuths.
+    half_row = PALLET_PITCH_M * (PALLET_STACKS - 1) / 2.0
+    radius = math.sqrt(spec.pick_radius_m[1] ** 2 - half_row**2) - PAIR_SHIFT_M
+    half_span = math.degrees(math.atan2(half_row, radius))
     low, high = spec.pick_azimuth_deg
     azimuth = math.radians(rng.uniform(low + half_span, high - half_span))
     radial = np.array([math.cos(azimuth), math.sin(azimuth)])  # the bricks' length axis
@@ -173,7 +177,7 @@ def _pallet(
             centre = radial * radius + tangent * offset
             sides = [0.0] if len(cell) == 1 else [-1.0, 1.0]
             for brick, side in zip(cell, sides, strict=True):
-                shift = side * (HALF_PAIR_GAP_M + sizes[brick][0]) / 2.0
+                shift = side * PAIR_SHIFT_M
                 dx, dy = rng.uniform(-PALLET_JITTER_M, PALLET_JITTER_M, size=2)
                 turn = math.radians(rng.uniform(-PALLET_JITTER_DEG, PALLET_JITTER_DEG))
                 x, y = centre + radial * shift + (dx, dy)
