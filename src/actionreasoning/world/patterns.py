@@ -37,7 +37,7 @@ from actionreasoning.world.geometry import Vec3, yaw_quat
 from actionreasoning.world.layout import pick_capacity, spawn_size
 from actionreasoning.world.models import GoalPattern, Pose, TargetBrick
 from actionreasoning.world.pattern_file import PatternFile, brick_sizes
-from actionreasoning.world.scenarios import PATTERNS
+from actionreasoning.world.scenarios import PATTERNS, WallPattern
 from actionreasoning.world.scene_spec import (
     BRICK_CATALOGUE,
     FINGERTIPS_BEYOND_TCP_M,
@@ -52,6 +52,7 @@ from actionreasoning.world.support import (
     centre_is_held,
 )
 from actionreasoning.world.tolerances import Tolerances
+from actionreasoning.world.walls import wall_length_m, wall_pattern
 
 OVERLAP_TOL_M = 1e-3  # z-overlap allowed between bricks, and how far below ground a bottom goes
 #: A brick's width is this much more than the gripper's closed gap, and this much less than
@@ -69,12 +70,15 @@ def builtin_pattern(name: str, spec: SceneSpec) -> PatternFile:
     """The built-in ``name`` as a pattern file in the build-area frame (no origin)."""
     if name not in PATTERNS:
         raise PatternError(f"unknown built-in pattern '{name}' (known: {', '.join(PATTERNS)})")
-    rows = PATTERNS[name]
+    entry = PATTERNS[name]
+    if isinstance(entry, WallPattern):
+        length_m = wall_length_m(entry.full_bricks)
+        return wall_pattern(length_m, entry.courses, entry.bond, supply=entry.supply, name=name)
     length, _, height = spec.brick_size_m
-    pitch = length + rows.gap_m
+    pitch = length + entry.gap_m
     bricks = [
         {"position": [(i - (count - 1) / 2.0) * pitch, 0.0, (k + 0.5) * height], "yaw_deg": 0.0}
-        for k, count in enumerate(rows.layers)
+        for k, count in enumerate(entry.layers)
         for i in range(count)
     ]
     data = {"name": name, "brick_size": list(spec.brick_size_m), "bricks": bricks}
