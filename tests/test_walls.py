@@ -1,11 +1,14 @@
 """Walls (world/walls.py): the built-in ``wall`` brick by brick, the bonds, the lengths, and
-each refusal in one line."""
+``actionreasoning pattern --wall``: the file it writes loads, and each refusal is one line."""
 
 from __future__ import annotations
 
 import itertools
+from pathlib import Path
 
 import pytest
+import yaml
+from conftest import assert_clean_error, cli
 
 from actionreasoning.errors import PatternError
 from actionreasoning.world.models import Supply
@@ -139,3 +142,82 @@ def test_a_wall_that_cannot_be_laid_is_refused(
     with pytest.raises(PatternError, match=r"^wall 'wall': ") as refused:
         wall_pattern(length_m, count, bond)
     assert needle in str(refused.value) and "\n" not in str(refused.value)
+
+
+def test_the_generator_writes_a_four_course_running_wall_that_loads(tmp_path: Path) -> None:
+    """The acceptance's wall: 4 courses of 4 full bricks, 18 bricks with four halves.
+
+    Fails while the pick area's capacity (12 bricks) is checked for every supply."""
+    out = tmp_path / "wall4.yaml"
+    written = cli(
+        "pattern", "--wall", "0.83", "--courses", "4", "--bond", "running", "--out", f"{out}"
+    )
+    assert written.returncode == 0, written.stderr
+    assert "pattern wall4: 18 bricks, valid" in written.stdout
+    assert f"wrote {out}" in written.stdout
+    goal = load_pattern(out, SPEC)
+    assert (len(goal.targets), goal.supply) == (18, Supply.PALLET)
+    assert [i for i, t in enumerate(goal.targets) if t.size_m == HALF] == [4, 8, 13, 17]
+    assert [p.name for p in tmp_path.iterdir()] == ["wall4.yaml"]
+
+
+@pytest.mark.parametrize("suffix", [".json", ".yml"])
+def test_a_generated_wall_from_a_feeder_round_trips(tmp_path: Path, suffix: str) -> None:
+    out = tmp_path / f"fed{suffix}"
+    args = ("--wall", "0.62", "--courses", "2", "--supply", "feeder", "--out", str(out))
+    written = cli("pattern", *args)
+    assert written.returncode == 0, written.stderr
+    data = yaml.safe_load(out.read_text())  # JSON is YAML
+    assert (data["supply"], data["brick_size"]) == ("feeder", "full")
+    assert [b.get("size") for b in data["bricks"]] == [None] * 3 + ["half", None, None, "half"]
+    generated = wall_pattern(0.62, 2, Bond.RUNNING, supply=Supply.FEEDER, name="fed")
+    assert PatternFile.model_validate(data) == generated
+    goal = load_pattern(out, SPEC)
+    assert (goal.name, goal.supply, len(goal.targets)) == ("fed", Supply.FEEDER, 7)
+
+
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        (["--courses", "0"], ["wall 'w': courses: 0"]),
+        (["--wall", "-1"], ["wall 'w': length: -1 m"]),
+        (["--wall", "0.2"], ["fits 1 full brick a course", "at least 0.305 m"]),
+        (["--wall", "1.5"], ["w.json: brick 0 at world", "out of the arm's reach"]),
+        (["--wall", "0.41", "--courses", "9"], ["w.json: brick 20", "0.510)", "arm's reach"]),
+        (["--out", "w.txt"], ["w.txt: unknown extension '.txt'"]),
+    ],
+)
+def test_the_generator_refuses_in_one_line_and_writes_nothing(
+    tmp_path: Path, args: list[str], needles: list[str]
+) -> None:
+    """A wall that cannot be laid, one out of reach (too long or too high; reach is checked
+    before the supply's capacity), or an unknown file type."""
+    options = dict(zip(["--wall", "--courses", "--out"], ["0.83", "3", "w.json"], strict=True))
+    options.update(zip(args[::2], args[1::2], strict=True))
+    refused = cli("pattern", *itertools.chain(*options.items()), cwd=tmp_path)
+    assert_clean_error(refused, *needles)
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        ([], "give a PATTERN (a built-in or a file) or --wall LENGTH_M"),
+        (["pyramid", "--wall", "0.83", "--out", "w.json"], "or --wall, not both"),
+        (["pyramid", "--courses", "2", "--out", "w.json"], "--courses, --out go with --wall"),
+        (["--wall", "0.83"], "--wall needs --out FILE"),
+    ],
+)
+def test_the_pattern_command_takes_a_pattern_or_a_wall(
+    tmp_path: Path, args: list[str], needle: str
+) -> None:
+    refused = cli("pattern", *args, cwd=tmp_path)
+    assert_clean_error(refused, needle)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_unknown_bond_is_refused_by_name(tmp_path: Path) -> None:
+    refused = cli("pattern", "--wall", "0.83", "--bond", "flemish", "--out", "w.json", cwd=tmp_path)
+    assert refused.returncode == 2
+    assert "'--bond'" in refused.stderr and "'flemish' is not one of" in refused.stderr
+    assert list(tmp_path.iterdir()) == []

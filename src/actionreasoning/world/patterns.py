@@ -26,9 +26,14 @@ or brick.
 from __future__ import annotations
 
 import itertools
+import json
 import math
+import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+
+import yaml
 
 from actionreasoning.errors import PatternError
 from actionreasoning.world.boxes import Box
@@ -64,6 +69,26 @@ FINGERTIP_CLEARANCE_M = 0.0025
 PALM_CLEARANCE_M = 0.0075
 #: Every edge of a pattern's brick lies within these shares of the catalogue brick's edge.
 SIZE_SHARES = (0.5, 1.5)
+
+
+def _json_text(data: dict[str, Any]) -> str:
+    """A pattern file's JSON as the example files have it: a field a line, a brick a line."""
+    fields = [f"  {json.dumps(key)}: {json.dumps(value)}" for key, value in data.items()]
+    bricks = ",\n".join(f"    {json.dumps(brick)}" for brick in data["bricks"])
+    fields[list(data).index("bricks")] = f'  "bricks": [\n{bricks}\n  ]'
+    return "{\n" + ",\n".join(fields) + "\n}\n"
+
+
+def _yaml_text(data: dict[str, Any]) -> str:
+    return yaml.safe_dump(data, sort_keys=False, default_flow_style=None)
+
+
+#: How a pattern file of each suffix is written.
+_DUMPERS: dict[str, Callable[[dict[str, Any]], str]] = {
+    ".json": _json_text,
+    ".yaml": _yaml_text,
+    ".yml": _yaml_text,
+}
 
 
 def builtin_pattern(name: str, spec: SceneSpec) -> PatternFile:
@@ -123,6 +148,32 @@ def place_pattern(
         targets=targets,
         supply=pattern.supply,
     )
+
+
+def save_pattern(pattern: PatternFile, path: Path, spec: SceneSpec) -> GoalPattern:
+    """Write ``pattern`` to ``path`` (JSON or YAML by its suffix) if it is valid, and return
+    it loaded back from there; a refusal names ``path`` and leaves no file behind.
+
+    The file is written under a temporary name beside ``path``, loaded as any pattern file
+    is, and only then renamed to ``path``.
+    """
+    suffix = path.suffix.lower()
+    if suffix not in _DUMPERS:
+        raise PatternError(f"{path}: unknown extension '{suffix}' (use .json, .yaml or .yml)")
+    place_pattern(pattern, str(path), spec)
+    text = _DUMPERS[suffix](pattern.model_dump(mode="json", exclude_none=True))
+    temporary = path.with_name(f".{path.stem}-{os.getpid()}{suffix}")
+    try:
+        with temporary.open("x", encoding="utf-8") as file:
+            file.write(text)
+        try:
+            goal = load_pattern(temporary, spec)
+            os.replace(temporary, path)
+        finally:
+            temporary.unlink(missing_ok=True)
+    except OSError as exc:
+        raise PatternError(f"{path}: cannot write pattern file ({exc.strerror or exc})") from exc
+    return goal
 
 
 def _parse(data: dict[str, Any], source: str) -> PatternFile:
