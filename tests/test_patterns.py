@@ -74,7 +74,7 @@ def _refused(path: Path, *needles: str) -> str:
 
 
 def test_builtin_names() -> None:
-    assert set(PATTERNS) == {"pyramid", "grid"}
+    assert set(PATTERNS) == {"pyramid", "grid", "wall"}
 
 
 def test_pyramid_geometry() -> None:

@@ -26,9 +26,11 @@ from actionreasoning.runs.layout import RunDir
 from actionreasoning.trial.rules import Method
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.geometry import quat_yaw
-from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.models import Supply
+from actionreasoning.world.patterns import load_pattern, save_pattern
 from actionreasoning.world.scenarios import NOISE, PATTERNS, PHYSICS, load_noise
 from actionreasoning.world.scene_spec import SceneSpec
+from actionreasoning.world.walls import Bond, wall_pattern
 
 if TYPE_CHECKING:
     from actionreasoning.reasoners.backend import LLMConfig
@@ -555,11 +557,63 @@ def schema_command(
 
 @app.command("pattern")
 def pattern_command(
-    pattern: Annotated[str, typer.Argument(help=f"{BUILTIN_PATTERNS}, or a pattern file.")],
+    pattern: Annotated[
+        str | None, typer.Argument(help=f"{BUILTIN_PATTERNS}, or a pattern file.")
+    ] = None,
+    wall: Annotated[
+        float | None,
+        typer.Option(
+            metavar="LENGTH_M",
+            help="Instead of PATTERN, generate a straight wall about this long (m; the full "
+            "bricks that fit, with 10 mm joints) and write it to --out.",
+        ),
+    ] = None,
+    courses: Annotated[int | None, typer.Option(help="The wall's courses (default: 3).")] = None,
+    bond: Annotated[
+        Bond | None,
+        typer.Option(
+            help="running: every second course shifted by half a brick, half bricks at its "
+            "ends; stack: joints over joints (default: running)."
+        ),
+    ] = None,
+    supply: Annotated[
+        Supply | None,
+        typer.Option(help="Where the wall's bricks wait to be picked (default: pallet)."),
+    ] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option(help="The wall's pattern file to write (.json, .yaml or .yml)."),
+    ] = None,
 ) -> None:
-    """Validate a goal pattern and print its target poses in the world frame."""
+    """Validate a goal pattern and print its target poses in the world frame; or, with
+    --wall, generate a wall, write it to --out if it is valid, and print it."""
     try:
-        goal = load_pattern(pattern, SceneSpec())
+        if wall is None:
+            options = (
+                ("--courses", courses),
+                ("--bond", bond),
+                ("--supply", supply),
+                ("--out", out),
+            )
+            given = [name for name, value in options if value is not None]
+            if pattern is None:
+                raise ConfigError("give a PATTERN (a built-in or a file) or --wall LENGTH_M")
+            if given:
+                raise ConfigError(f"{', '.join(given)} go with --wall, not with a PATTERN")
+            goal = load_pattern(pattern, SceneSpec())
+        else:
+            if pattern is not None:
+                raise ConfigError(f"give a PATTERN ('{pattern}') or --wall, not both")
+            if out is None:
+                raise ConfigError("--wall needs --out FILE, the pattern file to write")
+            generated = wall_pattern(
+                wall,
+                3 if courses is None else courses,
+                bond or Bond.RUNNING,
+                supply=supply or Supply.PALLET,
+                name=out.stem,
+            )
+            goal = save_pattern(generated, out, SceneSpec())
     except ActionReasoningError as error:
         _fail(error)
     table = Table(title=escape(f"pattern {goal.name}: {len(goal.targets)} bricks, valid"))
@@ -572,6 +626,8 @@ def pattern_command(
             str(target.index), f"{x:.3f}", f"{y:.3f}", f"{z:.3f}", f"{math.degrees(yaw):.1f}"
         )
     console.print(table)
+    if out is not None:
+        console.print(f"wrote {escape(str(out))}", highlight=False, soft_wrap=True)
 
 
 @app.command("tolerances")

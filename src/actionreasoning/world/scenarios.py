@@ -16,8 +16,10 @@ from pathlib import Path
 from typing import Generic, TypeVar
 
 from actionreasoning.world.config_files import load_named
+from actionreasoning.world.models import Supply
 from actionreasoning.world.noise import NoiseLevel, PerceptionNoise, PhysicalVariation
 from actionreasoning.world.physics import PAPER, PRECISE, PhysicsProfile
+from actionreasoning.world.walls import JOINT_M, Bond
 
 T = TypeVar("T")
 
@@ -63,10 +65,27 @@ class RowPattern:
     gap_m: float
 
 
-PATTERNS: Registry[RowPattern] = Registry(
+@dataclass(frozen=True)
+class WallPattern:
+    """A built-in straight wall (world/walls.py): ``courses`` courses of ``full_bricks`` full
+    bricks (a running bond's shifted courses: half bricks at the ends), from ``supply``."""
+
+    courses: int
+    full_bricks: int
+    bond: Bond
+    supply: Supply
+
+    @property
+    def gap_m(self) -> float:
+        """The joint between neighbouring bricks of a course, as a row pattern's gap."""
+        return JOINT_M
+
+
+PATTERNS: Registry[RowPattern | WallPattern] = Registry(
     "pattern",
     Builtin("pyramid", RowPattern(layers=(3, 2, 1), gap_m=0.05)),
     Builtin("grid", RowPattern(layers=(3, 3), gap_m=0.02)),
+    Builtin("wall", WallPattern(courses=3, full_bricks=4, bond=Bond.RUNNING, supply=Supply.PALLET)),
 )
 
 PHYSICS: Registry[PhysicsProfile] = Registry(
