@@ -29,6 +29,7 @@ from actionreasoning.world.supply import (
     feeder_pose,
     lay_out,
 )
+from actionreasoning.world.walls import Bond, wall_length_m, wall_pattern
 
 SPEC = SceneSpec()
 HEIGHT = BRICK_CATALOGUE["full"][2]
@@ -92,31 +93,29 @@ def test_two_half_bricks_share_a_cell_end_to_end() -> None:
 
 
 @pytest.mark.parametrize(
-    ("supply", "count", "message"),
+    ("supply", "full_bricks", "courses", "message"),
     [
         (
             "pallet",
-            PALLET_STACKS * PALLET_LAYERS + 1,
+            5,
+            4,
+            "22 bricks take 20 pallet cells (a full brick or two half bricks each), "
             "but a pallet holds 18 (6 stacks of 3 layers)",
         ),
-        ("feeder", FEEDER_CAPACITY + 1, f"but the feeder's queue holds {FEEDER_CAPACITY}"),
-        ("scattered", 13, "but the pick area holds at most 12 bricks"),
+        ("feeder", 5, 7, f"38 bricks, but the feeder's queue holds {FEEDER_CAPACITY}"),
+        ("scattered", 4, 3, "13 bricks, but the pick area holds at most 12 bricks"),
     ],
 )
 def test_a_supply_too_small_for_the_pattern_is_refused_in_one_line(
-    tmp_path: Path, supply: str, count: int, message: str
+    tmp_path: Path, supply: str, full_bricks: int, courses: int, message: str
 ) -> None:
-    path = tmp_path / "many.json"
-    bricks = [{"position": [0.0, 0.0, (k + 0.5) * HEIGHT]} for k in range(count)]
-    path.write_text(
-        json.dumps({"name": "many", "brick_size": "full", "supply": supply, "bricks": bricks})
-    )
+    path = tmp_path / "wall.json"
+    wall = wall_pattern(wall_length_m(full_bricks), courses, Bond.RUNNING, supply=Supply(supply))
+    path.write_text(wall.model_dump_json())
     with pytest.raises(PatternError) as info:
         load_pattern(path, SPEC)
     text = str(info.value)
-    assert (
-        "\n" not in text and text.startswith(f"{path}: bricks: {count} bricks") and message in text
-    )
+    assert "\n" not in text and text.startswith(f"{path}: bricks: {message}")
 
 
 def test_a_pallet_refuses_bricks_not_of_the_catalogue(tmp_path: Path) -> None:

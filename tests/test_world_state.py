@@ -37,7 +37,15 @@ def test_json_schema_describes_every_part() -> None:
         assert part in schema["$defs"]
     assert schema["$defs"]["BrickState"]["properties"]["status"]["$ref"] == "#/$defs/BrickStatus"
     statuses = schema["$defs"]["BrickStatus"]["enum"]
-    assert statuses == ["in_pick_area", "grasped", "placed", "dropped", "toppled"]
+    assert statuses == [
+        "in_pick_area",
+        "grasped",
+        "placed",
+        "dropped",
+        "toppled",
+        "covered",
+        "queued",
+    ]
 
 
 def test_layout_is_deterministic_spaced_and_reachable() -> None:

@@ -21,12 +21,12 @@ class BrickStatus(StrEnum):
     """Where a brick is, as measured."""
 
     IN_PICK_AREA = "in_pick_area"  # lying flat in the pick area: on the ground or a stack
-    COVERED = "covered"  # in the pick area under another brick: free once that is taken
-    QUEUED = "queued"  # in a feeder's queue, out of reach: fed when the last brick is taken
     GRASPED = "grasped"
     PLACED = "placed"  # on a target it was released at
     DROPPED = "dropped"  # anywhere else, lying flat
     TOPPLED = "toppled"  # tilted
+    COVERED = "covered"  # in the pick area under another brick: free once that is taken
+    QUEUED = "queued"  # in a feeder's queue, out of reach: fed when the last brick is taken
 
 
 class Supply(StrEnum):
