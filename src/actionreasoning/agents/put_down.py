@@ -105,7 +105,8 @@ class PutDown:
     ) -> Pose | None:
         """The tool pose that grasps brick ``brick`` set down on the nearest free ground:
         clear of every other brick and every target not in ``built``, inside the arm's
-        measured reach band with room for a landing off by SET_ASIDE_SLACK_M, reached on the
+        measured reach band and its base joint's turn with room for a landing off by
+        SET_ASIDE_SLACK_M, reached on the
         way down from ``height``, and graspable there for ``target`` (a grasp that reaches
         the brick and the target)."""
         occupied = [_footprint(b.pose, b.size_m) for b in state.bricks if b.id != brick]
@@ -128,8 +129,13 @@ class PutDown:
         for x, y in spots:
             if len(tried) == SET_ASIDE_CANDIDATES:
                 return None
-            if not low <= math.hypot(x, y) <= high or any(
-                math.dist((x, y), t) < SET_ASIDE_SPREAD_M for t in tried
+            radius = math.hypot(x, y)
+            # Room for the landing's slack within the base joint's turn, too.
+            turn = abs(math.degrees(math.atan2(y, x))) + math.degrees(SET_ASIDE_SLACK_M / radius)
+            if (
+                not low <= radius <= high
+                or turn > band.max_azimuth_deg
+                or any(math.dist((x, y), t) < SET_ASIDE_SPREAD_M for t in tried)
             ):
                 continue
             tried.append((x, y))

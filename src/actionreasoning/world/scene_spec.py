@@ -32,6 +32,9 @@ class ReachBand(BaseModel):
     min_radius_m: float = 0.42
     max_radius_m: float = 0.76
     max_height_m: float = 0.45
+    #: The base joint's limit (the iiwa's A1, +-170 deg): a top-down tool farther round is
+    #: reached, if at all, only with the arm folded back over its base.
+    max_azimuth_deg: float = 170.0
 
     def contains(self, x: float, y: float, z: float) -> bool:
         """Whether a top-down grasp centre at (x, y, z) lies inside the band."""
