@@ -35,8 +35,8 @@ from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.trial.rules import Method, trial_seed
 from actionreasoning.trial.runner import TrialObserver, TrialRun, TrialSpec, measure, run_agents
 from actionreasoning.trial.session import Conditions
-from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.scenarios import NOISE, PHYSICS, SCENARIOS, Scenario
+from actionreasoning.world.supply import lay_out
 
 #: The methods the fake world runs (it stands in for the agents' World, not for the scene
 #: the classical script drives).
@@ -88,8 +88,10 @@ def on_fake_world(
         config, goal, seed = spec.config, spec.goal, trial_seed(spec.run_seed, spec.trial)
         size = goal.brick_size_m
         nominal = config.scene.brick_body(config.physics.brick_lateral_friction, size)
+        sizes = [target.size_m for target in goal.targets]
+        heights = [s[2] for s in sizes]
         rng = np.random.default_rng(seed)
-        poses = sample_pick_poses(rng, len(goal.targets), config.scene, size)
+        poses = lay_out(goal.supply, sizes, heights, config.scene, rng).poses
         world = FakeWorld(
             goal,
             poses,
