@@ -29,13 +29,13 @@ from rich.table import Table
 from scipy.spatial.transform import Rotation
 
 from actionreasoning.control.waypoint import GripperCommand, Waypoint
-from actionreasoning.reasoners.builtin import CARRY_SPEED_MPS
 from actionreasoning.sim.scene import Scene
 from actionreasoning.trial.config import TrialConfig
 from actionreasoning.trial.rules import Method
 from actionreasoning.trial.runner import TrialSpec, run_trial, trial_world
 from actionreasoning.world.geometry import quat_yaw, top_down_quat
 from actionreasoning.world.models import Pose
+from actionreasoning.world.motion import CARRY_SPEED_MPS
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PhysicsProfile
 from actionreasoning.world.scenarios import PHYSICS, load_physics

@@ -96,6 +96,7 @@ CHECK_CATEGORIES: Final[Mapping[str, ErrorCategory]] = MappingProxyType(
         "close": _C.PREMATURE_ACTION,
         "speed_mps": _C.DYNAMICS,
         "relative_speed_mps": _C.DYNAMICS,
+        "hold_margin_s": _C.DYNAMICS,
         "normal_force_n": _C.GRASP,
         "friction_margin_n": _C.GRASP,
     }

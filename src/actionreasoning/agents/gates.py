@@ -16,6 +16,7 @@ from actionreasoning.tools.collision import CollisionReport
 from actionreasoning.tools.contact import ContactForces, SlipEstimate
 from actionreasoning.tools.geometry import AlignmentErrors
 from actionreasoning.tools.placement import PlacementPose
+from actionreasoning.world.motion import MAX_MOVE_S
 from actionreasoning.world.tolerances import NOISE_SIGMAS, Tolerances
 
 
@@ -174,15 +175,27 @@ def sigma3_grasp(
     )
 
 
+def creep_limit_mps(carry_s: float, tol: Tolerances) -> float:
+    """The fastest a brick may creep in the hand and still be carried: v_th, at which it
+    stays in the hand over the longest move; or, faster, the speed at which it would creep
+    out of the pads' hold (v_th x the longest move) only in ``carry_s``, the time its carry
+    over the slot and set-down take at the carry speed (a light brick creeps steadily at
+    rest: ``bench/hand_creep.py``)."""
+    return max(tol.v_th_mps, tol.v_th_mps * MAX_MOVE_S / max(carry_s, 1e-9))
+
+
 def sigma4_lift(
     slip: SlipEstimate,
     pads: ContactForces,
     set_down: PlacementPose,
     move_speed_mps: float,
     tol: Tolerances,
+    carry_s: float = MAX_MOVE_S,
 ) -> GateVerdict:
     """Held through the move: f_n >= f_min on both pads, brick speed relative to the gripper
-    <= v_th, and the grasp's friction f_t <= mu f_n (with the least mu the brick may have);
+    <= v_th (or, if it creeps faster, slow enough to last the ``carry_s`` of its carry and
+    set-down: :func:`creep_limit_mps`), and the grasp's friction f_t <= mu f_n (with the
+    least mu the brick may have);
     and a brick that rolled in the hand can still be set down level: ``set_down``, its slot
     pose as it sits in the hand now with the tool tilted by the roll, is reachable with a
     clear way over the slot and down. How far it
@@ -191,7 +204,12 @@ def sigma4_lift(
         "sigma4_lift",
         (
             _held(pads, tol),
-            Check("relative_speed_mps", slip.relative_speed_mps, tol.v_th_mps, at_most=True),
+            Check(
+                "relative_speed_mps",
+                slip.relative_speed_mps,
+                creep_limit_mps(carry_s, tol),
+                at_most=True,
+            ),
             _friction_margin(pads, tol),
             Check("set_down_reachable", float(set_down.reachable), 1.0, at_most=False),
             Check("set_down_clearance_m", set_down.way_clearance_m, -tol.overlap_m, False),

@@ -77,7 +77,7 @@ from actionreasoning.world.models import (
     Progress,
     WorldState,
 )
-from actionreasoning.world.motion import Motion
+from actionreasoning.world.motion import CARRY_SPEED_MPS, MAX_MOVE_S, Motion
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M, RETREAT_M, WORKSPACE
 from actionreasoning.world.stages import Stage
 from actionreasoning.world.tolerances import Tolerances
@@ -160,6 +160,9 @@ class Orchestrator:
         self.calls = AgentCaller(world, reasoner, self.tol, self.result, on_call)
         self.put_down = PutDown(world, self.calls)
         self.memory = TaskMemory()
+        #: When the held brick, creeping in the hand faster than v_th, would leave it (state
+        #: time, s); None when it creeps no faster.
+        self._held_until_s: float | None = None
 
     # --- the pipeline -------------------------------------------------------------------
     def build(self, goal: GoalPattern) -> BuildResult:
@@ -504,10 +507,17 @@ class Orchestrator:
             PlacementQuery(brick_id=brick, target_index=self.memory.current_target or 0),
         )
         speed = _speed(state.robot.ee_pose, waypoint)
-        verdict = self.calls.judge(gates.sigma4_lift(slip, pads, set_down, speed, self.tol))
+        carry_s = _carry_s(after.robot.ee_pose, set_down.slot_pose)
+        verdict = self.calls.judge(
+            gates.sigma4_lift(slip, pads, set_down, speed, self.tol, carry_s=carry_s)
+        )
         if not verdict.passed:
             self._set_aside(brick, grasp, waypoint)
             raise _Regrasp(verdict.refusal(key))
+        # A brick creeping faster than v_th is carried only until it would creep out.
+        creep = slip.relative_speed_mps
+        hold_m = self.tol.v_th_mps * MAX_MOVE_S
+        self._held_until_s = after.time_s + hold_m / creep if creep > self.tol.v_th_mps else None
         return waypoint
 
     def _lift_plan(
@@ -619,7 +629,7 @@ class Orchestrator:
         slot = self._slot(answer, state, brick, back)
         above = _above(slot, state, path="linear")
         shift = self._clearance(state, above, start=state.robot.ee_pose)
-        self._check_slot(state, brick, target, slot, above, transfer=shift)
+        self._check_slot(state, brick, target, slot, above, transfer=shift, moves=2)
         self.world.move(above)
         # Onto the slot itself, pressed flat by the position controller; the guard stops the
         # move early if the brick meets its support above the slot.
@@ -656,6 +666,7 @@ class Orchestrator:
         slot: WaypointProposal,
         above: WaypointProposal,
         transfer: CollisionReport,
+        moves: int = 1,
     ) -> None:
         """Refuse a slot that would not set the brick, as it sits in the hand now, within the
         success rule, or whose way over it (``transfer``) or down collides. The way down
@@ -663,6 +674,20 @@ class Orchestrator:
         goal = state.goal.targets[target]
         held = state.brick(brick)
         predicted = alignment_of(carried_pose(state, brick, _as_pose(slot)), held.size_m, goal)
+        # The moves this slot asks for (over it; for a set-down, down too) must end while a
+        # creeping brick is still held.
+        hold = (
+            ()
+            if self._held_until_s is None
+            else (
+                Check(
+                    "hold_margin_s",
+                    self._held_until_s - state.time_s - moves * (slot.duration_s or 0.0),
+                    0.0,
+                    at_most=False,
+                ),
+            )
+        )
         x, y, z = slot.position_m
         near = WaypointProposal(position_m=(x, y, z + SEAT_CLEARANCE_M), quat_xyzw=slot.quat_xyzw)
         descent = self._clearance(state, near, start=above)
@@ -678,12 +703,18 @@ class Orchestrator:
                     True,
                 ),
                 *_clear(worst, self.tol, "way_"),
+                *hold,
             ),
             measured=gates.misalignment(predicted).model_copy(
                 update={"clearance_m": worst.clearance_m, "closest": worst.closest}
             ),
         )
-        self._gate(verdict, Stage.PLACEMENT, _failure_of(worst, self.tol))
+        crept = any(not check.passed for check in hold)
+        self._gate(
+            verdict,
+            Stage.PLACEMENT,
+            FailureCode.GRASP_SLIP if crept else _failure_of(worst, self.tol),
+        )
 
     def _clearance(
         self,
@@ -783,6 +814,14 @@ def _above(slot: WaypointProposal, state: WorldState, path: str = "joint") -> Wa
     x, y, z = slot.position_m
     height = max(state.robot.ee_pose.position_m[2], z)
     return slot.model_copy(update={"position_m": (x, y, height), "path": path})
+
+
+def _carry_s(tool: Pose, slot: Pose) -> float:
+    """How long carrying the held brick over ``slot`` and setting it down take at the carry
+    speed: across at the tool's height, then down."""
+    across = math.dist(tool.position_m[:2], slot.position_m[:2])
+    down = max(0.0, tool.position_m[2] - slot.position_m[2])
+    return (across + down) / CARRY_SPEED_MPS
 
 
 def _touch_down(motion: Motion, after: WorldState, slot: WaypointProposal) -> str:

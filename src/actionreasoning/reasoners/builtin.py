@@ -48,7 +48,7 @@ from actionreasoning.tools.placement import PLACEMENT_POSE, PlacementQuery
 from actionreasoning.tools.reach import REACHABILITY, ReachQuery
 from actionreasoning.world.geometry import axis_angle_deg, quat_yaw, top_down_quat
 from actionreasoning.world.models import Pose
-from actionreasoning.world.motion import MAX_MOVE_S
+from actionreasoning.world.motion import CARRY_SPEED_MPS, MAX_MOVE_S
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M, RETREAT_M
 from actionreasoning.world.stages import Stage
 
@@ -58,10 +58,6 @@ RELEASE_SIDE_M = 0.005
 #: The descent opens this much wider than the brick (two centimetres a side), at most the
 #: gripper's full opening: room for the pads past the side walls beyond what sigma_2 needs.
 DESCENT_SLACK_M = 0.04
-#: Mean speed of a carry with a brick in the hand: a brick creeps and rolls in the hand with
-#: time, so a faster carry rolls it less (``bench/lift_roll.py``: carries at 5, 10, 20 and
-#: 40 cm/s rolled 16 bricks more than 10 deg 7, 3, 1 and 1 times).
-CARRY_SPEED_MPS = 0.20
 #: Gates whose refusal put the brick down to be grasped again.
 PUT_DOWN_GATES = ("sigma4_lift", "placement_regrasp")
 #: Checks of sigma_4 that fail when the brick slips in the grip.
