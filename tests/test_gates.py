@@ -10,6 +10,7 @@ from actionreasoning.agents.feedback import Measured
 from actionreasoning.agents.gates import (
     Check,
     GateVerdict,
+    creep_limit_mps,
     lift_plan,
     sigma1_pre_grasp,
     sigma2_descent,
@@ -23,6 +24,7 @@ from actionreasoning.tools.contact import ContactForces, SlipEstimate
 from actionreasoning.tools.geometry import AlignmentErrors
 from actionreasoning.tools.placement import PlacementPose
 from actionreasoning.world.models import GoalPattern, Pose, Sensing
+from actionreasoning.world.motion import MAX_MOVE_S
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scene_spec import SceneSpec
 from actionreasoning.world.tolerances import (
@@ -530,3 +532,19 @@ def test_a_threshold_of_minus_zero_is_zero_in_text_and_record() -> None:
     assert math.copysign(1.0, clearance.threshold) == 1.0
     assert clearance.describe().endswith("needs >= 0")
     assert math.copysign(1.0, Check("x", 1.0, -0.0, at_most=False).threshold) == 1.0
+
+
+def test_a_brick_creeping_faster_than_v_th_is_carried_only_if_it_lasts_the_carry() -> None:
+    # The half brick's measured creep at rest (bench/hand_creep.py): 1.76-1.85 mm/s.
+    creep = 0.0019
+    assert creep > TOL.v_th_mps
+    hold_m = TOL.v_th_mps * MAX_MOVE_S
+    short, long = 0.5 * hold_m / creep, 2.0 * hold_m / creep
+    assert creep_limit_mps(MAX_MOVE_S, TOL) == TOL.v_th_mps  # the longest move: v_th itself
+    assert sigma4_lift(slip(creep), pads(40, 40, 10), set_down(), 0.02, TOL, carry_s=short).passed
+    refused = sigma4_lift(slip(creep), pads(40, 40, 10), set_down(), 0.02, TOL, carry_s=long)
+    assert [c.name for c in refused.checks if not c.passed] == ["relative_speed_mps"]
+    # A brick creeping no faster than v_th passes, however long the carry.
+    assert sigma4_lift(
+        slip(TOL.v_th_mps), pads(40, 40, 10), set_down(), 0.02, TOL, carry_s=MAX_MOVE_S
+    ).passed
