@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pybullet as p
 import pytest
+from conftest import cli
 
 from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.view import Scope, StateView
@@ -243,3 +244,33 @@ def test_the_agents_build_from_each_supply_and_each_brick_is_scored_at_its_size(
         BRICK_CATALOGUE["half"],
     ]
     assert all(b.center_offset_cm < 2.0 and b.iou > 0.8 for b in result.bricks)
+
+
+@pytest.mark.slow
+def test_eval_records_the_supply_in_run_json_and_the_classical_script_builds_from_a_feeder(
+    tmp_path: Path,
+) -> None:
+    pattern = write_row(tmp_path / "f.json", "feeder", ["full", "half"])
+    out = tmp_path / "run"
+    done = cli(
+        "eval",
+        "--method",
+        "classical",
+        "--pattern",
+        str(pattern),
+        "--trials",
+        "1",
+        "--out",
+        str(out),
+    )
+    assert done.returncode == 0, done.stderr
+    assert json.loads((out / "run.json").read_text())["supply"] == "feeder"
+    (line,) = (out / "results.jsonl").read_text().splitlines()
+    bricks = json.loads(line)["bricks"]
+    assert [b["size"] for b in bricks] == [
+        list(BRICK_CATALOGUE["full"]),
+        list(BRICK_CATALOGUE["half"]),
+    ]
+    # Both were fed and carried to the build area: neither is still at the feeder.
+    feed = feeder_pose().position_m
+    assert all(math.dist(b["final_position"][:2], feed[:2]) > 0.3 for b in bricks)

@@ -82,6 +82,7 @@ class RunConfig:
             pattern_sha256=digest(self.goal.model_dump_json()),
             seed=self.seed,
             config=trials or self.trial_config(),
+            supply=self.goal.supply,
         )
 
 

@@ -29,6 +29,7 @@ from actionreasoning.trial.config import TrialConfig
 from actionreasoning.trial.results import TrialResult
 from actionreasoning.trial.rules import trial_seed
 from actionreasoning.world.config_files import read_user_file
+from actionreasoning.world.models import Supply
 
 
 class RunManifest(BaseModel):
@@ -42,19 +43,28 @@ class RunManifest(BaseModel):
     method: str
     pattern: str
     pattern_sha256: str
+    #: Where the pattern's bricks wait (absent from run.json written before supplies).
+    supply: Supply = Supply.SCATTERED
     seed: int
     config: TrialConfig
     config_sha256: str
 
     @classmethod
     def sealed(
-        cls, method: str, pattern: str, pattern_sha256: str, seed: int, config: TrialConfig
+        cls,
+        method: str,
+        pattern: str,
+        pattern_sha256: str,
+        seed: int,
+        config: TrialConfig,
+        supply: Supply = Supply.SCATTERED,
     ) -> RunManifest:
         """A manifest with ``config``'s hash."""
         return cls(
             method=method,
             pattern=pattern,
             pattern_sha256=pattern_sha256,
+            supply=supply,
             seed=seed,
             config=config,
             config_sha256=config_digest(config),
@@ -156,6 +166,7 @@ class RecordedManifest(BaseModel):
     method: str
     pattern: str
     pattern_sha256: str
+    supply: Supply = Supply.SCATTERED
     seed: int
     config: dict[str, Any]
     config_sha256: str
