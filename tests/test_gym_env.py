@@ -117,6 +117,8 @@ def answer(**fields: object) -> str:
     [
         ('{"answer": {"brick_id": 0,', "invalid_action", "not valid JSON"),
         ('{"answer": "{\\"brick_id\\": 0,"}', "invalid_answer", "not valid JSON"),
+        ('{"answer": {"brick_id": ' + "9" * 5000 + "}}", "invalid_action", "4300 digits"),
+        ('{"answer": "{\\"brick_id\\": ' + "9" * 5000 + '}"}', "invalid_answer", "4300 digits"),
         ('{"answer": {}, "tool": "grasp_options"}', "invalid_action", "an action is"),
         ("[1, 2]", "invalid_action", "an action is"),
         ('{"tool": "rm -rf /", "arguments": {}}', "unknown_tool", "not in the knowledge base"),

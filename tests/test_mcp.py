@@ -278,6 +278,12 @@ def test_hostile_calls_get_typed_refusals_and_nothing_moves(tmp_path: Path) -> N
                 "descent_opening_m",
             ),
             ("submit_answer", {"answer": '{"brick_id": 0,'}, "invalid_answer", "not valid JSON"),
+            (
+                "submit_answer",
+                {"answer": '{"brick_id": ' + "9" * 5000 + "}"},
+                "invalid_answer",
+                "more than 4300 digits",
+            ),
             ("submit_answer", {"answer": NAN_WAYPOINT}, "invalid_answer", "finite number"),
             ("submit_answer", {"answer": 42}, "invalid_action", "answer"),
             ("submit_answer", {}, "invalid_action", "answer: Field required"),

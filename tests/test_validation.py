@@ -59,6 +59,8 @@ def test_a_nearly_unit_quaternion_is_normalised() -> None:
         ("lift", '{"waypoint": ', "not valid JSON"),
         ("lift", "[" * 100_000 + "]" * 100_000, "characters"),
         ("lift", "[" * 5000 + "]" * 5000, "nested too deeply"),
+        # Python refuses to convert an integer of more than 4300 digits (a ValueError).
+        ("pre_grasp", '{"brick_id": ' + "9" * 5000 + "}", "more than 4300 digits"),
         ("lift", json.dumps({"waypoint": waypoint(), "run": "rm -rf /"}), "run: Extra inputs"),
         (
             "lift",

@@ -12,7 +12,6 @@ of error it is.
 
 from __future__ import annotations
 
-import json
 import re
 from collections.abc import Callable
 from typing import Any, TypeVar
@@ -29,6 +28,7 @@ from actionreasoning.agents.outputs import (
 from actionreasoning.agents.spec import AgentSpec
 from actionreasoning.errors import ActionReasoningError
 from actionreasoning.tools.registry import TOOLS
+from actionreasoning.world.json_text import JSONTextError, parse_json
 from actionreasoning.world.models import WorldState
 from actionreasoning.world.scene_spec import WORKSPACE, WorkspaceBox
 
@@ -147,13 +147,9 @@ def _json_object(text: str) -> dict[str, Any]:
     if fenced:
         stripped = fenced.group(1)
     try:
-        data = json.loads(stripped)
-    except json.JSONDecodeError as error:
-        raise OutputError(
-            f"not valid JSON ({error.msg} at character {error.pos})", ErrorCategory.SCHEMA
-        ) from None
-    except RecursionError:
-        raise OutputError("the JSON is nested too deeply", ErrorCategory.SCHEMA) from None
+        data = parse_json(stripped)
+    except JSONTextError as error:
+        raise OutputError(str(error), ErrorCategory.SCHEMA) from None
     if not isinstance(data, dict):
         raise OutputError(
             f"the answer must be a JSON object, not {type(data).__name__}", ErrorCategory.SCHEMA

@@ -10,6 +10,7 @@ from typing import Any
 
 from actionreasoning.gym_env.observation import MAX_ACTION_CHARS
 from actionreasoning.trial.session import Refusal, RefusalCode
+from actionreasoning.world.json_text import JSONTextError, parse_json
 
 FORMAT = 'an action is {"tool": NAME, "arguments": {...}} or {"answer": {...}}'
 
@@ -36,11 +37,9 @@ def parse_action(action: object) -> ToolAction | AnswerAction | Refusal:
     if len(action) > MAX_ACTION_CHARS:
         return _refused(f"the action is {len(action)} characters, more than {MAX_ACTION_CHARS}")
     try:
-        data = json.loads(action)
-    except json.JSONDecodeError as error:
-        return _refused(f"not valid JSON ({error.msg} at character {error.pos}); {FORMAT}")
-    except RecursionError:
-        return _refused("the JSON is nested too deeply")
+        data = parse_json(action)
+    except JSONTextError as error:
+        return _refused(f"{error}; {FORMAT}")
     if isinstance(data, dict) and data.keys() == {"answer"}:
         answer = data["answer"]
         return AnswerAction(answer if isinstance(answer, str) else json.dumps(answer))
