@@ -244,13 +244,16 @@ def test_settings_a_backend_would_not_use_are_refused(
         ('["X-Title"]', "is not a JSON object of header names to values"),
         ('{"X Title": "%s"}', "header 1 has no valid HTTP name"),
         ('{"X-Title": "a", "x-title": "%s"}', "names x-title twice"),
+        ('{"X-Title": "a", "X-Title": "%s"}', "names X-Title twice"),
+        ('{"X-Key": " %s"}', "the value of X-Key begins or ends with a space"),
+        ('{"X-Key": "%s "}', "the value of X-Key begins or ends with a space"),
         ('{"Content-Length": "%s"}', "Content-Length is written by the client itself"),
         ('{"X-Key": 7}', "the value of X-Key must be a string of printable ASCII"),
         ('{"X-Key": "%s\\r\\nX-Evil: 1"}', "the value of X-Key must be a string"),
         ('{"X-Key": "%s\\u00e9"}', "the value of X-Key must be a string"),
     ],
-    ids=["not json", "not an object", "bad name", "twice", "client's", "number", "crlf",
-         "non-ascii"],
+    ids=["not json", "not an object", "bad name", "twice", "exactly twice", "leading space",
+         "trailing space", "client's", "number", "crlf", "non-ascii"],
 )  # fmt: skip
 def test_a_bad_header_variable_is_refused_naming_it_and_no_value(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, value: str, message: str

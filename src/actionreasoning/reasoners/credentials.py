@@ -17,6 +17,7 @@ import os
 import re
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from typing import Any
 from urllib.parse import unquote, unquote_plus, urlsplit, urlunsplit
 
 from actionreasoning.errors import ConfigError
@@ -63,16 +64,16 @@ def extra_headers(environ: Mapping[str, str] = os.environ) -> dict[str, str]:
     if text is None:
         return {}
     example = '{"HTTP-Referer": "https://example.org", "X-Title": "my study"}'
-    try:
-        headers = json.loads(text)
+    try:  # as name-value pairs, so that a name given twice is seen, not overwritten
+        pairs = json.loads(text, object_pairs_hook=_Pairs)
     except (ValueError, RecursionError):
-        headers = None
-    if not isinstance(headers, dict):
+        pairs = None
+    if not isinstance(pairs, _Pairs):
         raise ConfigError(
             f"{HEADERS_VARIABLE} is not a JSON object of header names to values, such as {example}"
         )
     seen: set[str] = set()
-    for number, (name, value) in enumerate(headers.items(), start=1):
+    for number, (name, value) in enumerate(pairs, start=1):
         if not _HEADER_NAME.fullmatch(name):
             raise ConfigError(f"{HEADERS_VARIABLE}: header {number} has no valid HTTP name")
         if name.lower() in _CLIENT_HEADERS:
@@ -85,7 +86,16 @@ def extra_headers(environ: Mapping[str, str] = os.environ) -> dict[str, str]:
                 f"{HEADERS_VARIABLE}: the value of {name} must be a string of printable ASCII "
                 "characters"
             )
-    return headers
+        if value != value.strip(" \t"):
+            raise ConfigError(
+                f"{HEADERS_VARIABLE}: the value of {name} begins or ends with a space, which "
+                "HTTP clients refuse to send"
+            )
+    return dict(pairs)
+
+
+class _Pairs(list[tuple[str, Any]]):
+    """A JSON object's members in order, names given twice included."""
 
 
 def shown_url(url: str) -> str:
