@@ -149,3 +149,37 @@ def test_a_results_file_that_is_a_fifo_is_refused_before_a_run_starts(
     result = cli(*args, "--trials", "1")
     assert_clean_error(result, f"{out / RunDir.RESULTS}: cannot read results file (a FIFO")
     assert not (out / RunDir.MANIFEST).exists()
+
+
+@pytest.mark.parametrize(
+    ("name", "text", "needle"),
+    [
+        (
+            "dup.json",
+            '{"name": "a", "name": "b", "brick_size": "full", '
+            '"bricks": [{"position": [0, 0, 0.03]}]}',
+            "not valid JSON (the key 'name' is given twice)",
+        ),
+        (
+            "dup.yaml",
+            "name: a\nbricks: [{position: [0, 0, 0.03]}]\nbrick_size: full\nbricks: []\n",
+            "not valid YAML (the key 'bricks' is given twice",
+        ),
+    ],
+)
+def test_a_key_given_twice_is_refused_not_overwritten(
+    tmp_path: Path, name: str, text: str, needle: str
+) -> None:
+    path = tmp_path / name
+    path.write_text(text)
+    assert_clean_error(cli("pattern", str(path)), f"{path}: {needle}")
+
+
+def test_a_number_yaml_reads_as_text_is_refused_saying_how_to_write_it(tmp_path: Path) -> None:
+    path = tmp_path / "e.yaml"
+    path.write_text("name: e\nbrick_size: full\nbricks:\n  - {position: [0, 0, 3.0e0]}\n")
+    assert_clean_error(
+        cli("pattern", str(path)),
+        f"{path}: bricks[0].position[2]: Input should be a valid number ('3.0e0' is read as "
+        "text by YAML: write 3.0e+0)",
+    )

@@ -22,10 +22,44 @@ from actionreasoning.errors import ActionReasoningError, ConfigError
 
 M = TypeVar("M", bound=BaseModel)
 
+
+def _unique_members(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object's members, refused if a key is given twice (the last would win)."""
+    data: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in data:
+            raise ValueError(f"the key '{key}' is given twice")
+        data[key] = value
+    return data
+
+
+def _json(text: str) -> Any:
+    return json.loads(text, object_pairs_hook=_unique_members)
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, refusing a mapping that gives a key twice (the last would win)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        keys = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            if key in keys:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"the key '{key}' is given twice", key_node.start_mark
+                )
+            keys.add(key)
+        return super().construct_mapping(node, deep=deep)
+
+
+def _yaml(text: str) -> Any:
+    return yaml.load(text, Loader=_UniqueKeyLoader)
+
+
 _PARSERS: dict[str, tuple[str, Callable[[str], Any]]] = {
-    ".json": ("JSON", json.loads),
-    ".yaml": ("YAML", yaml.safe_load),
-    ".yml": ("YAML", yaml.safe_load),
+    ".json": ("JSON", _json),
+    ".yaml": ("YAML", _yaml),
+    ".yml": ("YAML", _yaml),
 }
 
 
@@ -128,8 +162,23 @@ def parse_model(
         field = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in first["loc"])
         more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
         raise error(
-            f"{source}: {field.lstrip('.') or 'file'}: {one_line(first['msg'])}{more}"
+            f"{source}: {field.lstrip('.') or 'file'}: {one_line(first['msg'])}"
+            f"{_yaml_number_hint(first.get('input'))}{more}"
         ) from exc
+
+
+def _yaml_number_hint(value: object) -> str:
+    """For a number YAML read as text (its 1.1 rules want a signed exponent: 1.0e+6, not
+    1.0e6), how to write it; else nothing."""
+    if not isinstance(value, str) or "e" not in value.lower():
+        return ""
+    try:
+        float(value)
+    except ValueError:
+        return ""
+    mantissa, _, exponent = value.lower().partition("e")
+    signed = exponent if exponent[:1] in "+-" else f"+{exponent}"
+    return f" ('{value}' is read as text by YAML: write {mantissa}e{signed})"
 
 
 def load_named(name_or_path: str | Path, builtins: Mapping[str, M], model: type[M], what: str) -> M:
