@@ -255,7 +255,8 @@ def _validate(source: str, blocks: list[Box], spec: SceneSpec) -> None:
 
 
 def _fmt(values: tuple[float, ...]) -> str:
-    return "(" + ", ".join(f"{v:.3f}" for v in values) + ")"
+    """Metres to the millimetre; a value far beyond the scene (1e300) in powers of ten."""
+    return "(" + ", ".join(f"{v:.3f}" if abs(v) < 1e6 else f"{v:.3g}" for v in values) + ")"
 
 
 def _check_ground(source: str, block: Box) -> None:
