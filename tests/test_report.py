@@ -259,6 +259,20 @@ def test_a_directory_without_results_is_refused(tmp_path: Path) -> None:
     assert_clean_error(cli("report", str(tmp_path), cwd=tmp_path), "holds no results.jsonl")
 
 
+@pytest.mark.parametrize("name", ["run.json", "results.jsonl"])
+def test_a_run_file_that_is_a_directory_is_named_as_such(tmp_path: Path, name: str) -> None:
+    (tmp_path / "results.jsonl").write_text("")
+    (tmp_path / "run.json").write_text("{}")
+    for path in tmp_path.iterdir():
+        if path.name == name:
+            path.unlink()
+            path.mkdir()
+    assert_clean_error(
+        cli("report", str(tmp_path), cwd=tmp_path),
+        f"{tmp_path / name} is not a regular file: not a {name} eval writes",
+    )
+
+
 def test_a_report_that_refuses_its_input_creates_nothing(tmp_path: Path) -> None:
     run, here, out = tmp_path / "run", tmp_path / "here", tmp_path / "new" / "report"
     run.mkdir()

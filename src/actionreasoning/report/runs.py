@@ -51,6 +51,9 @@ def read_run(directory: Path) -> Run:
     another run is an error. A run of an earlier version is read as far as it recorded."""
     run = RunDir(directory)
     path, stored = run.results, run.manifest
+    for name, there in ((run.RESULTS, path), (run.MANIFEST, stored)):
+        if there.exists() and not there.is_file():
+            raise ConfigError(f"{there} is not a regular file: not a {name} eval writes")
     if not path.is_file():
         raise ConfigError(f"{directory} holds no {run.RESULTS}: not an eval --out directory")
     if not stored.is_file():
