@@ -103,6 +103,12 @@ class FaultHandler(BaseHTTPRequestHandler):
             self._send(200, b"<html>hello</html>", "text/html")
         elif fault == "500":
             self._send(500, b'{"error": {"message": "boom"}}')
+        elif fault in ("404", "431"):
+            self._send(int(fault), b'{"error": {"message": "no"}}')
+        elif fault == "negative_tokens":
+            body = json.loads(completion('{"close": true}'))
+            body["usage"] = {"prompt_tokens": -50, "completion_tokens": 5, "total_tokens": -45}
+            self._send(200, json.dumps(body).encode())
         elif fault == "429":
             self._send(429, b'{"error": {"message": "slow down"}}', retry_after="0")
         elif fault == "slow":
@@ -182,6 +188,7 @@ def run_eval(
         ("malformed", "llm_bad_response", 1),
         ("not_json", "llm_bad_response", 1),
         ("500", "llm_server_error", 2),
+        ("negative_tokens", "llm_bad_response", 1),
         ("429", "llm_rate_limited", 2),
         ("slow", "llm_timeout", 2),
         ("drip", "llm_timeout", 2),  # each try cut after 1 s; one answer would take 280 s
@@ -303,3 +310,18 @@ def test_llm_check_prints_markup_in_names_and_answers_as_text(fault_server: Faul
     assert result.returncode == 0, result.stderr
     assert "llm check openai:[/]x" in result.stdout
     assert "[/]m[x" in result.stdout and "[/] [bold" in result.stdout
+
+
+@pytest.mark.parametrize(
+    ("fault_server", "cause"),
+    [("404", "no such endpoint or model"), ("431", "the request's headers are too large")],
+    indirect=["fault_server"],
+)
+def test_a_status_with_a_likely_cause_says_it(
+    tmp_path: Path, fault_server: FaultServer, cause: str
+) -> None:
+    result = run_eval(tmp_path, fault_server)
+    assert result.returncode == 0, result.stderr
+    line = json.loads((tmp_path / "out" / "results.jsonl").read_text())
+    assert line["failure"]["reason"] == "llm_server_error"
+    assert f"HTTP {fault_server.fault}: {cause}" in line["failure"]["detail"]

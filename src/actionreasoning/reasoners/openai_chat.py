@@ -70,6 +70,13 @@ MAX_BACKOFF_S = 8.0
 MAX_RETRY_AFTER_S = 60.0
 
 
+#: What an HTTP status most likely means of a chat completion request.
+_LIKELY_CAUSE = {
+    404: ": no such endpoint or model (check --base-url, which ends in /v1, and the model name)",
+    431: ": the request's headers are too large (check ACTIONREASONING_LLM_HEADERS)",
+}
+
+
 class _FormatRefused(Exception):
     """The server refused the request itself (400, 422, or an error naming response_format)."""
 
@@ -137,6 +144,12 @@ class OpenAIChat:
             raise LLMError(FailureCode.LLM_BAD_RESPONSE, f"{self.where} answered with no choices")
         content = self.redact(completion.choices[0].message.content or "")
         usage = completion.usage
+        if usage and min(usage.prompt_tokens, usage.completion_tokens) < 0:
+            raise LLMError(
+                FailureCode.LLM_BAD_RESPONSE,
+                f"{self.where} counted a negative number of tokens (prompt "
+                f"{usage.prompt_tokens}, completion {usage.completion_tokens})",
+            )
         return ChatReply(
             model=self.redact(completion.model or self.model),
             content=content,
@@ -210,7 +223,9 @@ class OpenAIChat:
                 FailureCode.LLM_RATE_LIMITED, f"{self.where} kept answering 429 ({retries} retries)"
             )
         return LLMError(
-            FailureCode.LLM_SERVER_ERROR, f"{self.where} answered HTTP {status} ({retries} retries)"
+            FailureCode.LLM_SERVER_ERROR,
+            f"{self.where} answered HTTP {status}{_LIKELY_CAUSE.get(status, '')} "
+            f"({retries} retries)",
         )
 
     def _retry_wait(
