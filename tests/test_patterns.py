@@ -238,19 +238,9 @@ def test_overhang_topples(tmp_path: Path) -> None:
 
 
 def test_a_pattern_far_beyond_the_scene_is_refused_in_a_short_line(tmp_path: Path) -> None:
-    path = tmp_path / "far.json"
-    path.write_text(
-        json.dumps(
-            {
-                "name": "far",
-                "brick_size": "full",
-                "origin": [1e300, 0, 0],
-                "bricks": [{"position": [0, 0, 0.03]}],
-            }
-        )
-    )
+    path = _write(tmp_path, "far.json", _pattern(_brick(0, 0, H / 2), origin=[1e300, 0, 0]))
     with pytest.raises(PatternError) as info:
-        load_pattern(path, SceneSpec())
+        load_pattern(path, SPEC)
     assert str(info.value) == (
         f"{path}: brick 0 at world (1e+300, 0.000, 0.030) is out of the arm's reach "
         "(radius 0.42-0.76 m, height 0-0.45 m)"
