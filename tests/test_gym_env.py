@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import math
 from collections.abc import Iterator
 from dataclasses import asdict
 from pathlib import Path
@@ -210,3 +211,17 @@ def test_step_before_reset_and_after_the_end() -> None:
     assert info["refusal"]["code"] == "trial_over" and (terminated, truncated) == (True, False)
     assert info["result"]["failure"]["reason"] == "abandoned" and reward == 0.0
     env.close()
+
+
+@pytest.mark.parametrize("seconds", [math.nan, math.inf, 0.0, -1.0])
+def test_a_wall_time_budget_that_cannot_bound_a_trial_is_refused(seconds: float) -> None:
+    with pytest.raises(ConfigError, match=r"max_trial_s .*: give a positive, finite number"):
+        gymnasium.make("actionreasoning/BrickStack-v0", max_trial_s=seconds)
+
+
+def test_a_refused_reset_leaves_the_env_as_it_was(env: BrickStackEnv) -> None:
+    env.reset(seed=3)
+    with pytest.raises(ConfigError):
+        env.reset(seed=True)  # type: ignore[arg-type]  # what a careless caller passes
+    _, info = env.reset()
+    assert (info["seed"], info["trial"]) == (3, 1)

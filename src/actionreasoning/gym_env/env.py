@@ -86,13 +86,13 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
         trial = options.pop("trial", None)
         if options:
             raise ConfigError(f"unknown reset options {sorted(options)}: the one option is trial")
-        if seed is not None:
-            self._run_seed = seed
-        elif self._run_seed is None:
-            self._run_seed = int(self.np_random.integers(2**31))
+        run_seed = seed if seed is not None else self._run_seed
+        if run_seed is None:
+            run_seed = int(self.np_random.integers(2**31))
         if trial is None:
             trial = 0 if seed is not None else self._trial + 1
-        spec = self.conditions.spec(self._run_seed, trial)
+        spec = self.conditions.spec(run_seed, trial)  # refused: the env stays as it was
+        self._run_seed = run_seed
         self._close_session()
         self._trial = trial
         self._reward = PlacedReward()
