@@ -38,7 +38,7 @@ from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointC
 from actionreasoning.errors import UnreachableError
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.scene import Scene
-from actionreasoning.trial.runner import SPAWN_SETTLE_S
+from actionreasoning.trial.config import SPAWN_SETTLE_S
 from actionreasoning.world.geometry import quat_yaw, top_down_quat
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import READY_POSE, Pose

@@ -93,11 +93,11 @@ def test_commands_that_read_files_load_neither_simulator_nor_model_client(
 
 def test_a_classical_eval_loads_no_model_client(tmp_path: Path, small_pattern: Path) -> None:
     """The backends' clients load when a backend asking a model is built, not before. The
-    trial runs until its step budget (100 steps: past the spawn settle, into the script)."""
+    trial runs until its step budget (700 steps: past the spawn settle, into the script)."""
     out = tmp_path / "eval"
     run = python(
         *("-X", "importtime", "-m", "actionreasoning", "eval", "--method", "classical"),
-        *("--pattern", str(small_pattern), "--trials", "1", "--max-steps", "100"),
+        *("--pattern", str(small_pattern), "--trials", "1", "--max-steps", "700"),
         *("--out", str(out)),
     )
     assert run.returncode == 0, run.stderr

@@ -75,7 +75,7 @@ def test_the_report_shows_failed_trials_videos_first(tmp_path: Path, one_brick: 
     common = ["eval", "--method", "classical", "--pattern", str(one_brick), "--trials", "1"]
     common += ["--physics", "precise", "--video"]  # where the classical script succeeds
     assert cli(*common, "--out", str(tmp_path / "built")).returncode == 0
-    cut = cli(*common, "--out", str(tmp_path / "cut"), "--max-steps", "200")
+    cut = cli(*common, "--out", str(tmp_path / "cut"), "--max-steps", "1500")
     assert cut.returncode == 0, cut.stderr
     assert [p.name for p in (tmp_path / "cut" / "videos").iterdir()] == [
         "trial_000_step_budget.mp4"
@@ -85,7 +85,7 @@ def test_the_report_shows_failed_trials_videos_first(tmp_path: Path, one_brick: 
     assert made.returncode == 0, made.stderr
     page = (report / "report.html").read_text()
     sources = re.findall(r'<video [^>]*src="([^"]+)"', page)
-    assert len(sources) == 2 and "max_steps_200" in sources[0]  # the failed trial first
+    assert len(sources) == 2 and "max_steps_1500" in sources[0]  # the failed trial first
     assert "(step_budget)" in page.split(sources[1])[0]  # its caption, before the other video
     assert all((report / source).read_bytes()[4:8] == b"ftyp" for source in sources)
 

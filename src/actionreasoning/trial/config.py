@@ -10,13 +10,14 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field, field_serializer
+from pydantic import BaseModel, ConfigDict, Field, field_serializer, model_validator
 
 from actionreasoning.agents.answer_errors import AnswerErrors
 from actionreasoning.agents.orchestrator import Budgets
 from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
 from actionreasoning.control.limits import ControllerLimits
 from actionreasoning.control.safety import SafetyLimits
+from actionreasoning.errors import ConfigError
 from actionreasoning.reasoners.backend import LLMConfig
 from actionreasoning.reasoners.llm import LLMLimits
 from actionreasoning.reasoners.sampling import RecordedSampling, Sampling
@@ -27,6 +28,10 @@ from actionreasoning.world.scenarios import NOISE
 from actionreasoning.world.scene_spec import SceneSpec
 from actionreasoning.world.success import SuccessRule
 from actionreasoning.world.tolerances import Tolerances
+
+#: Simulated seconds the bricks settle after they spawn, and after the method has ended.
+SPAWN_SETTLE_S = 0.25
+FINAL_SETTLE_S = 1.0
 
 
 class Backend(BaseModel):
@@ -74,6 +79,21 @@ class TrialConfig(BaseModel):
     llm: LLMConfig | None = LLMConfig()
     answer_errors: AnswerErrors = AnswerErrors()
     tools: ToolTier = DEFAULT_TIER
+
+    @model_validator(mode="after")
+    def _budget_covers_a_trial(self) -> TrialConfig:
+        """Refuse a step budget that cannot simulate the least any trial takes: the two
+        settles and one brick's grasp and release (the gripper closing and opening)."""
+        time_step, steps = self.physics.time_step_s, self.budget.max_steps
+        least_s = SPAWN_SETTLE_S + 2 * self.controller.gripper_s + FINAL_SETTLE_S
+        if steps * time_step < least_s:
+            raise ConfigError(
+                f"physics {self.physics.name!r}: {steps} steps (--max-steps) of "
+                f"{time_step:g} s (time_step_s) simulate {steps * time_step:.3g} s, and a "
+                f"trial takes at least {least_s:g} s (the settles and one brick's grasp and "
+                "release): raise the time step or the step budget"
+            )
+        return self
 
     @field_serializer("llm")
     def _backend(self, llm: LLMConfig | None) -> Backend | None:

@@ -24,7 +24,7 @@ from actionreasoning.records import FailureCode
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.perceive import Sensor
 from actionreasoning.sim.scene import Scene
-from actionreasoning.trial.config import TrialConfig
+from actionreasoning.trial.config import FINAL_SETTLE_S, SPAWN_SETTLE_S, TrialConfig
 from actionreasoning.trial.metrics import placement_of
 from actionreasoning.trial.results import (
     AnswerErrorCounts,
@@ -42,9 +42,6 @@ from actionreasoning.world.models import READY_POSE, GoalPattern
 from actionreasoning.world.noise import vary_bricks
 from actionreasoning.world.stages import StageEvent
 from actionreasoning.world.supply import lay_out
-
-SPAWN_SETTLE_S = 0.25
-FINAL_SETTLE_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -101,10 +98,13 @@ class TrialWorld:
 
 
 @contextmanager
-def trial_world(spec: TrialSpec, observers: Sequence[TrialObserver] = ()) -> Iterator[TrialWorld]:
+def trial_world(
+    spec: TrialSpec, observers: Sequence[TrialObserver] = (), *, settle: bool = True
+) -> Iterator[TrialWorld]:
     """The trial's world under its physics profile and perturbations, closed on exit: one
     brick of the goal's size per target, its mass scaled from the catalogue brick's. The
-    ``observers`` tick from the spawn settle on."""
+    ``observers`` tick from the spawn settle on; without ``settle`` the caller settles it
+    (``SPAWN_SETTLE_S``)."""
     config, seed = spec.config, trial_seed(spec.run_seed, spec.trial)
     friction = config.physics.brick_lateral_friction
     sizes = [target.size_m for target in spec.goal.targets]
@@ -136,7 +136,8 @@ def trial_world(spec: TrialSpec, observers: Sequence[TrialObserver] = ()) -> Ite
             if observer.every_s is not None:
                 scene.watch(scene.ticks_for(observer.every_s), observer.tick)
                 observer.tick(scene)
-        scene.step(scene.ticks_for(SPAWN_SETTLE_S))
+        if settle:
+            scene.step(scene.ticks_for(SPAWN_SETTLE_S))
         yield TrialWorld(
             scene=scene,
             arm=arm,
@@ -162,10 +163,8 @@ def run_trial(
     backend ``spec.config.llm`` names (an outside agent: ``session.py``); results name it."""
     if reasoner is not None and spec.method is Method.CLASSICAL:
         raise ConfigError("--method classical asks no reasoner")
-    with trial_world(spec, observers) as world:
+    with trial_world(spec, observers, settle=False) as world:
         scene, seed, controller = world.scene, world.seed, world.controller
-        for observer in observers:
-            observer.start(scene)
 
         def stage(brick: int, name: str) -> None:
             event = StageEvent(brick=brick, stage=name)
@@ -176,11 +175,18 @@ def run_trial(
             for observer in observers:
                 observer.call(scene, call)
 
-        if spec.method is Method.CLASSICAL:
-            outcome = _run_classical(controller, world.sensor, spec.goal, stage)
+        try:  # a budget spent already: the trial fails before its method starts
+            scene.step(scene.ticks_for(SPAWN_SETTLE_S))
+        except TrialAborted as error:
+            outcome = BuildResult(failure=failure_of(error, None))
         else:
-            agents_world = SimWorld(controller, spec.goal, world.sensor)
-            outcome = run_agents(agents_world, spec, stage, on_call, reasoner, scene.deadline)
+            for observer in observers:
+                observer.start(scene)
+            if spec.method is Method.CLASSICAL:
+                outcome = _run_classical(controller, world.sensor, spec.goal, stage)
+            else:
+                agents_world = SimWorld(controller, spec.goal, world.sensor)
+                outcome = run_agents(agents_world, spec, stage, on_call, reasoner, scene.deadline)
         try:
             scene.step(scene.ticks_for(FINAL_SETTLE_S))
             scene.check_physics()
