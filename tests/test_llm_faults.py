@@ -36,6 +36,9 @@ HOSTILE = (
     '{"waypoint": {"position_m": [1e308, -1e308, NaN], "quat_xyzw": [0, 0, 0, 0]}}'
 )
 
+#: Over Python's 4300-digit limit on turning text into an integer (a ValueError in json).
+HUGE_INT_ANSWER = '{"brick_id": ' + "9" * 5000 + ', "rationale": "x"}'
+HUGE_TOKENS = b'"prompt_tokens": ' + b"9" * 5000
 
 #: The drip server's pace, and the padding that makes one dripped answer last over 200 s.
 DRIP_S = 0.2
@@ -109,6 +112,11 @@ class FaultHandler(BaseHTTPRequestHandler):
             body = json.loads(completion('{"close": true}'))
             body["usage"] = {"prompt_tokens": -50, "completion_tokens": 5, "total_tokens": -45}
             self._send(200, json.dumps(body).encode())
+        elif fault == "huge_int":  # an answer with an integer of 5000 digits
+            self._send(200, completion(HUGE_INT_ANSWER))
+        elif fault == "huge_usage":  # a completion whose token count has 5000 digits
+            body = completion('{"close": true}').replace(b'"prompt_tokens": 10', HUGE_TOKENS)
+            self._send(200, body)
         elif fault == "429":
             self._send(429, b'{"error": {"message": "slow down"}}', retry_after="0")
         elif fault == "slow":
@@ -189,6 +197,8 @@ def run_eval(
         ("not_json", "llm_bad_response", 1),
         ("500", "llm_server_error", 2),
         ("negative_tokens", "llm_bad_response", 1),
+        ("huge_usage", "llm_bad_response", 1),
+        ("huge_int", "invalid_output", 2),
         ("429", "llm_rate_limited", 2),
         ("slow", "llm_timeout", 2),
         ("drip", "llm_timeout", 2),  # each try cut after 1 s; one answer would take 280 s
@@ -245,6 +255,48 @@ def test_the_builtin_fallback_answers_what_the_model_cannot(
     assert line["decisions"] == line["fallback_decisions"] == 7
     summary = (tmp_path / "out" / "summary.md").read_text()
     assert "7 of them by the built-in fallback (0% the model's own)" in summary
+
+
+HUGE_REFUSED = "a number in the JSON has more than 4300 digits"
+
+
+@pytest.mark.parametrize("fault_server", ["huge_int"], indirect=True)
+def test_a_5000_digit_integer_is_refused_as_an_answer_by_every_method_and_in_replay(
+    tmp_path: Path, fault_server: FaultServer
+) -> None:
+    for method in ("agents", "single-agent"):
+        out, recording = tmp_path / method, tmp_path / f"{method}.jsonl"
+        run = ["--method", method, "--out", str(out)]
+        result = run_eval(tmp_path, fault_server, *run, "--record", str(recording))
+        assert result.returncode == 0, result.stderr
+        line = json.loads((out / "results.jsonl").read_text())
+        assert line["failure"]["reason"] == "invalid_output", line["failure"]
+        (call,) = [json.loads(x) for x in (out / "transcripts/trial_000.jsonl").open()]
+        assert call["repairs"] == [HUGE_REFUSED] * 2
+        replay = cli(
+            *("eval", "--pattern", str(tmp_path / "one.json"), "--trials", "1"),
+            *("--method", method, "--out", str(tmp_path / f"{method}-replay")),
+            *("--llm", f"replay:{recording}", "--repairs", "1"),
+        )
+        assert replay.returncode == 0, replay.stderr
+        again = json.loads((tmp_path / f"{method}-replay" / "results.jsonl").read_text())
+        assert again["failure"] == line["failure"]
+
+
+@pytest.mark.slow  # two processes, each starting the simulator
+@pytest.mark.parametrize("fault_server", ["huge_int"], indirect=True)
+def test_a_5000_digit_integer_in_workers_loses_no_trial_and_the_fallback_answers_it(
+    tmp_path: Path, fault_server: FaultServer
+) -> None:
+    run = ["--trials", "2", "--workers", "2", "--fallback", "builtin"]
+    result = run_eval(tmp_path, fault_server, *run)
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stdout + result.stderr
+    lines = [json.loads(x) for x in (tmp_path / "out" / "results.jsonl").read_text().splitlines()]
+    assert sorted(line["trial"] for line in lines) == [0, 1]
+    assert all(
+        line["success"] and line["fallback_decisions"] == line["decisions"] for line in lines
+    )
 
 
 def test_a_server_that_cannot_be_reached_stops_the_run_with_one_line(tmp_path: Path) -> None:
