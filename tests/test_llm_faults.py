@@ -40,6 +40,9 @@ HOSTILE = (
 HUGE_INT_ANSWER = '{"brick_id": ' + "9" * 5000 + ', "rationale": "x"}'
 HUGE_TOKENS = b'"prompt_tokens": ' + b"9" * 5000
 
+#: How long the slow_probe server takes to answer the structured-output probe.
+SLOW_PROBE_S = 6.0
+
 #: The drip server's pace, and the padding that makes one dripped answer last over 200 s.
 DRIP_S = 0.2
 DRIP_PADDING = " " * 1000
@@ -96,6 +99,8 @@ class FaultHandler(BaseHTTPRequestHandler):
             self._send(400, json.dumps({"error": {"message": echo}}).encode())
             return
         if "probe" in json.dumps(body.get("response_format", {})):
+            if self.server.fault == "slow_probe":
+                time.sleep(SLOW_PROBE_S)
             self._send(200, completion('{"ok": true}'))
             return
         self.server.agent_requests += 1
@@ -297,6 +302,15 @@ def test_a_5000_digit_integer_in_workers_loses_no_trial_and_the_fallback_answers
     assert all(
         line["success"] and line["fallback_decisions"] == line["decisions"] for line in lines
     )
+
+
+@pytest.mark.parametrize("fault_server", ["slow_probe"], indirect=True)
+def test_max_trial_s_bounds_the_start_probe(tmp_path: Path, fault_server: FaultServer) -> None:
+    """Each try may take 60 s, but the probe gets no more than one trial's wall time (2 s):
+    it used to wait the server out (or 60 s a try, 187 s in all for a mute server)."""
+    result = run_eval(tmp_path, fault_server, "--max-trial-s", "2", llm_timeout="60")
+    assert_clean_error(result, "the start probe took longer than --max-trial-s (2 s)")
+    assert not (tmp_path / "out" / "results.jsonl").exists()
 
 
 def test_a_server_that_cannot_be_reached_stops_the_run_with_one_line(tmp_path: Path) -> None:

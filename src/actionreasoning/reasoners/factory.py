@@ -29,14 +29,15 @@ CHECK_PROMPT = (
 )
 
 
-def prepare(config: LLMConfig) -> LLMConfig:
+def prepare(config: LLMConfig, deadline: float | None = None) -> LLMConfig:
     """Check the configuration and settle what is fixed per run (mode, label, headers, and a
-    replay's sampling settings: the recording's)."""
+    replay's sampling settings: the recording's), asking a server no later than
+    ``deadline`` (``time.monotonic()`` seconds)."""
     kind = backend_kind(config.spec)
     if kind.asks_model and config.server.base_url and not kind.server:
         servers = " or ".join(k.usage for k in BACKENDS.values() if k.server)
         raise ConfigError(f"--base-url is for --llm {servers}")
-    return kind.prepare(config)
+    return kind.prepare(config, deadline)
 
 
 @dataclass(frozen=True)

@@ -39,7 +39,8 @@ class BackendKind:
     """One reasoning backend: its spec, help, extra, and how it is prepared and connected.
 
     ``prepare`` checks a run's configuration and settles what is fixed per run (mode,
-    label, headers); ``connect`` makes a trial's chat client from a prepared configuration
+    label, headers), asking a server no later than a deadline (``time.monotonic()``
+    seconds; None: none); ``connect`` makes a trial's chat client from a prepared configuration
     and the trial's deadline (``time.monotonic()`` seconds); None for the built-in
     reasoner, which asks no model. ``server``: it talks to a server at ``--base-url``.
     """
@@ -47,7 +48,7 @@ class BackendKind:
     name: str
     argument: str | None  # what follows "name:" (MODEL, PATH, FILE); None: the name alone
     help: str  # for --help, after the spec; "" if the name says it
-    prepare: Callable[[LLMConfig], LLMConfig]
+    prepare: Callable[[LLMConfig, float | None], LLMConfig]
     connect: Callable[[LLMConfig, float | None], ChatBackend] | None = None
     server: bool = False
     extra: Extra | None = None
@@ -78,7 +79,7 @@ class BackendKind:
             ) from None
 
 
-def _prepare_builtin(config: LLMConfig) -> LLMConfig:
+def _prepare_builtin(config: LLMConfig, deadline: float | None) -> LLMConfig:
     if config.server.base_url or config.record or config.fallback:
         raise ConfigError("--base-url, --record and --fallback need an --llm other than builtin")
     if config.sampling.changed():
@@ -89,10 +90,10 @@ def _prepare_builtin(config: LLMConfig) -> LLMConfig:
     return config
 
 
-def _prepare_openai(config: LLMConfig) -> LLMConfig:
+def _prepare_openai(config: LLMConfig, deadline: float | None) -> LLMConfig:
     from actionreasoning.reasoners.openai_chat import OpenAIChat
 
-    chat = OpenAIChat(config.argument, config.server, sampling=config.sampling)
+    chat = OpenAIChat(config.argument, config.server, deadline=deadline, sampling=config.sampling)
     mode = chat.negotiate()
     return replace(config, mode=mode, label=chat.label, headers=chat.header_names)
 
@@ -104,7 +105,7 @@ def _connect_openai(config: LLMConfig, deadline: float | None) -> ChatBackend:
     return OpenAIChat(config.argument, config.server, mode, deadline, config.sampling)
 
 
-def _prepare_llamacpp(config: LLMConfig) -> LLMConfig:
+def _prepare_llamacpp(config: LLMConfig, deadline: float | None) -> LLMConfig:
     if config.sampling.reasoning_effort is not None:
         raise ConfigError(
             "--reasoning-effort is for --llm openai:MODEL: llama-cpp-python has no such setting"
@@ -118,7 +119,7 @@ def _connect_llamacpp(config: LLMConfig, deadline: float | None) -> ChatBackend:
     return LlamaCppChat(config.argument, config.sampling)
 
 
-def _prepare_replay(config: LLMConfig) -> LLMConfig:
+def _prepare_replay(config: LLMConfig, deadline: float | None) -> LLMConfig:
     """The recording's mode, label and sampling settings."""
     from actionreasoning.reasoners.recording import ReplayChat
 

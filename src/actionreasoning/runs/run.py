@@ -19,9 +19,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
 
-from actionreasoning.errors import ConfigError
+from actionreasoning.errors import ConfigError, LLMError
 from actionreasoning.reasoners.factory import prepare
 from actionreasoning.recording.rerun_log import require_rerun
+from actionreasoning.records import FailureCode
 from actionreasoning.runs.jobs import (
     TrialJob,
     TrialOutput,
@@ -155,10 +156,20 @@ def _run_locked(config: RunConfig, observer: RunObserver | None) -> RunSummary:
 
 
 def _prepared(config: TrialConfig) -> TrialConfig:
-    """``config`` with its backend checked and settled for the run (factory.prepare)."""
+    """``config`` with its backend checked and settled for the run (factory.prepare),
+    within one trial's wall time."""
     if config.llm is None:
         return config
-    return config.model_copy(update={"llm": prepare(config.llm)})
+    limit_s = config.budget.max_wall_s
+    try:
+        llm = prepare(config.llm, time.monotonic() + limit_s)
+    except LLMError as error:
+        if error.reason is not FailureCode.TIME_BUDGET:
+            raise
+        raise LLMError(
+            error.reason, f"the start probe took longer than --max-trial-s ({limit_s:g} s)"
+        ) from None
+    return config.model_copy(update={"llm": llm})
 
 
 def _kept(finished: int) -> str:
