@@ -99,6 +99,37 @@ def test_a_run_killed_with_sigkill_resumes_without_loss_or_duplicates(
     assert sorted_lines(out) == serial
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("stop", [signal.SIGTERM, signal.SIGKILL], ids=lambda s: s.name)
+def test_a_run_with_workers_stopped_by_a_signal_prints_no_warning_and_keeps_its_trials(
+    pattern: Path, serial: list[str], tmp_path: Path, stop: signal.Signals
+) -> None:
+    """SIGTERM stops the run as Ctrl-C does; after SIGKILL, multiprocessing's resource
+    tracker frees the workers' semaphores without warning about it (it used to, either way)."""
+    out = tmp_path / "run"
+    command = [sys.executable, "-m", "actionreasoning", *eval_args(pattern, out, "--workers", "2")]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    results = out / "results.jsonl"
+    deadline = time.monotonic() + 300
+    while not (results.exists() and results.read_text().count("\n") >= 1):
+        assert process.poll() is None and time.monotonic() < deadline, "no trial finished"
+        time.sleep(0.05)
+    workers = children(process.pid)
+    process.send_signal(stop)
+    _, stderr = process.communicate(timeout=120)  # until every process holding stderr ends
+    assert_processes_end(workers, "the workers")
+    if stop is signal.SIGTERM:
+        assert process.returncode == 130
+        assert (
+            stderr
+            == "interrupted: the finished trials are saved: run the same command to run the rest\n"
+        )
+    else:
+        assert process.returncode == -signal.SIGKILL and stderr == ""
+    finished = sorted_lines(out)
+    assert finished and set(finished) <= set(serial) and len(set(finished)) == len(finished)
+
+
 def ray_env() -> dict[str, str]:
     """The environment of the test's Ray cluster and its client, with Ray's token
     authentication off whatever the user's Ray state: a token left in ~/.ray/auth_token (by

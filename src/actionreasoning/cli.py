@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import math
 import signal
+from collections.abc import Iterator
+from contextlib import contextmanager
 from enum import StrEnum
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
@@ -408,7 +410,7 @@ def _evaluate(
         ray=ray,
     )
     try:
-        with ConsoleProgress(console, _title(run)) as progress:
+        with _sigterm_as_ctrl_c(), ConsoleProgress(console, _title(run)) as progress:
             summary = run_eval(run, progress)
     except (ActionReasoningError, OSError) as error:
         _fail(error, out)
@@ -671,21 +673,29 @@ def serve_reference(
         server = ReferenceServer(host, port, verbose)
     except ActionReasoningError as error:
         _fail(error)
-    previous = signal.getsignal(signal.SIGTERM)
     try:
-        signal.signal(signal.SIGTERM, _interrupt)
-        print(f"serving the prompt-only reference model at {server.url}", flush=True)
-        server.serve_forever()
+        with _sigterm_as_ctrl_c():
+            print(f"serving the prompt-only reference model at {server.url}", flush=True)
+            server.serve_forever()
     except KeyboardInterrupt:
         pass
     finally:
-        signal.signal(signal.SIGTERM, previous)
         server.server_close()
 
 
-def _interrupt(signum: int, frame: object) -> None:
-    """SIGTERM stops a server as Ctrl-C does."""
-    raise KeyboardInterrupt
+@contextmanager
+def _sigterm_as_ctrl_c() -> Iterator[None]:
+    """SIGTERM stops what runs inside as Ctrl-C does (a KeyboardInterrupt), so it ends
+    cleanly: its worker processes stopped, its files closed."""
+
+    def interrupt(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 @app.command("mcp")

@@ -12,6 +12,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import socket
+import sys
 import threading
 import time
 from collections.abc import Iterable, Iterator
@@ -19,6 +20,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from itertools import islice
+from multiprocessing import resource_tracker
 
 from actionreasoning.errors import ConfigError, EngineError
 from actionreasoning.recording.rerun_log import RerunRecorder
@@ -98,6 +100,19 @@ def _exit_with_parent(parent: int) -> None:
     threading.Thread(target=watch, daemon=True).start()
 
 
+#: multiprocessing's resource tracker frees the semaphores of a pool whose process was killed
+#: (SIGKILL), and warns that it did: nothing is left over, so the warning only alarms.
+TRACKER_QUIET = "ignore:resource_tracker:UserWarning"
+
+
+def _quiet_resource_tracker() -> None:
+    """Start the resource tracker (a process of its own, started with this interpreter's
+    warning options) without its warning about semaphores it frees."""
+    if TRACKER_QUIET not in sys.warnoptions:
+        sys.warnoptions.append(TRACKER_QUIET)
+    resource_tracker.ensure_running()
+
+
 def run_in_processes(jobs: Iterable[TrialJob], workers: int) -> Iterator[TrialOutput]:
     """Jobs in ``workers`` fresh processes, yielded as they finish (not in trial order).
 
@@ -105,6 +120,7 @@ def run_in_processes(jobs: Iterable[TrialJob], workers: int) -> Iterator[TrialOu
     """
     # spawn, not fork: a worker must not inherit this process's simulator clients or threads.
     context = multiprocessing.get_context("spawn")
+    _quiet_resource_tracker()
     pool = ProcessPoolExecutor(
         max_workers=workers,
         mp_context=context,
