@@ -479,12 +479,24 @@ def append_result(sink: IO[bytes], result: TrialResult) -> None:
 
 
 def write_file(path: Path, data: bytes, kept: str) -> None:
-    """Write ``path`` (making its folders); a failure raises :func:`write_error`'s error."""
+    """Write ``path`` (making its folders) whole or not at all: under its
+    :func:`partial_name` first, renamed to ``path`` once all is written and closed. A failure
+    deletes the partial file and raises :func:`write_error`'s error."""
+    partial = partial_name(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_bytes(data)
+        partial.write_bytes(data)
+        os.replace(partial, path)
     except OSError as error:
+        with contextlib.suppress(OSError):
+            partial.unlink(missing_ok=True)
         raise write_error(path, error, kept) from error
+
+
+def partial_name(path: Path) -> Path:
+    """Where ``path`` is written before it is whole (``trial_000.rrd.partial``): a name no
+    reader looks for, nor matches by its extension."""
+    return path.with_name(f"{path.name}.partial")
 
 
 def write_error(path: Path, error: OSError, kept: str) -> StorageError:
