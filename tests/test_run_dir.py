@@ -17,7 +17,13 @@ from actionreasoning.reasoners.backend import LLMConfig
 from actionreasoning.records import Failure
 from actionreasoning.report.runs import read_run
 from actionreasoning.runs.progress import ConsoleProgress
-from actionreasoning.runs.run_dir import RunManifest, append_result, open_run, read_results
+from actionreasoning.runs.run_dir import (
+    MAX_LINE_BYTES,
+    RunManifest,
+    append_result,
+    open_run,
+    read_results,
+)
 from actionreasoning.trial.config import TrialConfig
 from actionreasoning.trial.provenance import Provenance
 from actionreasoning.trial.results import PlacementMetrics, TrialResult
@@ -260,3 +266,37 @@ def test_a_run_whose_configuration_this_version_reads_no_more_is_reported_not_re
     (tmp_path / "run.json").write_text(json.dumps(stored))
     with pytest.raises(ConfigError, match=r"damaged or from an earlier version"):
         read_run(tmp_path)
+
+
+def test_a_file_of_nul_bytes_is_not_a_results_file_and_is_left_as_it_is(tmp_path: Path) -> None:
+    """Not "empty" (its one line taken for a line cut short), and a resume does not cut it
+    away: it is no results file at all."""
+    assert open_run(tmp_path, MANIFEST) == []
+    path = tmp_path / "results.jsonl"
+    path.write_bytes(b"\0" * 5000)
+    for read in (lambda: read_run(tmp_path), lambda: open_run(tmp_path, MANIFEST)):
+        with pytest.raises(
+            ConfigError, match=r"results\.jsonl is not a results file \(it holds NUL"
+        ):
+            read()
+    assert path.read_bytes() == b"\0" * 5000
+
+
+@pytest.mark.parametrize("ending", [b"", b"\n"])
+def test_a_line_longer_than_any_result_is_refused_with_its_number(
+    tmp_path: Path, ending: bytes
+) -> None:
+    """Read in pieces and refused once too long, never read whole; a resume cuts nothing."""
+    write_run(tmp_path, 2)
+    path = tmp_path / "results.jsonl"
+    whole = path.read_bytes()
+    path.write_bytes(whole + b"x" * (MAX_LINE_BYTES + 1) + ending + whole)
+    size = path.stat().st_size
+    for read in (lambda: read_results(path, repair=True), lambda: open_run(tmp_path, MANIFEST)):
+        with pytest.raises(ConfigError, match=r"line 3 is longer than 64 MiB: not a trial result"):
+            read()
+    assert path.stat().st_size == size
+    # At the limit, it is read as a line: refused as what it is, not for its length.
+    path.write_bytes(whole + b"x" * MAX_LINE_BYTES + b"\n")
+    with pytest.raises(ConfigError, match=r"line 3 is not a trial result \(Invalid JSON"):
+        read_results(path)

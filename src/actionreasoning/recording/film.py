@@ -3,7 +3,10 @@
 ``python -m actionreasoning.recording.film MP4`` reads pickles from its standard input, written
 by its parent (``recording/video.py``): a :class:`Reel` (what the scene looks like, from where),
 then one :class:`Frame` per frame, then ``None``; if the input ends before ``None``, the
-parent is gone (killed, say) and the film process ends, leaving no file. It poses a look-alike
+parent is gone (killed, say) and the film process ends, leaving no file. A video that could
+not be finished (a full disk: the encoder gives up, or writes a file cut short, without a
+word) is checked for, deleted, and the reason printed as the last line of the standard
+output, exit status 2. It poses a look-alike
 of the scene (:class:`Replica`) for each frame, renders it with TinyRenderer over a ground
 rendered once, captions it and writes it to the MP4. It is a process of its own, not a
 ``multiprocessing`` child, so that filming works from any script, with or without an
@@ -22,6 +25,7 @@ import imageio.v2 as imageio
 import numpy as np
 from PIL import Image, ImageDraw
 
+from actionreasoning.recording.mp4 import Unfinished, check_mp4
 from actionreasoning.sim.camera import CameraView, FixedCamera
 from actionreasoning.sim.replica import Replica, SceneLooks, ScenePose
 
@@ -67,8 +71,10 @@ def film(source: BinaryIO, path: str) -> None:
             replica.show(frame.pose)
             writer.append_data(captioned(camera.render(replica.client), frame.caption))
     finally:
-        writer.close()
-        replica.close()
+        try:
+            writer.close()
+        finally:
+            replica.close()
 
 
 def captioned(image: np.ndarray, lines: tuple[str, ...]) -> np.ndarray:
@@ -86,9 +92,16 @@ def main() -> None:
     path = sys.argv[1]
     try:
         film(sys.stdin.buffer, path)
+        check_mp4(path)
     except EOFError:  # the trial's process is gone: nobody will read the video
         Path(path).unlink(missing_ok=True)
         sys.exit(1)
+    except (OSError, Unfinished) as error:  # the encoder's, or its file's, failure
+        Path(path).unlink(missing_ok=True)
+        reason = error.strerror if isinstance(error, OSError) and error.strerror else error
+        lines = str(reason).strip().splitlines() or [type(error).__name__]
+        print(f"\n{' '.join(lines[0].split())}", flush=True)
+        sys.exit(2)
 
 
 if __name__ == "__main__":

@@ -21,6 +21,7 @@ import subprocess
 import sys
 import tempfile
 import threading
+from collections import deque
 from pathlib import Path
 from queue import SimpleQueue
 from typing import IO
@@ -43,6 +44,11 @@ FRAME_S = 1.0 / FPS
 WIDTH, HEIGHT = 320, 240
 
 
+class FilmFailed(EngineError):
+    """The film process could not make the video (a full temporary directory, say); the
+    message is its reason, in one line. The trial itself is whole."""
+
+
 class VideoRecorder(TrialObserver):
     """Films a trial through a film process; ``close()`` waits for it and gives the MP4."""
 
@@ -52,6 +58,8 @@ class VideoRecorder(TrialObserver):
         self._queue: SimpleQueue[Reel | Frame | None] = SimpleQueue()
         self._film: subprocess.Popen[bytes] | None = None
         self._feeder: threading.Thread | None = None
+        self._reader: threading.Thread | None = None
+        self._said: deque[bytes] = deque(maxlen=8)  # the film process's last output lines
         self._path: Path | None = None
         self._doing = "settling"
         self._verdict = ""
@@ -82,12 +90,16 @@ class VideoRecorder(TrialObserver):
         self._film = subprocess.Popen(
             command,
             stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
             env={**os.environ, "PYTHONPATH": os.pathsep.join(paths)},
         )
         assert self._film.stdin is not None
         self._queue.put(reel)
         self._feeder = threading.Thread(target=self._feed, args=(self._film.stdin,), daemon=True)
         self._feeder.start()
+        assert self._film.stdout is not None
+        self._reader = threading.Thread(target=self._read, args=(self._film.stdout,), daemon=True)
+        self._reader.start()
 
     def _feed(self, pipe: IO[bytes]) -> None:
         """Send the queued reel and frames to the film process, until ``None``; if it died,
@@ -99,20 +111,33 @@ class VideoRecorder(TrialObserver):
                 if item is None:
                     return
 
+    def _read(self, pipe: IO[bytes]) -> None:
+        """Keep the film process's last output lines (its reason, if it fails), reading
+        all of it so that it never waits on a full pipe."""
+        with pipe:
+            for line in pipe:
+                if line.strip():
+                    self._said.append(line)
+
     def close(self) -> bytes:
         """The MP4 (empty if no frame was filmed), once the film process has encoded every
-        frame; the recorder is done."""
+        frame and checked it whole; the recorder is done. :class:`FilmFailed` if it could
+        not."""
         if self._film is None or self._feeder is None or self._path is None:
             return b""
         try:
             self._queue.put(None)
             self._feeder.join()
             code = self._film.wait()
+            if self._reader is not None:
+                self._reader.join()
             if code != 0:
-                raise EngineError(
-                    f"the film process failed (exit code {code}); see its error above"
-                )
-            return self._path.read_bytes()
+                said = self._said[-1].decode(errors="replace").strip() if self._said else ""
+                raise FilmFailed(said or f"the film process failed (exit code {code})")
+            try:
+                return self._path.read_bytes()
+            except OSError as error:
+                raise FilmFailed(f"{self._path}: {error.strerror or error}") from error
         finally:
             self._path.unlink(missing_ok=True)
 

@@ -17,6 +17,7 @@ from typing import Any, TypeVar
 from pydantic import TypeAdapter, ValidationError
 
 from actionreasoning.errors import ConfigError
+from actionreasoning.recording.mp4 import Unfinished, check_mp4
 from actionreasoning.report.runs import Run, read_runs
 from actionreasoning.runs.layout import RunDir
 from actionreasoning.runs.run_dir import AnyManifest, RecordedManifest, RunManifest
@@ -52,13 +53,23 @@ class Group:
         return None
 
     def video(self, result: TrialResult) -> Path | None:
-        """The video of ``result``, if its run filmed it (eval --video)."""
+        """The video of ``result``, if its run filmed it (eval --video) and it is whole: only
+        the final name is looked for (never a ``.partial`` one), and a file cut short there
+        (left by an earlier version on a full disk) is left out."""
         failure = None if result.failure is None else str(result.failure.reason)
         for directory in self.sources[(result.seed, result.trial)]:
             path = RunDir(directory).video(result.trial, failure)
-            if path.is_file():
+            if path.is_file() and _whole(path):
                 return path
         return None
+
+
+def _whole(video: Path) -> bool:
+    try:
+        check_mp4(str(video))
+    except (OSError, Unfinished):
+        return False
+    return True
 
 
 def pattern_title(pattern: str) -> str:

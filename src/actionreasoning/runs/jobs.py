@@ -25,7 +25,7 @@ from multiprocessing import resource_tracker
 from actionreasoning.errors import ConfigError, EngineError
 from actionreasoning.recording.rerun_log import RerunRecorder
 from actionreasoning.recording.snapshots import SnapshotRecorder
-from actionreasoning.recording.video import VideoRecorder
+from actionreasoning.recording.video import FilmFailed, VideoRecorder
 from actionreasoning.trial.results import TrialResult
 from actionreasoning.trial.runner import TrialSpec, run_trial
 
@@ -56,6 +56,8 @@ class TrialOutput:
     pictures: dict[str, bytes] = field(default_factory=dict)
     recording: bytes = b""
     video: bytes = b""
+    #: Why the video could not be made (a full temporary directory, say); "" if it was.
+    video_error: str = ""
 
 
 def execute(job: TrialJob) -> TrialOutput:
@@ -63,13 +65,17 @@ def execute(job: TrialJob) -> TrialOutput:
     snapshots = SnapshotRecorder() if job.snapshots else None
     rerun = RerunRecorder(job.spec) if job.rerun else None
     video = VideoRecorder() if job.video else None
+    film, film_error = b"", ""
     try:
         run = run_trial(job.spec, [o for o in (snapshots, rerun, video) if o is not None])
     finally:  # the Rerun stream's threads and the film process end even if the trial raised
         try:
             recording = rerun.rrd() if rerun is not None else b""
         finally:
-            film = video.close() if video is not None else b""
+            try:
+                film = video.close() if video is not None else b""
+            except FilmFailed as error:  # the trial is whole: its line is kept, then this said
+                film_error = str(error)
     transcript = (
         "".join(call.model_dump_json() + "\n" for call in run.transcript) if job.transcripts else ""
     )
@@ -79,6 +85,7 @@ def execute(job: TrialJob) -> TrialOutput:
         pictures=snapshots.files if snapshots is not None else {},
         recording=recording,
         video=film,
+        video_error=film_error,
     )
 
 

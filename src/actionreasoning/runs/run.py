@@ -13,13 +13,14 @@ the end. A write that fails ends the run with a :class:`StorageError` saying wha
 
 from __future__ import annotations
 
+import tempfile
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
 
-from actionreasoning.errors import ConfigError, LLMError
+from actionreasoning.errors import ConfigError, LLMError, StorageError
 from actionreasoning.reasoners.factory import prepare
 from actionreasoning.recording.rerun_log import require_rerun
 from actionreasoning.records import FailureCode
@@ -226,3 +227,10 @@ def _write_outputs(run: RunDir, config: RunConfig, output: TrialOutput, kept: st
     incomplete = f"not all of trial {trial}'s pictures, transcript, recording and video are written"
     for path, data in files.items():
         write_file(path, data, f"{incomplete}; {kept}")
+    if config.video and output.video_error:
+        failure = None if result.failure is None else str(result.failure.reason)
+        raise StorageError(
+            f"cannot write {run.video(trial, failure)}: the video could not be finished "
+            f"({output.video_error}; videos are made in {tempfile.gettempdir()}); {kept}, "
+            "without this video; make room, then run the same command again"
+        )

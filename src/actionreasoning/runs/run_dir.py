@@ -28,7 +28,7 @@ from actionreasoning.runs.layout import RunDir
 from actionreasoning.trial.config import TrialConfig
 from actionreasoning.trial.results import TrialResult
 from actionreasoning.trial.rules import trial_seed
-from actionreasoning.world.config_files import read_user_file
+from actionreasoning.world.config_files import one_line, open_user_file, read_user_file
 from actionreasoning.world.models import Supply
 
 
@@ -336,56 +336,106 @@ def _differences(there: dict[str, Any], now: dict[str, Any]) -> list[str]:
     return found
 
 
+#: The longest line a results file may hold. A trial's line takes some 700 bytes a brick,
+#: so even the largest pattern a pattern file can hold (1 MiB of bricks) fits; a longer
+#: line is no trial result, and is refused without being read whole.
+MAX_LINE_BYTES = 64 << 20
+_PIECE_BYTES = 1 << 20
+
+
 def read_results(path: Path, repair: bool = False) -> list[TrialResult]:
     """The trials in a results.jsonl, every line checked. A last line cut short is ignored
-    and a whole one that only lacks its newline kept; ``repair`` mends the file to match."""
-    data = read_user_file(path, "results file", limit=None)
-    lines = _whole_lines(data)
+    and a whole one that only lacks its newline kept; ``repair`` mends the file to match.
+
+    The file is read line by line: memory holds the trials and one line, never the file. A
+    line longer than :data:`MAX_LINE_BYTES` is refused with its number, and a file whose
+    first line holds NUL bytes is not a results file.
+    """
     results: list[TrialResult] = []
     seen: set[int] = set()
-    for number, line in enumerate(lines.splitlines(), start=1):
+    mend: tuple[int, bytes] | None = None  # cut the file at this offset and add these bytes
+    with open_user_file(path, "results file") as handle:
+        number = offset = 0
+        while chunk := _next_line(path, handle, number + 1):
+            if not chunk.endswith(b"\n"):
+                if _cut_short(chunk):
+                    mend = (offset, b"")
+                    break
+                mend = (offset + len(chunk), b"\n")
+            for line in chunk.splitlines():
+                number += 1
+                results.append(_result(path, number, line, seen))
+            offset += len(chunk)
+    if repair and mend is not None:
         try:
-            result = TrialResult.model_validate_json(line)
-        except ValidationError as error:
-            raise ConfigError(
-                f"{path} line {number} is not a trial result ({error.errors()[0]['msg']})"
-            ) from error
-        _check_index(result, f"{path} line {number}")
-        if result.trial in seen:
-            raise ConfigError(f"{path} line {number} repeats trial {result.trial}")
-        seen.add(result.trial)
-        results.append(result)
-    if repair and lines != data:
-        try:
-            _mend(path, len(data), lines)
+            _mend(path, *mend)
         except OSError as error:
             raise write_error(path, error, "its whole lines are kept") from error
     return results
 
 
-def _mend(path: Path, size: int, lines: bytes) -> None:
-    """Make the file of ``size`` bytes ``lines``: its start, or itself plus a newline."""
+def _next_line(path: Path, handle: IO[bytes], number: int) -> bytes:
+    """Line ``number`` of the results file, its newline included (empty at the end), read
+    in pieces: one longer than :data:`MAX_LINE_BYTES` is refused once that much is read,
+    and a first line holding NUL bytes at its first piece."""
+    pieces: list[bytes] = []
+    size = 0
+    try:
+        while piece := handle.readline(_PIECE_BYTES):
+            if number == 1 and b"\0" in piece:
+                raise ConfigError(
+                    f"{path} is not a results file (it holds NUL bytes where its first line "
+                    "should be)"
+                )
+            pieces.append(piece)
+            size += len(piece)
+            ended = piece.endswith(b"\n")
+            if size - ended > MAX_LINE_BYTES:
+                raise ConfigError(
+                    f"{path} line {number} is longer than {MAX_LINE_BYTES >> 20} MiB: not a "
+                    "trial result"
+                )
+            if ended:
+                break
+    except OSError as error:
+        raise ConfigError(
+            f"{path}: cannot read results file ({one_line(error.strerror or error)})"
+        ) from error
+    return b"".join(pieces)
+
+
+def _result(path: Path, number: int, line: bytes, seen: set[int]) -> TrialResult:
+    """Line ``number``'s trial, checked; its index is added to ``seen``."""
+    try:
+        result = TrialResult.model_validate_json(line)
+    except ValidationError as error:
+        raise ConfigError(
+            f"{path} line {number} is not a trial result ({error.errors()[0]['msg']})"
+        ) from error
+    _check_index(result, f"{path} line {number}")
+    if result.trial in seen:
+        raise ConfigError(f"{path} line {number} repeats trial {result.trial}")
+    seen.add(result.trial)
+    return result
+
+
+def _mend(path: Path, kept: int, added: bytes) -> None:
+    """Cut the file to its first ``kept`` bytes and append ``added``."""
     with path.open("r+b") as handle:
-        kept = min(size, len(lines))
         handle.truncate(kept)
         handle.seek(kept)
-        handle.write(lines[kept:])
+        handle.write(added)
         os.fsync(handle.fileno())
 
 
-def _whole_lines(data: bytes) -> bytes:
-    """``data`` ending in a newline: a last line cut short dropped, a missing newline added.
-
-    A line cut short is not JSON; any JSON is a whole line, checked as a result after."""
-    whole = data.rfind(b"\n") + 1
-    if whole == len(data):
-        return data
+def _cut_short(last: bytes) -> bool:
+    """Whether a last line without its newline was cut short (not JSON): any JSON is a
+    whole line that only lacks its newline, checked as a result after."""
     try:
-        TrialResult.model_validate_json(data[whole:])
+        TrialResult.model_validate_json(last)
     except ValidationError as error:
-        if error.errors()[0]["type"] == "json_invalid":
-            return data[:whole]
-    return data + b"\n"
+        return error.errors()[0]["type"] == "json_invalid"
+    return False
 
 
 def _check_index(result: TrialResult, where: str) -> None:
@@ -429,12 +479,24 @@ def append_result(sink: IO[bytes], result: TrialResult) -> None:
 
 
 def write_file(path: Path, data: bytes, kept: str) -> None:
-    """Write ``path`` (making its folders); a failure raises :func:`write_error`'s error."""
+    """Write ``path`` (making its folders) whole or not at all: under its
+    :func:`partial_name` first, renamed to ``path`` once all is written and closed. A failure
+    deletes the partial file and raises :func:`write_error`'s error."""
+    partial = partial_name(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_bytes(data)
+        partial.write_bytes(data)
+        os.replace(partial, path)
     except OSError as error:
+        with contextlib.suppress(OSError):
+            partial.unlink(missing_ok=True)
         raise write_error(path, error, kept) from error
+
+
+def partial_name(path: Path) -> Path:
+    """Where ``path`` is written before it is whole (``trial_000.rrd.partial``): a name no
+    reader looks for, nor matches by its extension."""
+    return path.with_name(f"{path.name}.partial")
 
 
 def write_error(path: Path, error: OSError, kept: str) -> StorageError:

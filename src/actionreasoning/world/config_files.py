@@ -13,7 +13,7 @@ import os
 import stat
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, BinaryIO, TypeVar
 
 import yaml
 from pydantic import BaseModel, ValidationError
@@ -87,6 +87,22 @@ def read_user_file(
 
     Opening does not block (a FIFO without a writer opens at once and is then refused).
     """
+    with open_user_file(path, what, error) as handle:
+        try:
+            data = _read(handle.fileno(), limit)
+        except OSError as exc:
+            raise error(f"{path}: cannot read {what} ({one_line(exc.strerror or exc)})") from exc
+    if limit is not None and len(data) > limit:
+        raise error(f"{path}: cannot read {what} (larger than {_size(limit)})")
+    return data
+
+
+def open_user_file(
+    path: Path, what: str, error: type[ActionReasoningError] = ConfigError
+) -> BinaryIO:
+    """The ``what`` file at ``path`` opened to read in binary, if it is a regular file
+    (symlinks followed); else a one-line ``error``. Opening does not block (a FIFO without
+    a writer opens at once and is then refused). Errors while reading are the caller's."""
     try:
         descriptor = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
     except OSError as exc:
@@ -96,14 +112,13 @@ def read_user_file(
         if not stat.S_ISREG(mode):
             kind = _KINDS.get(stat.S_IFMT(mode), "not a file")
             raise error(f"{path}: cannot read {what} ({kind}, not a regular file)")
-        data = _read(descriptor, limit)
+        return os.fdopen(descriptor, "rb")
     except OSError as exc:
-        raise error(f"{path}: cannot read {what} ({one_line(exc.strerror or exc)})") from exc
-    finally:
         os.close(descriptor)
-    if limit is not None and len(data) > limit:
-        raise error(f"{path}: cannot read {what} (larger than {_size(limit)})")
-    return data
+        raise error(f"{path}: cannot read {what} ({one_line(exc.strerror or exc)})") from exc
+    except BaseException:
+        os.close(descriptor)
+        raise
 
 
 def _read(descriptor: int, limit: int | None) -> bytes:
