@@ -185,6 +185,7 @@ class ReferenceServer(ThreadingHTTPServer):
         try:
             request.setblocking(False)
             request.send((head + body).encode())
+            request.recv(65536)  # what has come of the request: a close with it unread resets
         except OSError:
             pass
         self._drop(request, f"refused with 503: all handlers busy{why}", client_address)
