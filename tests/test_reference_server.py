@@ -6,9 +6,12 @@ import http.client
 import json
 import re
 import signal
+import socket
+import struct
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Iterator
 
 import openai
@@ -18,6 +21,7 @@ from conftest import assert_clean_error, cli
 from actionreasoning.errors import ConfigError, LLMError
 from actionreasoning.reasoners.backend import ServerOptions
 from actionreasoning.reasoners.chat import ChatRequest, StructuredMode
+from actionreasoning.reasoners.llm import TOOL_RESULTS
 from actionreasoning.reasoners.openai_chat import OpenAIChat
 from actionreasoning.reasoners.reference_model import UnreadableConversation, reply
 from actionreasoning.reasoners.reference_server import (
@@ -197,3 +201,113 @@ def test_the_command_prints_its_url_serves_and_stops_cleanly(stop: signal.Signal
             process.wait()
         process.stdout.close()
         process.stderr.close()
+
+
+#: The one stderr line for a client the server dropped.
+DROPPED = re.compile(r"reference server: dropped 127\.0\.0\.1:\d+: [^\n]+")
+#: A JSON integer longer than Python converts (4300 digits by default).
+HUGE_INT = "1" * 5000
+
+
+@pytest.mark.parametrize(
+    "messages",
+    [
+        [{"role": "user", "content": '{"n": ' + HUGE_INT + "}"}],
+        [
+            {"role": "user", "content": "# Agent 1 of 6: x\nReasoning tier: solve here"},
+            {"role": "assistant", "content": '{"tool_calls": [{"name": "t", "n": ' + HUGE_INT},
+            {"role": "user", "content": f"{TOOL_RESULTS}[]"},
+        ],
+    ],
+    ids=["literal", "tool-turn"],
+)
+def test_a_huge_integer_in_a_message_is_refused_with_400(
+    server: ReferenceServer, messages: list[dict[str, str]]
+) -> None:
+    body = json.dumps({"messages": messages}).encode()
+    status, answer = raw_request(server, "POST", "/v1/chat/completions", body)
+    assert status == 400, answer
+    assert "digits" in answer["error"]["message"]
+    assert answer["error"]["type"] == "invalid_request_error"
+
+
+def test_a_huge_integer_in_the_body_is_refused_with_400(server: ReferenceServer) -> None:
+    body = b'{"messages": [], "seed": ' + HUGE_INT.encode() + b"}"
+    status, answer = raw_request(server, "POST", "/v1/chat/completions", body)
+    assert status == 400 and "not valid JSON" in answer["error"]["message"]
+
+
+@pytest.fixture
+def guarded() -> Iterator[ReferenceServer]:
+    """A server with a short read timeout and small bounds."""
+    server = ReferenceServer(port=0, read_timeout_s=0.5, max_handlers=2, max_waiting=4)
+    thread = threading.Thread(target=server.serve_forever, args=(0.05,), daemon=True)
+    thread.start()
+    yield server
+    server.shutdown()
+    server.server_close()
+
+
+def _connect(server: ReferenceServer) -> socket.socket:
+    return socket.create_connection(server.server_address[:2], timeout=30)
+
+
+def _closed_by_server(sock: socket.socket) -> bool:
+    """Whether the server closes ``sock`` (reads end or reset) rather than leaving it open
+    until the client gives up after 30 s."""
+    try:
+        while sock.recv(4096):
+            pass
+        return True
+    except ConnectionResetError:
+        return True
+    except TimeoutError:
+        return False
+
+
+def test_silent_connections_are_closed_and_do_not_starve_a_request(
+    guarded: ReferenceServer, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # More silent clients than may wait, and some mid-headers or mid-body, as many as may
+    # be handled at once.
+    silent = [_connect(guarded) for _ in range(10)]
+    stalled = [_connect(guarded) for _ in range(2)]
+    stalled[0].sendall(b"POST /v1/chat/completions HTTP/1.1\r\nHost: x\r\n")
+    stalled[1].sendall(b"POST /v1/chat/completions HTTP/1.1\r\nContent-Length: 99\r\n\r\n{")
+    try:
+        status, answer = 503, {}
+        while status == 503:  # while the stalled clients hold both handlers: 503, retry
+            try:
+                status, answer = raw_request(guarded, "GET", "/v1/models")
+            except ConnectionResetError:
+                pass
+            time.sleep(0.05)
+        assert status == 200 and answer["data"][0]["id"] == "reference"
+        assert all(_closed_by_server(sock) for sock in silent + stalled)
+    finally:
+        for sock in silent + stalled:
+            sock.close()
+    lines = capsys.readouterr().err.splitlines()
+    assert lines and all(DROPPED.fullmatch(line) for line in lines), lines
+
+
+def test_a_client_hanging_up_mid_request_is_one_line_not_a_traceback(
+    server: ReferenceServer, capsys: pytest.CaptureFixture[str]
+) -> None:
+    head = b"POST /v1/chat/completions HTTP/1.1\r\nContent-Length: 1000\r\n\r\n"
+    for reset in (True, False):
+        sock = _connect(server)
+        sock.sendall(head + b'{"messages": ')
+        if reset:  # close with a reset, as a killed client does
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        sock.close()
+    seen = ""
+    for _ in range(600):  # until both are reported (at most 30 s)
+        seen += capsys.readouterr().err
+        if seen.count("\n") >= 2 and seen.count("dropped") + seen.count("Traceback") >= 2:
+            break
+        time.sleep(0.05)
+    assert "Traceback" not in seen
+    lines = seen.splitlines()
+    assert len(lines) == 2, seen
+    assert all(DROPPED.fullmatch(line) for line in lines)

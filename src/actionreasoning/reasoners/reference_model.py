@@ -20,6 +20,7 @@ import itertools
 import json
 import math
 import re
+import sys
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -41,6 +42,7 @@ from actionreasoning.reasoners import builtin
 from actionreasoning.reasoners.llm import NO_MORE_TOOLS, TOOL_RESULTS
 from actionreasoning.tools.base import ToolModel
 from actionreasoning.tools.registry import TOOLS
+from actionreasoning.world.json_text import JSONTextError, parse_json
 from actionreasoning.world.tolerances import Tolerances
 
 Message = Mapping[str, Any]
@@ -170,12 +172,12 @@ def _tool_results(messages: Sequence[Message]) -> dict[str, dict[str, Any]]:
         if asked.get("role") != "assistant" or not text.startswith(TOOL_RESULTS):
             continue
         try:
-            calls = json.loads(_text(asked)).get("tool_calls", [])
-            outcomes = json.loads(text[len(TOOL_RESULTS) :].split("\n", 1)[0])
-        except (json.JSONDecodeError, AttributeError, RecursionError) as error:
+            calls = parse_json(_text(asked)).get("tool_calls", [])
+            outcomes = parse_json(text[len(TOOL_RESULTS) :].split("\n", 1)[0])
+            for call, outcome in zip(calls, outcomes, strict=False):
+                results[_key(call["name"], call.get("arguments", {}))] = outcome
+        except (JSONTextError, AttributeError, KeyError, TypeError) as error:
             raise UnreadableConversation(f"unreadable tool turn: {error!r}"[:200]) from None
-        for call, outcome in zip(calls, outcomes, strict=False):
-            results[_key(call["name"], call.get("arguments", {}))] = outcome
     return results
 
 
@@ -205,6 +207,11 @@ def _literal_answer(message: Message) -> str:
             continue
         except RecursionError:
             raise UnreadableConversation("the JSON in the message is nested too deeply") from None
+        except ValueError:  # an integer too long to convert
+            limit = sys.get_int_max_str_digits()
+            raise UnreadableConversation(
+                f"a number in the message's JSON has more than {limit} digits"
+            ) from None
         if isinstance(value, dict):
             return json.dumps(value)
     raise UnreadableConversation("the last message is no agent prompt and holds no JSON object")
