@@ -88,6 +88,12 @@ def test_bad_pattern_files_are_refused_in_one_line(tmp_path: Path, name: str) ->
     assert not (tmp_path / "o" / "results.jsonl").exists()
 
 
+@pytest.mark.parametrize("option", ["--pattern", "--physics", "--noise"])
+def test_a_file_name_too_long_is_refused_in_one_line(tmp_path: Path, option: str) -> None:
+    result = cli("eval", option, "p" * 300 + ".json", "--trials", "1", "--out", str(tmp_path))
+    assert_clean_error(result, f"{option.lstrip('-')}: file name too long (305 characters)")
+
+
 def test_transcripts_of_the_classical_method_are_refused(tmp_path: Path) -> None:
     out = tmp_path / "o"
     # Through the real entry point, `python -m actionreasoning`: its exit code and streams.
