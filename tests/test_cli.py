@@ -88,6 +88,17 @@ def test_bad_pattern_files_are_refused_in_one_line(tmp_path: Path, name: str) ->
     assert not (tmp_path / "o" / "results.jsonl").exists()
 
 
+@pytest.mark.parametrize("option", ["--pattern", "--physics", "--noise"])
+def test_a_file_name_too_long_is_refused_in_one_line(tmp_path: Path, option: str) -> None:
+    result = cli("eval", option, "p" * 300 + ".json", "--trials", "1", "--out", str(tmp_path))
+    assert_clean_error(result, f"{option.lstrip('-')}: file name too long (305 characters)")
+
+
+def test_a_demo_out_name_too_long_is_refused_in_one_line(tmp_path: Path) -> None:
+    result = cli("demo", "--out", str(tmp_path / ("d" * 300)))
+    assert_clean_error(result, "--out: file name too long")
+
+
 def test_transcripts_of_the_classical_method_are_refused(tmp_path: Path) -> None:
     out = tmp_path / "o"
     # Through the real entry point, `python -m actionreasoning`: its exit code and streams.

@@ -7,6 +7,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import math
+import re
 from collections.abc import Iterator
 from dataclasses import asdict
 from pathlib import Path
@@ -19,7 +20,7 @@ from conftest import eval_lines
 from gymnasium.utils.env_checker import check_env
 
 import actionreasoning.gym_env
-from actionreasoning.errors import ConfigError
+from actionreasoning.errors import ActionReasoningError, ConfigError
 from actionreasoning.gym_env.env import BrickStackEnv
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.trial.rules import Method
@@ -225,3 +226,17 @@ def test_a_refused_reset_leaves_the_env_as_it_was(env: BrickStackEnv) -> None:
         env.reset(seed=True)  # type: ignore[arg-type]  # what a careless caller passes
     _, info = env.reset()
     assert (info["seed"], info["trial"]) == (3, 1)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"pattern": "p" * 300 + ".json"}, "pattern: file name too long (305 characters)"),
+        ({"pattern": "a\0b.json"}, "pattern: contains a NUL byte"),
+        ({"physics": "a\0b.json"}, "physics: contains a NUL byte"),
+        ({"noise": "n" * 5000}, "noise: file name too long (5000 characters)"),
+    ],
+)
+def test_a_path_no_file_can_have_is_refused(kwargs: dict[str, str], message: str) -> None:
+    with pytest.raises(ActionReasoningError, match=re.escape(message)):
+        gymnasium.make("actionreasoning/BrickStack-v0", **kwargs)

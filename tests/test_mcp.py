@@ -246,6 +246,10 @@ def test_hostile_calls_get_typed_refusals_and_nothing_moves(tmp_path: Path) -> N
             ({"max_trial_s": math.inf}, "max_trial_s"),
             ({"trials": 2}, "trials: Extra inputs are not permitted"),
             ({"tools": "all"}, "not a tier (tiers: solve, check, none)"),
+            ({"pattern": "p" * 100_000}, "pattern: file name too long (100000 characters)"),
+            ({"pattern": "a\0b.json"}, "pattern: contains a NUL byte"),
+            ({"physics": "a\0b.json"}, "physics: contains a NUL byte"),
+            ({"noise": "n" * 300 + ".yaml"}, "noise: file name too long"),
         ):
             data, refused = await call(client, "start_trial", **arguments)
             assert refused and data["refusal"]["code"] == "invalid_action", arguments
@@ -320,7 +324,8 @@ def test_hostile_calls_get_typed_refusals_and_nothing_moves(tmp_path: Path) -> N
 
 def test_stdout_holds_only_protocol_messages_whatever_comes_in() -> None:
     """Raw stdio, line by line: a line that is not JSON, a NaN in a tool's arguments and
-    arguments that are no object get answers (or are dropped) and the server goes on; a
+    arguments that are no object get answers (a parse error with id null for the first)
+    and the server goes on; a
     trial runs and prints nothing on the wire; stdin's end stops the server cleanly."""
     initialize = {
         "protocolVersion": "2025-06-18",
@@ -374,6 +379,7 @@ def test_stdout_holds_only_protocol_messages_whatever_comes_in() -> None:
     for line, outcome in sent:
         if outcome is not None:
             assert outcome in by_id[json.loads(line)["id"]], by_id
+    assert by_id[None]["error"]["code"] == -32700  # the line that is not JSON
     nan = by_id[3]["result"]
     assert nan["isError"] and nan["structuredContent"]["refusal"]["code"] == "tool_error"
     assert by_id[5]["result"]["structuredContent"]["result"]["failure"]["reason"] == "abandoned"

@@ -6,6 +6,9 @@ descriptor 1 at stderr, so nothing the simulator or a library prints can reach t
 Every call runs in a worker thread (a trial's answer moves the arm for seconds) and comes
 back as a tool result: its JSON as text and as structured content, ``isError`` set when it
 was refused. A refusal is never a protocol error.
+
+The SDK reads stdin through :mod:`wire`, which answers every line the SDK would drop
+(not JSON, not a JSON-RPC message, over ``MAX_MESSAGE_BYTES``) with a JSON-RPC error.
 """
 
 from __future__ import annotations
@@ -17,10 +20,10 @@ import anyio
 import anyio.to_thread
 import mcp_types as types
 from mcp.server import Server, ServerRequestContext
-from mcp.server.stdio import stdio_server
 
 from actionreasoning import __version__
 from actionreasoning.mcp_server.door import Door
+from actionreasoning.mcp_server.wire import stdio
 
 INSTRUCTIONS = """\
 Build a brick pattern with a robot arm by answering its six gated agents (pre_grasp,
@@ -74,7 +77,7 @@ def serve() -> None:
 async def _serve() -> None:
     door = Door()
     try:
-        async with stdio_server() as (read_stream, write_stream):
+        async with stdio() as (read_stream, write_stream):
             server = build(door)
             await server.run(read_stream, write_stream, server.create_initialization_options())
     finally:

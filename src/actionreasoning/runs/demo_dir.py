@@ -43,7 +43,12 @@ def demo_directory(out: Path) -> Iterator[None]:
 
 def _check(out: Path) -> None:
     """Refuse a directory that is neither new, nor empty, nor an earlier demo's."""
-    if not out.exists():
+    try:
+        exists = out.exists()
+    except OSError as error:  # e.g. a file name too long to look up
+        detail = f"{(error.strerror or str(error)).lower()} ({len(str(out))} characters)"
+        raise ConfigError(f"--out: {detail}") from error
+    if not exists:
         return
     if not out.is_dir():
         raise ConfigError(f"--out {out} exists and is not a directory")

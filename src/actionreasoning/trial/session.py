@@ -38,7 +38,13 @@ from actionreasoning.agents.reasoner import AgentReply, AgentRequest, ToolRunner
 from actionreasoning.agents.tiers import DEFAULT_TIER, load_tier
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.agents.validation import OutputError, parse_answer
-from actionreasoning.errors import ActionReasoningError, ConfigError, LLMError, ToolError
+from actionreasoning.errors import (
+    ActionReasoningError,
+    ConfigError,
+    LLMError,
+    PatternError,
+    ToolError,
+)
 from actionreasoning.reasoners.backend import LLMConfig
 from actionreasoning.records import FailureCode
 from actionreasoning.sim.camera import overview, render
@@ -51,6 +57,7 @@ from actionreasoning.trial.results import TrialResult
 from actionreasoning.trial.rules import Method
 from actionreasoning.trial.runner import TrialObserver, TrialRun, TrialSpec, run_trial
 from actionreasoning.world.budget import TrialBudget
+from actionreasoning.world.config_files import check_file_name
 from actionreasoning.world.models import GoalPattern, WorldState
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scenarios import load_noise, load_physics
@@ -146,6 +153,7 @@ class Conditions:
         answer_errors: AnswerErrors = AnswerErrors(),
     ) -> Conditions:
         """The conditions named as on the command line; a bad name or file is refused."""
+        check_file_name(pattern, "pattern", PatternError)
         if Path(pattern).is_file():  # one file, however it is spelled: ./x.json is x.json
             pattern = os.path.normpath(pattern)
         config = TrialConfig(

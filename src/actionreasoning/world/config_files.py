@@ -76,6 +76,26 @@ _KINDS = {
 }
 
 
+#: The longest file name (one path component) and path the system opens, in bytes.
+NAME_MAX, PATH_MAX = 255, 4095
+
+
+def check_file_name(
+    name_or_path: str | Path, argument: str, error: type[ActionReasoningError] = ConfigError
+) -> None:
+    """Refuse, in one ``error`` line naming ``argument``, a name or path no file can have:
+    one with a NUL byte, one the file system cannot encode, one too long to open."""
+    text = str(name_or_path)
+    if "\0" in text:
+        raise error(f"{argument}: contains a NUL byte")
+    try:
+        encoded = os.fsencode(text)
+    except UnicodeEncodeError as exc:
+        raise error(f"{argument}: not a valid file name ({one_line(exc.reason)})") from exc
+    if len(encoded) > PATH_MAX or any(len(part) > NAME_MAX for part in encoded.split(b"/")):
+        raise error(f"{argument}: file name too long ({len(text)} characters)")
+
+
 def read_user_file(
     path: Path,
     what: str,
@@ -203,6 +223,7 @@ def load_named(name_or_path: str | Path, builtins: Mapping[str, M], model: type[
     """
     if isinstance(name_or_path, str) and name_or_path in builtins:
         return builtins[name_or_path]
+    check_file_name(name_or_path, what.split()[0])
     path = Path(name_or_path)
     if not path.exists() and path.suffix == "":
         raise ConfigError(

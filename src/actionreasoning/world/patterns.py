@@ -37,7 +37,7 @@ import yaml
 
 from actionreasoning.errors import PatternError
 from actionreasoning.world.boxes import Box
-from actionreasoning.world.config_files import parse_model, read_mapping
+from actionreasoning.world.config_files import check_file_name, parse_model, read_mapping
 from actionreasoning.world.geometry import Vec3, yaw_quat
 from actionreasoning.world.models import GoalPattern, Pose, Supply, TargetBrick
 from actionreasoning.world.pattern_file import PatternFile, brick_sizes
@@ -117,6 +117,7 @@ def load_pattern(name_or_path: str | Path, spec: SceneSpec) -> GoalPattern:
         source, gap = f"built-in pattern '{name_or_path}'", PATTERNS[name_or_path].gap_m
         pattern = builtin_pattern(name_or_path, spec)
     else:
+        check_file_name(name_or_path, "pattern", PatternError)
         source, gap = str(name_or_path), None
         pattern = _parse(read_mapping(Path(name_or_path), "pattern file", PatternError), source)
     return place_pattern(pattern, source, spec, gap)
