@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import http.client
 import json
 import re
@@ -13,6 +14,7 @@ import sys
 import threading
 import time
 from collections.abc import Iterator
+from typing import Any
 
 import openai
 import pytest
@@ -36,14 +38,21 @@ PROBE_SCHEMA = {"type": "object", "properties": {"ok": {"type": "boolean"}}, "re
 UNREADABLE = [{"role": "user", "content": "Stack the bricks, please."}]
 
 
-@pytest.fixture
-def server() -> Iterator[ReferenceServer]:
-    server = ReferenceServer(port=0)
+@contextlib.contextmanager
+def serving(**bounds: Any) -> Iterator[ReferenceServer]:
+    """A reference server on a free port, served by a thread, closed on exit."""
+    server = ReferenceServer(port=0, **bounds)
     thread = threading.Thread(target=server.serve_forever, args=(0.05,), daemon=True)
     thread.start()
     yield server
     server.shutdown()
     server.server_close()
+
+
+@pytest.fixture
+def server() -> Iterator[ReferenceServer]:
+    with serving() as running:
+        yield running
 
 
 def client(server: ReferenceServer) -> openai.OpenAI:
@@ -240,12 +249,8 @@ def test_a_huge_integer_in_the_body_is_refused_with_400(server: ReferenceServer)
 @pytest.fixture
 def guarded() -> Iterator[ReferenceServer]:
     """A server with a short read timeout and small bounds."""
-    server = ReferenceServer(port=0, read_timeout_s=0.5, max_handlers=2, max_waiting=4)
-    thread = threading.Thread(target=server.serve_forever, args=(0.05,), daemon=True)
-    thread.start()
-    yield server
-    server.shutdown()
-    server.server_close()
+    with serving(read_timeout_s=0.5, max_handlers=2, max_waiting=4) as running:
+        yield running
 
 
 def _connect(server: ReferenceServer) -> socket.socket:
