@@ -22,7 +22,7 @@ from actionreasoning.mcp_server.wire import MAX_MESSAGE_BYTES
 
 COMMAND = [sys.executable, "-m", "actionreasoning", "mcp"]
 REPLY_S = 30.0
-PARSE_ERROR, INVALID_REQUEST = -32700, -32600
+PARSE_ERROR, INVALID_REQUEST, INVALID_PARAMS = -32700, -32600, -32602
 
 
 class Server:
@@ -96,7 +96,7 @@ MALFORMED: list[tuple[bytes, int | str | None, int]] = [
     (b'{"jsonrpc": "2.0", "id": 1, ', None, PARSE_ERROR),  # invalid JSON
     (b"not json at all", None, PARSE_ERROR),
     (b'{"jsonrpc": "2.0", "id": 2, "method": "ping", "params": {"x": 1,}}', None, PARSE_ERROR),
-    (HUGE_NUMBER, None, PARSE_ERROR),  # over Python's 4300 digits
+    (HUGE_NUMBER, 3, INVALID_PARAMS),  # over Python's 4300 digits: its request answered
     (DEEP + b"}", None, PARSE_ERROR),  # nested deeper than the parser goes
     (b"[1, 2, 3]", None, INVALID_REQUEST),  # not an object
     (b"42", None, INVALID_REQUEST),

@@ -5,10 +5,12 @@ The SDK drops a line it cannot parse or validate without a reply, which leaves a
 waiting forever for its request's answer. Here each line is read in chunks of at most
 ``CHUNK_BYTES``; a line longer than ``MAX_MESSAGE_BYTES`` is discarded up to its newline
 as it arrives (never held whole) and answered with an Invalid Request error. A line that is
-not JSON (or that Python cannot parse: a number of more than 4300 digits, nesting too deep)
-is answered with a Parse error whose id is null, as JSON-RPC 2.0 says; one that is JSON but
-not a JSON-RPC message with an Invalid Request error carrying its id when it has a usable
-one (null otherwise). Only lines the SDK accepts reach it.
+not JSON (or nested too deep to parse) is answered with a Parse error whose id is null, as
+JSON-RPC 2.0 says; one that is JSON but not a JSON-RPC message with an Invalid Request
+error carrying its id when it has a usable one (null otherwise). A request carrying an
+integer of more than 4300 digits (Python's limit on converting one) is read all the same
+and answered under its own id with an Invalid params error. Only lines the SDK accepts
+reach it.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from __future__ import annotations
 import fcntl
 import json
 import os
+import sys
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from typing import Any, cast
@@ -50,8 +53,16 @@ def _request_id(message: object) -> int | str | None:
 
 def check(line: str) -> types.JSONRPCError | None:
     """None if the SDK accepts ``line`` as a JSON-RPC message, else the error to reply."""
-    try:
-        message = json.loads(line)  # NaN and Infinity too, as the SDK reads them
+    too_long: list[int] = []  # the digits of each integer Python would refuse to convert
+
+    def integer(digits: str) -> int:
+        if len(digits.lstrip("-")) > sys.get_int_max_str_digits():
+            too_long.append(len(digits))
+            return 0
+        return int(digits)
+
+    try:  # NaN and Infinity too, as the SDK reads them
+        message = json.loads(line, parse_int=integer)
     except (ValueError, RecursionError) as error:
         reason = str(error).splitlines()[0].split(";")[0][:200] or type(error).__name__
         return _error(None, types.PARSE_ERROR, f"Parse error: {reason}")
@@ -62,6 +73,9 @@ def check(line: str) -> types.JSONRPCError | None:
     if "id" in message and message["id"] is not None and request_id is None:
         detail = f"an id is a string or an integer, not {type(message['id']).__name__}"
         return _error(None, types.INVALID_REQUEST, f"Invalid Request: {detail}")
+    if too_long:  # the request is read, its id known: answer it
+        detail = f"a number has {max(too_long)} digits, more than {sys.get_int_max_str_digits()}"
+        return _error(request_id, types.INVALID_PARAMS, f"Invalid params: {detail}")
     try:
         types.jsonrpc_message_adapter.validate_json(line, by_name=False)
     except (ValidationError, ValueError, RecursionError):
