@@ -94,6 +94,15 @@ def test_a_file_name_too_long_is_refused_in_one_line(tmp_path: Path, option: str
     assert_clean_error(result, f"{option.lstrip('-')}: file name too long (305 characters)")
 
 
+@pytest.mark.parametrize("option", ["--out", "--record"])
+def test_an_output_file_name_too_long_is_refused_in_one_line(tmp_path: Path, option: str) -> None:
+    paths = {"--out": str(tmp_path / "o"), "--record": str(tmp_path / "r.jsonl")}
+    paths[option] = str(tmp_path / ("d" * 300))
+    result = cli("eval", "--trials", "1", *(x for pair in paths.items() for x in pair))
+    assert_clean_error(result, f"{option}: file name too long")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_demo_out_name_too_long_is_refused_in_one_line(tmp_path: Path) -> None:
     result = cli("demo", "--out", str(tmp_path / ("d" * 300)))
     assert_clean_error(result, "--out: file name too long")

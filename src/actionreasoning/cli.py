@@ -308,8 +308,12 @@ def eval_command(
     from actionreasoning.reasoners.backend import LLMConfig, ServerOptions
     from actionreasoning.reasoners.llm import LLMLimits
     from actionreasoning.trial.session import Conditions
+    from actionreasoning.world.config_files import check_file_name
 
     try:
+        for option, path in (("--out", out), ("--record", record)):
+            if path is not None:
+                check_file_name(path, option)
         backend = LLMConfig(
             spec=llm,
             server=ServerOptions(base_url=base_url, timeout_s=llm_timeout, max_retries=llm_retries),
