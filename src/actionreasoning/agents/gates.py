@@ -175,13 +175,19 @@ def sigma3_grasp(
     )
 
 
+def creep_hold_m(tol: Tolerances) -> float:
+    """How far a brick may creep in the hand before it leaves the pads' hold: v_th over the
+    longest move."""
+    return tol.v_th_mps * MAX_MOVE_S
+
+
 def creep_limit_mps(carry_s: float, tol: Tolerances) -> float:
     """The fastest a brick may creep in the hand and still be carried: v_th, at which it
     stays in the hand over the longest move; or, faster, the speed at which it would creep
-    out of the pads' hold (v_th x the longest move) only in ``carry_s``, the time its carry
+    out of the pads' hold (:func:`creep_hold_m`) only in ``carry_s``, the time its carry
     over the slot and set-down take at the carry speed (a light brick creeps steadily at
     rest: ``bench/hand_creep.py``)."""
-    return max(tol.v_th_mps, tol.v_th_mps * MAX_MOVE_S / max(carry_s, 1e-9))
+    return max(tol.v_th_mps, creep_hold_m(tol) / max(carry_s, 1e-9))
 
 
 def sigma4_lift(

@@ -77,7 +77,7 @@ from actionreasoning.world.models import (
     Progress,
     WorldState,
 )
-from actionreasoning.world.motion import CARRY_SPEED_MPS, MAX_MOVE_S, Motion
+from actionreasoning.world.motion import CARRY_SPEED_MPS, Motion
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M, RETREAT_M, WORKSPACE
 from actionreasoning.world.stages import Stage
 from actionreasoning.world.tolerances import Tolerances
@@ -516,7 +516,7 @@ class Orchestrator:
             raise _Regrasp(verdict.refusal(key))
         # A brick creeping faster than v_th is carried only until it would creep out.
         creep = slip.relative_speed_mps
-        hold_m = self.tol.v_th_mps * MAX_MOVE_S
+        hold_m = gates.creep_hold_m(self.tol)
         self._held_until_s = after.time_s + hold_m / creep if creep > self.tol.v_th_mps else None
         return waypoint
 

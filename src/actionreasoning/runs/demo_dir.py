@@ -15,6 +15,7 @@ from pathlib import Path
 from actionreasoning.errors import ConfigError
 from actionreasoning.runs.layout import RunDir
 from actionreasoning.runs.run_lock import run_lock
+from actionreasoning.world.config_files import check_file_name
 
 NOTE = (
     "Written by `actionreasoning demo`: a demo into this directory again replaces "
@@ -43,12 +44,8 @@ def demo_directory(out: Path) -> Iterator[None]:
 
 def _check(out: Path) -> None:
     """Refuse a directory that is neither new, nor empty, nor an earlier demo's."""
-    try:
-        exists = out.exists()
-    except OSError as error:  # e.g. a file name too long to look up
-        detail = f"{(error.strerror or str(error)).lower()} ({len(str(out))} characters)"
-        raise ConfigError(f"--out: {detail}") from error
-    if not exists:
+    check_file_name(out, "--out")
+    if not out.exists():
         return
     if not out.is_dir():
         raise ConfigError(f"--out {out} exists and is not a directory")
