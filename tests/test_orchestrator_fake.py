@@ -254,7 +254,7 @@ BAD_PRE_GRASPS = {
     "incomplete": (
         PreGraspAnswer(brick_id=0, target_index=0),
         "invalid_output",
-        ("pre_grasp_plan", "answer_complete"),
+        ("pre_grasp_answer", "answer_complete"),
         "the answer needs brick_id, target_index, waypoint; missing: waypoint",
     ),
     "unknown brick": (
@@ -1029,10 +1029,10 @@ def test_an_incomplete_answer_is_refused_before_it_acts_and_asked_again(
     assert_built(world, result)
     refused, accepted = calls(result, agent)[:2]
     assert (refused.outcome, accepted.outcome) == ("refused", "accepted")
-    assert refused.caught_by == f"{agent}_plan:answer_complete"
+    assert refused.caught_by == f"{agent}_answer:answer_complete"
     assert refused.category == "schema"
-    assert refused.feedback == f"{agent}_plan failed: answer_complete = 0, needs >= 1; {message}"
-    assert gates_of(refused) == [(f"{agent}_plan", False)]
+    assert refused.feedback == f"{agent}_answer failed: answer_complete = 0, needs >= 1; {message}"
+    assert gates_of(refused) == [(f"{agent}_answer", False)]
     # Nothing moved for the refused answer: the arm made the moves of a build without it.
     assert [(m.stage, m.waypoint) for m in world.moves] == [
         (m.stage, m.waypoint) for m in clean.moves

@@ -166,9 +166,10 @@ class AgentCaller:
         call.conclude(outcome, feedback, category)
         self._tell(call)
 
-    def judge(self, verdict: GateVerdict) -> GateVerdict:
-        """Record a gate's verdict with the last answer; the caller acts on it."""
-        self.result.transcript[-1].gates.append(GateRecord.of(verdict))
+    def judge(self, verdict: GateVerdict, enforced: bool = True) -> GateVerdict:
+        """Record a verdict with the last answer (``enforced``: whether it may refuse it);
+        the caller acts on it."""
+        self.result.transcript[-1].gates.append(GateRecord.of(verdict, enforced))
         self._tell(self.result.transcript[-1])
         return verdict
 

@@ -310,7 +310,7 @@ class Orchestrator:
         try:
             return complete(decide, answer)
         except OutputError as error:
-            self._refuse(_failed(f"{key}_plan", "answer_complete", str(error)), key)
+            self._refuse(_failed(f"{key}_answer", "answer_complete", str(error)), key)
 
     def _gate(
         self,

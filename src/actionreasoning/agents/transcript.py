@@ -18,6 +18,7 @@ from pydantic import BaseModel, Field
 from actionreasoning.agents.answer_errors import AnswerCorruption
 from actionreasoning.agents.error_kinds import ErrorCategory, check_category
 from actionreasoning.agents.gates import GateVerdict
+from actionreasoning.agents.verification import judged_after_move
 from actionreasoning.records import LLMUsage
 
 
@@ -29,7 +30,7 @@ class Outcome(StrEnum):
     REFUSED = "refused"  # failed verification or its gate; the agent is asked again
     REGRASP = "regrasp"  # the brick was set aside to be grasped again; the cycle restarts at Ag1
     RAISED = "raised"  # sigma_5 = 0 in contact: raised by delta_h, Ag5 is asked again
-    EXECUTED = "executed"  # single-agent ablation: run without a gate
+    EXECUTED = "executed"  # ran although a check failed that the rung does not enforce
     FAILED = "failed"  # the model gave no valid answer, or its server failed
 
 
@@ -44,18 +45,24 @@ class CheckRecord(BaseModel):
 
 
 class GateRecord(BaseModel):
-    """A gate's verdict sigma_i and every check behind it."""
+    """A verdict (validation, a pre-move check or a gate sigma_i) and every check behind
+    it; whether the run's rung of verification let it refuse the answer (``enforced``), and
+    whether it judged a move that had already run (``after_move``)."""
 
     gate: str
     passed: bool
     checks: list[CheckRecord]
+    enforced: bool = True
+    after_move: bool = False
 
     @classmethod
-    def of(cls, verdict: GateVerdict) -> GateRecord:
+    def of(cls, verdict: GateVerdict, enforced: bool = True) -> GateRecord:
         """The record of a verdict."""
         return cls(
             gate=verdict.gate,
             passed=verdict.passed,
+            enforced=enforced,
+            after_move=judged_after_move(verdict.gate),
             checks=[
                 CheckRecord(
                     name=c.name,
