@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from actionreasoning.agents.single_agent import SingleAgent
 from conftest import DOCS, SMALL_PATTERN, assert_clean_error, cli, doc_table
 from fake_world import FakeWorld
 from scipy.spatial.transform import Rotation
@@ -25,7 +26,6 @@ from actionreasoning.agents.calls import BuildResult
 from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.outputs import AgentAnswer, PreGraspAnswer, ToolCall
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest, Reasoner
-from actionreasoning.agents.single_agent import SingleAgent
 from actionreasoning.agents.transcript import AgentCall, CheckRecord, GateRecord, Outcome
 from actionreasoning.agents.view import target_supports
 from actionreasoning.reasoners.builtin import BuiltinReasoner

@@ -32,25 +32,27 @@ SPEC = SceneSpec()
 BRICKS = sample_pick_poses(np.random.default_rng(0), 3, SPEC)
 #: (agent, kind) -> the check that refuses the corrupted answer, as ``gate:check``.
 EXPECTED: dict[tuple[str, CorruptionKind], str] = {
-    ("pre_grasp", K.SIGN_FLIP): "pre_grasp_plan:grasp_offset_m",
-    ("pre_grasp", K.YAW_90): "pre_grasp_plan:grasp_yaw_deg",
+    ("pre_grasp", K.SIGN_FLIP): "pre_grasp_plan:pad_room_m",
+    ("pre_grasp", K.YAW_90): "pre_grasp_plan:grip_yaw_deg",
     ("pre_grasp", K.CM_AS_M): "pre_grasp_answer:valid_answer",
-    ("pre_grasp", K.INTO_OBSTACLE): "pre_grasp_plan:grasp_offset_m",
-    ("pre_grasp", K.SKIPPED_HOVER): "sigma1_pre_grasp:clearance_m",
+    ("pre_grasp", K.INTO_OBSTACLE): "pre_grasp_plan:hover_clearance_m",
+    ("pre_grasp", K.SKIPPED_HOVER): "pre_grasp_plan:hover_clearance_m",
     ("pre_grasp", K.WRONG_CHOICE): "pre_grasp_choice:target_buildable",
     ("pre_grasp", K.MISSING_FIELD): "pre_grasp_answer:answer_complete",
-    ("descent", K.SIGN_FLIP): "descent_plan:grasp_offset_m",
-    ("descent", K.YAW_90): "descent_plan:turn_deg",
-    ("descent", K.YAW_180): "descent_plan:turn_deg",
+    ("descent", K.SIGN_FLIP): "descent_plan:grip_offset_m",
+    ("descent", K.YAW_90): "descent_plan:grip_yaw_deg",
+    # Turned half a turn, the grip is the same, but the pads sweep across the brick on the
+    # way down.
+    ("descent", K.YAW_180): "descent_plan:pad_room_m",
     ("descent", K.CM_AS_M): "descent_answer:valid_answer",
-    ("descent", K.INTO_OBSTACLE): "descent_plan:grasp_offset_m",
+    ("descent", K.INTO_OBSTACLE): "descent_plan:grip_offset_m",
     ("descent", K.MISSING_FIELD): "descent_answer:answer_complete",
     ("grasp", K.MISSING_FIELD): "grasp_plan:close",
     ("lift", K.SIGN_FLIP): "lift_answer:valid_answer",
-    ("lift", K.YAW_90): "lift_plan:turn_deg",
-    ("lift", K.YAW_180): "lift_plan:turn_deg",
+    ("lift", K.YAW_90): "lift_plan:drag_turn_deg",
+    ("lift", K.YAW_180): "lift_plan:drag_turn_deg",
     ("lift", K.CM_AS_M): "lift_answer:valid_answer",
-    ("lift", K.INTO_OBSTACLE): "lift_plan:sideways_m",
+    ("lift", K.INTO_OBSTACLE): "lift_plan:drag_m",
     ("lift", K.TOO_FAST): "lift_plan:speed_mps",
     ("lift", K.MISSING_FIELD): "lift_answer:answer_complete",
     # Flipped, the carry's long way from the pick area to the slot leaves the workspace.
@@ -60,11 +62,10 @@ EXPECTED: dict[tuple[str, CorruptionKind], str] = {
     ("placement", K.CM_AS_M): "placement_answer:valid_answer",
     ("placement", K.INTO_OBSTACLE): "placement_plan:predicted_offset_m",
     ("placement", K.MISSING_FIELD): "placement_answer:answer_complete",
-    ("release", K.SIGN_FLIP): "release_plan:ready_offset_m",
-    ("release", K.YAW_90): "release_plan:ready_turn_deg",
-    ("release", K.YAW_180): "release_plan:ready_turn_deg",
+    # Mirrored, the return leaves the arm's reach.
+    ("release", K.SIGN_FLIP): "sigma6_return:return_reachable",
     ("release", K.CM_AS_M): "release_answer:valid_answer",
-    ("release", K.INTO_OBSTACLE): "release_plan:ready_offset_m",
+    ("release", K.INTO_OBSTACLE): "sigma6_return:return_clearance_m",
     ("release", K.MISSING_FIELD): "release_answer:answer_complete",
 }
 #: Corruptions that change nothing a gate should refuse, and why (as docs/agents-and-gates.md
@@ -76,6 +77,10 @@ HARMLESS: dict[tuple[str, CorruptionKind], str] = {
     # A carry at the controller's full speed rolls the brick no more than one at 10 cm/s
     # (bench/lift_roll.py): nothing to refuse; the set-down re-measures the brick anyway.
     ("placement", K.TOO_FAST): "placement_plan",
+    # The tool waits turned at the ready position: any pose the way to is clear would do,
+    # and the next brick's approach is checked from there.
+    ("release", K.YAW_90): "sigma6_return",
+    ("release", K.YAW_180): "sigma6_return",
 }
 
 

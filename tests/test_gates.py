@@ -11,7 +11,6 @@ from actionreasoning.agents.gates import (
     Check,
     GateVerdict,
     creep_limit_mps,
-    lift_plan,
     sigma1_pre_grasp,
     sigma2_descent,
     sigma3_grasp,
@@ -19,6 +18,7 @@ from actionreasoning.agents.gates import (
     sigma5_placement,
     sigma6_return,
 )
+from actionreasoning.agents.plans import lift_plan
 from actionreasoning.tools.collision import CollisionReport
 from actionreasoning.tools.contact import ContactForces, SlipEstimate
 from actionreasoning.tools.geometry import AlignmentErrors
@@ -127,8 +127,9 @@ def lift(
     clearance: float = 0.01,
     bottom: float = 0.2,
     tol: Tolerances = TOL,
+    rise: float = 0.27,
 ) -> GateVerdict:
-    return lift_plan(sideways, turn, speed, path(clearance), bottom, tol)
+    return lift_plan(sideways, rise, turn, speed, path(clearance), bottom, tol)
 
 
 #: Just past the sidewall contact threshold, and a light touch well below it.
@@ -339,13 +340,22 @@ CASES = {
         "return_reachable = 0",
     ),
     "lift straight up": (lift(), True, ""),
-    "lift sideways": (lift(sideways=(0.05, 0.0)), False, "sideways_m = 0.05"),
-    "lift sideways diagonally": (
-        lift(sideways=(0.0025, -0.0025)),
+    # 5 cm sideways over a 27 cm rise drags the brick 1.9 mm while it touches its support:
+    # a slanted lift the physics allows.
+    "lift slanted": (lift(sideways=(0.05, 0.0)), True, ""),
+    "lift dragging": (
+        lift(sideways=(0.1, 0.0)),
         False,
-        f"sideways_m = {math.hypot(0.0025, 0.0025):.4g}, needs <= {TOL.eps_g_m:.4g}",
+        f"drag_m = {0.1 * 0.01 / 0.27:.4g}, needs <= {TOL.lift_drag_m:.4g}",
     ),
-    "lift turned": (lift(turn=10.0), False, "turn_deg = 10"),
+    # A rise shorter than the support's 1 cm drags the brick all the way.
+    "lift short and sideways": (
+        lift(sideways=(0.0025, -0.0025), rise=0.005),
+        False,
+        f"drag_m = {math.hypot(0.0025, 0.0025):.4g}, needs <= {TOL.lift_drag_m:.4g}",
+    ),
+    "lift turning on the way": (lift(turn=10.0), True, ""),
+    "lift twisting": (lift(turn=20.0), False, f"drag_turn_deg = {20 * 0.01 / 0.27:.4g}"),
     "lift at v_lift": (lift(speed=TOL.v_lift_mps), True, ""),
     "lift too fast": (
         lift(speed=2.5 * TOL.v_lift_mps),

@@ -25,6 +25,7 @@ from actionreasoning.gym_env.env import BrickStackEnv
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.trial.rules import Method
 from actionreasoning.world.scenarios import NOISE, PHYSICS, Scenario
+from actionreasoning.world.scene_spec import FINGERTIPS_BEYOND_TCP_M, SceneSpec
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "gym_builtin.py"
 
@@ -188,15 +189,16 @@ def test_an_answer_a_gate_refuses_comes_back_with_its_checks_and_the_arm_stays(
     _, reward, terminated, _, info = env.step(answer(waypoint=waypoint))
     call = info["call"]
     assert info["refusal"] is None and call["outcome"] == "refused" and not terminated
-    # A choice that can be built; an approach that is not over the brick it chose, refused
+    # A choice that can be built; an approach that is no hover over the brick it chose, refused
     # before it moves (sigma_1's path check is never reached).
     choice, plan = call["gates"]
     assert (choice["gate"], choice["passed"]) == ("pre_grasp_choice", True)
     assert plan["gate"] == "pre_grasp_plan" and not plan["passed"]
     failed = {c["name"]: c["value"] for c in plan["checks"] if not c["passed"]}
-    apart = np.linalg.norm(observed["brick_poses"][0][:2] - other[:2])
-    assert failed["grasp_offset_m"] == pytest.approx(apart, abs=1e-6)
-    assert call["feedback"].startswith("pre_grasp_plan failed: grasp_offset_m = ")
+    top = observed["brick_poses"][0][2] + SceneSpec().brick_size_m[2] / 2
+    hover = other[2] - FINGERTIPS_BEYOND_TCP_M - top
+    assert failed["hover_clearance_m"] == pytest.approx(hover, abs=1e-5)
+    assert call["feedback"].startswith("pre_grasp_plan failed: hover_clearance_m = ")
     assert info["agent"] == "pre_grasp" and reward == 0.0
     assert env.session.turn().feedback == call["feedback"]
     assert env.session.in_scene(lambda scene: scene.ticks) == ticks

@@ -22,7 +22,6 @@ from actionreasoning.world.physics import PRECISE
 
 REASONING = (
     "actionreasoning.agents.orchestrator",
-    "actionreasoning.agents.single_agent",
     "actionreasoning.tools.registry",
     "actionreasoning.reasoners.builtin",
     "actionreasoning.reasoners.factory",

@@ -33,6 +33,7 @@ from actionreasoning.tools.base import ToolModel
 from actionreasoning.tools.registry import GATE_MEASUREMENTS, TOOLS, tool_schema
 from actionreasoning.trial.rules import Method
 from actionreasoning.trial.session import Conditions, TrialSession
+from actionreasoning.world.scene_spec import FINGERTIPS_BEYOND_TCP_M
 
 COMMAND = [sys.executable, "-m", "actionreasoning", "mcp"]
 #: The SDK starts the server in a bare environment: give it the package under test.
@@ -209,7 +210,7 @@ def test_an_answer_a_gate_refuses_comes_back_with_its_feedback_and_the_arm_stays
         before, _ = await call(client, "start_trial", pattern="pyramid", seed=0)
         state = before["turn"]["state"]
         # Approach brick 0 through the middle of brick 1: valid data, and refused before it
-        # moves, the approach not being over the brick chosen.
+        # moves, the approach being no hover over the brick chosen.
         judged, refused = await call(client, "submit_answer", answer=answer_at(state, brick=1))
         call_record = judged["call"]
         assert not refused and judged["agent"] == "pre_grasp" and judged["result"] is None
@@ -218,9 +219,12 @@ def test_an_answer_a_gate_refuses_comes_back_with_its_feedback_and_the_arm_stays
         assert (choice["gate"], choice["passed"]) == ("pre_grasp_choice", True)
         assert plan["gate"] == "pre_grasp_plan" and not plan["passed"]
         failed = {c["name"]: c["value"] for c in plan["checks"] if not c["passed"]}
-        centres = [state["bricks"][i]["pose"]["position_m"][:2] for i in (0, 1)]
-        assert failed["grasp_offset_m"] == pytest.approx(math.dist(*centres), abs=1e-6)
-        assert call_record["feedback"].startswith("pre_grasp_plan failed: grasp_offset_m = ")
+        # The fingertips in the ground beside brick 0, under its top: no hover over it.
+        bricks = state["bricks"]
+        top = bricks[0]["pose"]["position_m"][2] + bricks[0]["size_m"][2] / 2
+        hover = bricks[1]["pose"]["position_m"][2] - FINGERTIPS_BEYOND_TCP_M - top
+        assert failed["hover_clearance_m"] == pytest.approx(hover, abs=1e-6)
+        assert call_record["feedback"].startswith("pre_grasp_plan failed: hover_clearance_m = ")
         after, _ = await call(client, "read_state")
         assert after["turn"]["feedback"] == call_record["feedback"]
         assert after["turn"]["state"] == state  # nothing moved: the same measured state

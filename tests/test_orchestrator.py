@@ -355,7 +355,7 @@ def test_a_brick_rolled_about_the_pads_is_levelled_about_the_tool_centre_point()
 
 @dataclass
 class Skewed:
-    """The built-in reasoner, but its first lift drifts 4 cm sideways and its first return
+    """The built-in reasoner, but its first lift drifts 10 cm sideways and its first return
     ends with the fingers in the ground."""
 
     name: str = "skewed"
@@ -370,13 +370,13 @@ class Skewed:
         self.skewed.add(key)
         waypoint = reply.answer.waypoint
         x, y, z = waypoint.position_m
-        moved = (x + 0.04, y, z) if key == "lift" else (0.6, -0.2, 0.005)
+        moved = (x + 0.1, y, z) if key == "lift" else (0.6, -0.2, 0.005)
         skewed = waypoint.model_copy(update={"position_m": moved})
         return AgentReply(answer=reply.answer.model_copy(update={"waypoint": skewed}))
 
 
 @pytest.mark.slow
-def test_a_sideways_lift_and_a_return_elsewhere_are_refused_before_they_move(
+def test_a_dragging_lift_and_a_return_into_the_ground_are_refused_before_they_move(
     small_goal,
 ) -> None:
     one_brick = small_goal.model_copy(update={"targets": small_goal.targets[:1]})
@@ -391,12 +391,15 @@ def test_a_sideways_lift_and_a_return_elsewhere_are_refused_before_they_move(
     ]
     lift, release = (c for c in result.transcript if c.outcome == "refused")
     assert [g.gate for g in lift.gates] == ["lift_plan"]
-    assert "sideways_m = 0.04" in lift.feedback
-    assert "e_x_m=-0.04" in lift.feedback  # the way back to straight up
-    # The return must end at the ready pose: one into the ground is refused before the
-    # gripper opens, by the release's plan (sigma_6 would judge the way there).
-    assert [g.gate for g in release.gates] == ["release_plan"]
-    assert release.feedback.startswith("release_plan failed: ready_offset_m = ")
+    assert "drag_m = " in lift.feedback  # 10 cm over the rise drags the brick 3.7 mm
+    assert "e_x_m=-0.1" in lift.feedback  # the way back to straight up
+    # A return into the ground is refused before the gripper opens, by sigma_6's check of
+    # the way there (any pose the way to is clear would do).
+    assert [(g.gate, g.passed) for g in release.gates] == [
+        ("release_plan", True),
+        ("sigma6_return", False),
+    ]
+    assert release.feedback.startswith("sigma6_return failed: return_clearance_m = -")
     accepted = next(
         c for c in result.transcript if c.agent == "release" and c.outcome == "accepted"
     )

@@ -17,7 +17,7 @@ import pytest
 from conftest import built_state
 
 from actionreasoning.agents.memory import PlacedBrick, TaskMemory
-from actionreasoning.agents.outputs import SingleAgentAnswer
+from actionreasoning.agents.outputs import SingleAgentStep
 from actionreasoning.agents.prompt import THRESHOLD_LINE, THRESHOLDS_HEADING, render_prompt
 from actionreasoning.agents.spec import AgentSpec, agent_specs, parse_agents, single_agent_spec
 from actionreasoning.agents.tiers import ToolTier
@@ -147,49 +147,12 @@ SINGLE = {tier: single_agent_spec(tier) for tier in ToolTier}
 
 
 @pytest.mark.parametrize("tier", list(ToolTier))
-def test_single_agent_closes_with_its_own_schema(tier: ToolTier) -> None:
-    """Its step said 'Answer close = true'; its schema has gripper "close"."""
-    text = prose(SINGLE[tier])
-    assert "close = true" not in text
-    assert 'gripper "close"' in text
-    gripper = set(get_args(SingleAgentAnswer.model_fields["gripper"].annotation))
-    assert set(re.findall(r'gripper "(\w+)"', text)) <= gripper
-
-
-@pytest.mark.parametrize("tier", list(ToolTier))
-def test_single_agent_does_not_carry_the_brick_to_the_ready_pose(tier: ToolTier) -> None:
-    """Its release step said to answer robot.ready_pose: it would drop the brick there."""
-    release = next(s for s in SINGLE[tier].thinking if s.startswith("release:"))
-    assert "ready_pose" not in release
-    assert "no waypoint" in release
-
-
-@pytest.mark.parametrize("tier", list(ToolTier))
-def test_single_agent_opens_the_gripper_once_per_pick(tier: ToolTier) -> None:
-    """The gripper opened at pre-grasp and again at descent."""
-    steps = SINGLE[tier].thinking
-    opens = [s.split(":", 1)[0] for s in steps if 'gripper "open"' in s]
-    assert opens == ["pre_grasp", "release"]
-
-
-@pytest.mark.parametrize("tier", list(ToolTier))
-def test_single_agent_refers_to_no_step_it_lacks(tier: ToolTier) -> None:
-    """'when hovering over the slot' referred to a step that does not exist."""
-    text = prose(SINGLE[tier]).lower()
-    assert "hover" not in text
-    steps = set(get_args(SingleAgentAnswer.model_fields["step"].annotation))
-    named = {s.split(":", 1)[0] for s in SINGLE[tier].thinking}
-    assert named <= {str(s) for s in steps}
-    assert {str(s) for s in steps} <= named
-
-
-@pytest.mark.parametrize("tier", list(ToolTier))
-def test_single_agent_is_given_the_transfer_height(tier: ToolTier) -> None:
-    """The transfer height was not given."""
-    transfer = next(s for s in SINGLE[tier].thinking if s.startswith("transfer:"))
-    assert "z raised to the tool's present z (the lift height)" in transfer
-    lift = next(s for s in SINGLE[tier].thinking if s.startswith("lift:"))
-    assert "max(0.3 m" in lift
+def test_single_agent_answers_every_stage_by_its_agents_chain(tier: ToolTier) -> None:
+    """The merged prompt names each step it may answer once, in order, with the chain of that
+    stage's agent: what the built-in single agent runs."""
+    steps = [str(step) for step in get_args(SingleAgentStep)]
+    named = [s.split(":", 1)[0] for s in SINGLE[tier].thinking]
+    assert named == steps == [str(spec.key) for spec in agent_specs(tier)]
 
 
 @pytest.mark.parametrize("tier", list(ToolTier))

@@ -20,7 +20,6 @@ from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.agents.view import StateView
 from actionreasoning.tools.registry import TOOLS
 from actionreasoning.world.geometry import round_floats, top_down_quat
-from actionreasoning.world.stages import Stage
 from actionreasoning.world.tolerances import Tolerances
 
 STATE = built_state("grid")
@@ -93,23 +92,26 @@ def test_the_tool_quaternion_the_conventions_give_is_the_codes() -> None:
         )
 
 
-def test_the_single_agent_is_told_nothing_checks_it() -> None:
+def test_the_single_agent_is_the_six_agents_merged_and_told_nothing_else_checks_it() -> None:
     for tier in ToolTier:
         merged, specs = single_agent_spec(tier), agent_specs(tier)
         prompt = _prompt(merged)
-        assert "Nothing checks a waypoint before it runs" in prompt
+        assert "nothing else checks it, before or after it runs" in prompt
         for spec in specs:
             assert spec.gate not in prompt
-        assert "asked again" not in prompt
+            assert f"- {spec.key}: {spec.role}" in prompt
+            assert f"{spec.key}: {' '.join(spec.thinking)}" in merged.thinking
         assert set(merged.tools) == {tool for spec in specs for tool in spec.tools}
+        assert set(merged.formulas) == {name for spec in specs for name in spec.formulas}
+        assert set(merged.thresholds) == {name for spec in specs for name in spec.thresholds}
         steps = [step.split(":", 1)[0] for step in merged.thinking]
-        assert steps == [*(str(stage) for stage in Stage), "done"]
+        assert steps == [str(spec.key) for spec in specs]
 
 
 def test_the_single_agent_is_told_of_no_gate_and_no_refusal() -> None:
     for tier in ToolTier:
         prompt = _prompt(single_agent_spec(tier))
-        assert "sigma_" not in prompt and "sigma" not in prompt.lower()
+        assert "sigma" not in prompt.lower()
         assert "refusal" not in prompt
 
 
@@ -125,8 +127,17 @@ def test_prompt_command_prints_what_an_agent_is_sent_in_trial_zero() -> None:
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("# Agent 6 of 6: Release and return")
     memory = re.findall(r"```json\n(.*?)\n```", result.stdout, flags=re.S)[1]
-    done = TaskMemory.model_validate_json(memory).steps_done
-    assert done == ("pre_grasp", "descent", "grasp", "lift", "placement", "placement")
+    done = TaskMemory.model_validate_json(memory).this_brick
+    assert [(m.agent, m.phase) for m in done] == [
+        ("pre_grasp", None),
+        ("descent", None),
+        ("grasp", None),
+        ("lift", None),
+        ("placement", "carry"),
+        ("placement", "set_down"),
+    ]
+    assert done[0].decision["brick_id"] == 0 and "rationale" not in done[0].decision
+    assert done[-1].verdicts == {"placement_plan": True, "sigma5_placement": True}
     assert '"ready_pose":{"position_m":[0.45,-0.25,0.4]' in result.stdout
 
 

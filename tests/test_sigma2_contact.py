@@ -186,17 +186,19 @@ def test_the_orchestrator_refuses_an_offset_descent_before_it_moves_and_the_next
     descents = [call for call in result.transcript if call.agent == "descent"]
     assert [call.outcome for call in descents] == ["refused", "accepted"]
     refused, accepted = descents
-    # Refused by the descent's plan: its grasp pose 3 cm off the brick's centre; sigma_2,
-    # which judges a descent once made, never ran.
+    # Refused by the descent's plan: its grasp pose 3 cm off the brick's centre across the
+    # pads, so a pad would come down on the brick (the closing centres a brick only as far
+    # as the open pads pass its side walls); sigma_2, which judges a descent once made,
+    # never ran.
     (plan,) = refused.gates
     assert plan.gate == "descent_plan" and not plan.passed
     failed = {check.name: check for check in plan.checks if not check.passed}
-    assert set(failed) == {"grasp_offset_m"}
-    assert failed["grasp_offset_m"].value == pytest.approx(OFFSET_M, abs=1e-6)
-    assert failed["grasp_offset_m"].threshold == TOL.eps_g_m
-    assert refused.feedback.startswith(
-        f"descent_plan failed: grasp_offset_m = {OFFSET_M:.4g}, needs <= {TOL.eps_g_m:.4g}"
-    )
+    assert set(failed) == {"pad_room_m"}
+    opening = refused.answer["gripper_opening_m"]
+    room = opening / 2 - OFFSET_M - SceneSpec().brick_size_m[1] / 2
+    assert failed["pad_room_m"].value == pytest.approx(room, abs=1e-4)
+    assert failed["pad_room_m"].threshold == TOL.pad_room_m
+    assert refused.feedback.startswith(f"descent_plan failed: pad_room_m = {room:.4g}")
     # The refusal says where the grasp pose should have been: back across the pads.
     first, second = reasoner.descents
     (refusal,) = second.memory.refusals

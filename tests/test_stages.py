@@ -15,11 +15,11 @@ from actionreasoning.agents.memory import PlacementPhase, TaskMemory
 from actionreasoning.agents.outputs import SingleAgentStep
 from actionreasoning.agents.prompt import render_prompt
 from actionreasoning.agents.reasoner import Briefing
-from actionreasoning.agents.spec import SINGLE_AGENT, SINGLE_AGENT_START, agent_specs
+from actionreasoning.agents.spec import SINGLE_AGENT, agent_specs
 from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.agents.view import StateView
 from actionreasoning.reasoners import reference_model
-from actionreasoning.reasoners.builtin import NEXT_STEP, POLICIES
+from actionreasoning.reasoners.builtin import POLICIES
 from actionreasoning.tools.placement import PLACEMENT_POSE, HeldPose, PlacementQuery
 from actionreasoning.world.stages import Stage
 from actionreasoning.world.tolerances import Tolerances
@@ -34,13 +34,8 @@ def test_the_six_agents_are_the_stages_but_transfer_and_retreat_in_order() -> No
     assert keys == [stage for stage in Stage if stage not in (Stage.TRANSFER, Stage.RETREAT)]
 
 
-def test_the_single_agent_steps_through_every_stage_then_is_done() -> None:
-    assert get_args(SingleAgentStep) == (*Stage, "done")
-    step, steps = SINGLE_AGENT_START, []
-    for _ in Stage:
-        step = NEXT_STEP[step]
-        steps.append(step)
-    assert steps == list(Stage) and NEXT_STEP[Stage.RETREAT] is Stage.PRE_GRASP
+def test_the_single_agent_answers_the_six_agents_stages() -> None:
+    assert get_args(SingleAgentStep) == tuple(spec.key for spec in agent_specs())
 
 
 def test_the_built_in_has_a_policy_for_every_agent() -> None:

@@ -23,7 +23,6 @@ from actionreasoning.agents.outputs import (
     RegraspRequest,
     ReleaseDecision,
     SingleAgentAnswer,
-    SingleAgentPick,
 )
 from actionreasoning.agents.spec import agent_specs, single_agent_spec
 from actionreasoning.agents.validation import OutputError, parse_answer
@@ -175,19 +174,22 @@ def test_an_incomplete_decision_is_refused_by_the_schema_naming_what_is_missing(
     assert refused.value.category is ErrorCategory.SCHEMA
 
 
-@pytest.mark.parametrize(
-    "left_out", [("brick_id",), ("target_index",), ("brick_id", "target_index")]
-)
-def test_the_single_agents_pre_grasp_that_names_no_brick_or_target_is_refused(
-    left_out: tuple[str, ...],
+@pytest.mark.parametrize(("stage", "left_out", "null"), INCOMPLETE)
+def test_the_single_agents_incomplete_step_is_refused_as_its_stages_agent_would_be(
+    stage: str, left_out: tuple[str, ...], null: bool
 ) -> None:
-    pick = {"step": "pre_grasp", "brick_id": 2, "target_index": 0, "waypoint": waypoint()}
-    for null in (False, True):
-        with pytest.raises(OutputError) as refused:
-            text = json.dumps(without(pick, left_out, null))
-            parse_answer(text, AGENTS["single_agent"], STATE)
-        assert str(refused.value) == "pre_grasp names no brick_id or target_index"
-        assert refused.value.category is ErrorCategory.SCHEMA
+    answer = {"step": stage} | without(COMPLETE[stage][0], left_out, null)
+    with pytest.raises(OutputError) as refused:
+        parse_answer(json.dumps(answer), AGENTS["single_agent"], STATE)
+    assert str(refused.value) == needs(stage, left_out)
+    assert refused.value.category is ErrorCategory.SCHEMA
+
+
+def test_the_single_agents_answer_without_a_step_is_refused() -> None:
+    with pytest.raises(OutputError) as refused:
+        parse_answer(json.dumps({"waypoint": waypoint()}), AGENTS["single_agent"], STATE)
+    assert str(refused.value) == "the answer needs step; missing: step"
+    assert refused.value.category is ErrorCategory.SCHEMA
 
 
 @pytest.mark.parametrize(
@@ -200,10 +202,10 @@ def test_the_single_agents_pre_grasp_that_names_no_brick_or_target_is_refused(
         (
             "single_agent",
             {"step": "pre_grasp", "brick_id": 2, "target_index": 0, "waypoint": waypoint()},
-            SingleAgentPick,
+            SingleAgentAnswer,
         ),
         ("single_agent", {"step": "lift", "waypoint": waypoint()}, SingleAgentAnswer),
-        ("single_agent", {"step": "done"}, SingleAgentAnswer),
+        ("single_agent", {"step": "grasp", "close": True}, SingleAgentAnswer),
     ],
 )
 def test_a_complete_decision_parses_into_its_typed_decision(

@@ -20,12 +20,13 @@ from rich.markup import escape
 from rich.table import Table
 
 from actionreasoning.agents.tiers import DEFAULT_TIER, TIER_HELP, ToolTier
+from actionreasoning.agents.verification import Verification
 from actionreasoning.errors import ActionReasoningError, ConfigError
 from actionreasoning.reasoners.registry import backend_help
 from actionreasoning.reasoners.sampling import MAX_COMPLETION_TOKENS, Effort, Sampling
 from actionreasoning.recording.names import VIDEO_FPS
 from actionreasoning.runs.layout import RunDir
-from actionreasoning.trial.rules import Method
+from actionreasoning.trial.rules import Method, check_rung
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.geometry import quat_yaw
 from actionreasoning.world.models import Supply
@@ -213,6 +214,15 @@ AnswerErrorsOption = Annotated[
         "the gates catch.",
     ),
 ]
+VerifyOption = Annotated[
+    Verification | None,
+    typer.Option(
+        help="The rung of verification, which verdicts refuse an answer (validation always): "
+        "full (the gates and the pre-move checks), gates (sigma_1-sigma_6 only), checks "
+        "(the pre-move checks only), none. Default: full for the agents, none for the "
+        "single agent (the ablation ladder: docs/agents-and-gates.md).",
+    ),
+]
 RepairsOption = Annotated[
     int, typer.Option(min=0, help="Invalid answers sent back to the model per step.")
 ]
@@ -286,6 +296,7 @@ def eval_command(
     llm_seed: LLMSeedOption = 0,
     reasoning_effort: EffortOption = None,
     answer_errors: AnswerErrorsOption = 0.0,
+    verify: VerifyOption = None,
     repairs: RepairsOption = 2,
     tool_turns: ToolTurnsOption = 2,
     workers: WorkersOption = 1,
@@ -323,10 +334,18 @@ def eval_command(
             sampling=Sampling(temperature, top_p, max_tokens, llm_seed, reasoning_effort),
         )
         _check_options(method, backend, transcripts, answer_errors)
+        check_rung(method, verify)
         budget = TrialBudget(max_steps=max_steps, max_wall_s=max_trial_s)
         errors = AnswerErrors(rate=answer_errors)
         conditions = Conditions.load(
-            pattern, physics, noise, budget, tools, llm=backend, answer_errors=errors
+            pattern,
+            physics,
+            noise,
+            budget,
+            tools,
+            llm=backend,
+            answer_errors=errors,
+            verify=verify,
         )
     except ActionReasoningError as error:
         _fail(error)
@@ -434,6 +453,8 @@ def _title(run: RunConfig) -> str:
     title = f"{run.method} / {run.pattern_name} / {config.physics.name} / noise {config.noise.name}"
     if run.method is not Method.CLASSICAL:
         title += f" / tools {config.tools}"
+    if config.verify is not None:
+        title += f" / verify {config.verify}"
     if config.answer_errors.rate:
         title += f" / answer errors {config.answer_errors.rate:g}"
     return title

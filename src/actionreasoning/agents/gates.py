@@ -270,38 +270,6 @@ def _seat_checks(alignment: AlignmentErrors, tol: Tolerances) -> tuple[Check, ..
     )
 
 
-def lift_plan(
-    sideways_m: tuple[float, float],
-    turn_deg: float,
-    speed_mps: float,
-    path: CollisionReport,
-    bottom_clearance_m: float,
-    tol: Tolerances,
-) -> GateVerdict:
-    """Before a lift moves: straight up (no shift or turn beyond eps_g), no faster than
-    v_lift (a faster lift rolls the brick as it breaks away from its support),
-    collision-free from 1 cm up, and ending with the held brick's bottom c_min above every
-    other brick's top. ``sideways_m`` is the lift's end minus the tool's position (x, y);
-    the correction is its opposite."""
-    return GateVerdict(
-        "lift_plan",
-        (
-            Check("sideways_m", math.hypot(*sideways_m), tol.eps_g_m, at_most=True),
-            Check("turn_deg", turn_deg, tol.eps_g_deg, at_most=True),
-            Check("speed_mps", speed_mps, tol.v_lift_mps, at_most=True),
-            *_path_checks(path, -tol.overlap_m),
-            Check("bottom_clearance_m", bottom_clearance_m, tol.c_min_m, at_most=False),
-        ),
-        measured=Measured(
-            e_x_m=-sideways_m[0],
-            e_y_m=-sideways_m[1],
-            move_speed_mps=speed_mps,
-            clearance_m=path.clearance_m,
-            closest=path.closest,
-        ),
-    )
-
-
 def sigma6_return(
     retreat: CollisionReport, onward: CollisionReport, tol: Tolerances
 ) -> GateVerdict:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from enum import StrEnum
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -28,6 +28,21 @@ class PlacementPhase(StrEnum):
     SET_DOWN = "set_down"
 
 
+class StepDecision(BaseModel):
+    """m_i: what an earlier agent decided for the current brick, and its verdicts."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    agent: Stage
+    phase: PlacementPhase | None = None
+    decision: dict[str, Any] = Field(
+        description="The answer's decision fields (no rationale, no tool calls)."
+    )
+    verdicts: dict[str, bool] = Field(
+        default_factory=dict, description="Each check judged on it: passed or not."
+    )
+
+
 class TaskMemory(BaseModel):
     """The orchestrator's memory, shown to every agent."""
 
@@ -48,8 +63,8 @@ class TaskMemory(BaseModel):
     regrasps: int = Field(
         0, description="Times the current target's brick was put down to be grasped again."
     )
-    steps_done: tuple[Stage, ...] = Field(
+    this_brick: tuple[StepDecision, ...] = Field(
         (),
-        description="The steps of this brick's cycle whose answers were accepted, in order "
-        "(the paper's step completion flags; the state shows where they left the arm).",
+        description="m_1 ... m_(i-1): the decisions accepted in this brick's cycle so far, in "
+        "order, each with its verdicts (the state shows where they left the arm).",
     )

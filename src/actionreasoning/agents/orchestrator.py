@@ -2,14 +2,22 @@
 
 Per brick: Ag1 pre-grasp -> Ag2 descent & opening -> Ag3 grasp -> Ag4 safe lift ->
 Ag5 placement -> Ag6 release & return. An answer is first validated (schema, workspace,
-unit quaternion, known ids) and verified before the world moves (its ``*_plan`` checks: a
-choice that can be built, a pose where the stage needs it, a clear and reachable path); the
-gate sigma_i then judges what was measured afterwards. A refusal goes back to the same agent
-as feedback (:class:`Refusal`: the failed checks with the measured errors, signed, in the
-world frame), within a retry budget. sigma_4 = 0, or Ag5 asking for a re-grasp, sets the
-brick aside on free ground near by, where it can be grasped again, and the cycle starts again
-at Ag1. sigma_5 = 0 in contact raises the brick by delta_h and asks Ag5 again. A spent
-budget ends the trial with a typed failure.
+unit quaternion, known ids) and verified before the world moves (its pre-move checks,
+``plans.py``: a choice that can be built, a pose the next gate will accept, a clear and
+reachable path, a speed within the measured limits); the gate sigma_i then judges what was
+measured afterwards. A refusal goes back to the same agent as feedback (:class:`Refusal`:
+the failed checks with the measured errors, signed, in the world frame), within a retry
+budget. sigma_4 = 0, or Ag5 asking for a re-grasp, sets the brick aside on free ground near
+by, where it can be grasped again, and the cycle starts again at Ag1. sigma_5 = 0 in
+contact raises the brick by delta_h and asks Ag5 again. A spent budget ends the trial with
+a typed failure.
+
+The same loop runs the single-agent ablation (``single_agent=True``): one merged agent
+answers every stage, with the same moves and controller primitives (the hover over the
+slot, the guarded set-down, the retreat, the settle hold), the same validation and the
+same retry budget. What refuses an answer is the rung of verification
+(:class:`~actionreasoning.agents.verification.Verification`): a verdict the rung does not
+enforce is measured and recorded, and its answer runs as given.
 """
 
 from __future__ import annotations
@@ -22,7 +30,7 @@ from typing import NoReturn, TypeVar
 
 from scipy.spatial.transform import Rotation
 
-from actionreasoning.agents import gates
+from actionreasoning.agents import gates, plans
 from actionreasoning.agents.calls import (
     BUILD_STOPPERS,
     AgentCaller,
@@ -35,7 +43,7 @@ from actionreasoning.agents.calls import (
 from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.feedback import Measured, Refusal
 from actionreasoning.agents.gates import Check, GateVerdict
-from actionreasoning.agents.memory import PlacedBrick, PlacementPhase, TaskMemory
+from actionreasoning.agents.memory import PlacedBrick, PlacementPhase, StepDecision, TaskMemory
 from actionreasoning.agents.outputs import (
     AgentAnswer,
     DescentDecision,
@@ -45,16 +53,19 @@ from actionreasoning.agents.outputs import (
     PreGraspDecision,
     RegraspRequest,
     ReleaseDecision,
+    SingleAgentAnswer,
     WaypointProposal,
     placement_decision,
+    stage_answer,
     unit_waypoint,
 )
 from actionreasoning.agents.put_down import PutDown
 from actionreasoning.agents.reasoner import Reasoner
-from actionreasoning.agents.spec import agent_specs
+from actionreasoning.agents.spec import AgentSpec, agent_specs, single_agent_spec
 from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
 from actionreasoning.agents.transcript import Outcome
 from actionreasoning.agents.validation import OutputError, check_answer, complete
+from actionreasoning.agents.verification import Verification
 from actionreasoning.agents.view import target_supports
 from actionreasoning.agents.world import World
 from actionreasoning.errors import UnreachableError
@@ -68,9 +79,8 @@ from actionreasoning.tools.placement import (
     PlacementQuery,
     carried_pose,
 )
-from actionreasoning.world.geometry import Vec3, quat_yaw, rotation_deg, wrap_angle
+from actionreasoning.world.geometry import Vec3, rotation_deg
 from actionreasoning.world.models import (
-    BrickState,
     BrickStatus,
     GoalPattern,
     Pose,
@@ -80,14 +90,11 @@ from actionreasoning.world.models import (
 from actionreasoning.world.motion import CARRY_SPEED_MPS, Motion
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M, RETREAT_M, WORKSPACE
 from actionreasoning.world.stages import Stage
-from actionreasoning.world.tolerances import Tolerances
+from actionreasoning.world.tolerances import LIFT_SUPPORT_M, Tolerances
 
 T = TypeVar("T")
 D = TypeVar("D", bound=AgentAnswer)
 
-#: The lift's path is checked from this far above the grasp: below it the brick still
-#: touches its support.
-LIFT_CHECK_FROM_M = 0.01
 #: How long a brick still moving in the hand after the lift is held still before sigma_4
 #: judges it: a swing of a brick hanging from a pad dies out within about half a second.
 SETTLE_S = 0.5
@@ -132,12 +139,25 @@ class _Regrasp(Exception):
         self.category = category
 
 
+#: The six agents' stages, in the order of a brick's cycle.
+AGENT_STAGES = (
+    Stage.PRE_GRASP,
+    Stage.DESCENT,
+    Stage.GRASP,
+    Stage.LIFT,
+    Stage.PLACEMENT,
+    Stage.RELEASE,
+)
+
+
 class Orchestrator:
-    """Runs the six agents over a goal, brick by brick, against a :class:`World`.
+    """Runs the six agents (or, with ``single_agent``, the merged agent at every stage)
+    over a goal, brick by brick, against a :class:`World`.
 
     ``tolerances`` are the design thresholds; a build runs under them as widened for the
     world's sensing noise and narrowed for the goal's joints (:class:`Tolerances`). ``tier``
-    is the reasoning tier: which tools and formulas the agents get."""
+    is the reasoning tier: which tools and formulas the agents get; ``verify`` the rung of
+    verification: which verdicts refuse an answer."""
 
     def __init__(
         self,
@@ -148,6 +168,8 @@ class Orchestrator:
         on_stage: StageHook | None = None,
         on_call: CallHook | None = None,
         tier: ToolTier = DEFAULT_TIER,
+        verify: Verification = Verification.FULL,
+        single_agent: bool = False,
     ) -> None:
         self.world = world
         self.reasoner = reasoner
@@ -155,7 +177,13 @@ class Orchestrator:
         self.tol = tolerances.under(world.sensing)
         self.budgets = budgets
         self.on_stage = on_stage
-        self.specs = {spec.key: spec for spec in agent_specs(tier)}
+        self.verify = verify
+        self.single_agent = single_agent
+        self.specs: dict[Stage, AgentSpec] = (
+            dict.fromkeys(AGENT_STAGES, single_agent_spec(tier))
+            if single_agent
+            else {Stage(spec.key): spec for spec in agent_specs(tier)}
+        )
         self.result = BuildResult()
         self.calls = AgentCaller(world, reasoner, self.tol, self.result, on_call)
         self.put_down = PutDown(world, self.calls)
@@ -179,7 +207,7 @@ class Orchestrator:
     def _place_one(self, supports: Mapping[int, tuple[int, ...]]) -> None:
         for regrasps in range(self.budgets.regrasps + 1):
             self.memory = self.memory.model_copy(
-                update={"retries": {}, "regrasps": regrasps, "steps_done": (), "phase": None}
+                update={"retries": {}, "regrasps": regrasps, "this_brick": (), "phase": None}
             )
             self._check_bricks_left(supports)
             brick, target = self._stage(
@@ -251,7 +279,8 @@ class Orchestrator:
         for attempt in range(1, self.budgets.attempts_per_agent + 1):
             answer, state = self.calls.ask(self.specs[key], self.memory, attempt)
             try:
-                outcome = act(self._validate(key, answer, state, decide), state)
+                decision = self._validate(key, answer, state, decide)
+                outcome = act(decision, state)
             except _Refused as refusal:
                 reason = refusal.reason
                 self._remember(key, attempt, refusal.refusal, refusal.category)
@@ -267,8 +296,7 @@ class Orchestrator:
                 self.calls.conclude(Outcome.REGRASP, regrasp.refusal.text(), regrasp.category)
                 raise
             self.calls.conclude(Outcome.ACCEPTED)
-            done = (*self.memory.steps_done, key)
-            self.memory = self.memory.model_copy(update={"last_feedback": "", "steps_done": done})
+            self._remember_decision(key, decision)
             if self.on_stage is not None and self.memory.current_brick is not None:
                 self.on_stage(self.memory.current_brick, label or key)
             return outcome
@@ -276,6 +304,22 @@ class Orchestrator:
             reason,
             key,
             f"{self.budgets.attempts_per_agent} answers refused; last: {self.memory.last_feedback}",
+        )
+
+    def _remember_decision(self, key: Stage, decision: AgentAnswer) -> None:
+        """Keep m_i, the accepted decision of ``key`` and its verdicts, for the agents after
+        it in this brick's cycle."""
+        verdicts = {g.gate: g.passed for g in self.result.transcript[-1].gates}
+        m_i = StepDecision(
+            agent=key,
+            phase=self.memory.phase,
+            decision=decision.model_dump(
+                mode="json", exclude={"rationale", "tool_calls"}, exclude_defaults=True
+            ),
+            verdicts=verdicts,
+        )
+        self.memory = self.memory.model_copy(
+            update={"last_feedback": "", "this_brick": (*self.memory.this_brick, m_i)}
         )
 
     def _remember(
@@ -304,6 +348,8 @@ class Orchestrator:
         (``answer_complete``: no decision field left out, as a tool turn leaves them)."""
         try:
             check_answer(answer, self.specs[key], state, WORKSPACE, normalise=False)
+            if isinstance(answer, SingleAgentAnswer):
+                answer = self._stage_answer(key, answer)
         except OutputError as error:
             verdict = _failed(f"{key}_answer", "valid_answer", str(error))
             self._refuse(verdict, key, category=error.category)
@@ -311,6 +357,23 @@ class Orchestrator:
             return complete(decide, answer)
         except OutputError as error:
             self._refuse(_failed(f"{key}_answer", "answer_complete", str(error)), key)
+
+    def _stage_answer(self, key: Stage, answer: SingleAgentAnswer) -> AgentAnswer:
+        """The merged agent's answer as the answer of stage ``key``: its step must be the
+        one asked (memory.step); the fields other stages answer are not read."""
+        if answer.step != key:
+            given = "no step" if answer.step is None else f"step {str(answer.step)!r}"
+            raise OutputError(
+                f"{given} answered; memory.step asks for {str(key)!r}: answer step = {str(key)!r}",
+                ErrorCategory.SCHEMA,
+            )
+        return stage_answer(key, answer)
+
+    def _refuses(self, verdict: GateVerdict) -> bool:
+        """Record a verdict; whether it refuses the answer: it failed, and this rung of
+        verification enforces it (one it does not is recorded, and the answer runs)."""
+        enforced = self.verify.enforces(verdict.gate)
+        return not self.calls.judge(verdict, enforced).passed and enforced
 
     def _gate(
         self,
@@ -320,8 +383,8 @@ class Orchestrator:
         category: ErrorCategory | None = None,
     ) -> None:
         """Record a verdict and refuse the answer of ``key`` (failure code ``reason``, error
-        ``category`` if the verdict does not tell it) if it failed."""
-        if not self.calls.judge(verdict).passed:
+        ``category`` if the verdict does not tell it) if it refuses it."""
+        if self._refuses(verdict):
             raise _Refused(verdict.refusal(key), reason, category)
 
     def _refuse(
@@ -343,7 +406,8 @@ class Orchestrator:
         )
         brick = state.brick(answer.brick_id)
         waypoint = _checked(key, answer.waypoint, path="joint")
-        self._gate(self._over_brick(f"{key}_plan", brick, waypoint, height=False), key)
+        widest = GRIPPER_GAP_M[1]
+        self._gate(plans.approach_plan(_as_pose(waypoint), brick, widest, self.tol), key)
         path = self._clearance(state, waypoint, ignore=brick.id)
         self._gate(gates.sigma1_pre_grasp(path, self.tol), key, FailureCode.COLLISION)
         self.memory = self.memory.model_copy(
@@ -385,56 +449,26 @@ class Orchestrator:
                 )
         return GateVerdict(f"{Stage.PRE_GRASP}_choice", tuple(checks)).noted("; ".join(notes))
 
-    def _over_brick(
-        self, gate: str, brick: BrickState, waypoint: WaypointProposal, height: bool
-    ) -> GateVerdict:
-        """The tool pose ``waypoint`` over ``brick``'s centre (at it, with ``height``),
-        pointing down with the pads across its width, within the grasp tolerance eps_g."""
-        bx, by, bz = brick.pose.position_m
-        x, y, z = waypoint.position_m
-        yaw_error = _half_turn_deg(quat_yaw(brick.pose.quat_xyzw) - quat_yaw(waypoint.quat_xyzw))
-        offset = (bx - x, by - y, bz - z if height else 0.0)
-        return GateVerdict(
-            gate,
-            (
-                Check("grasp_offset_m", math.hypot(*offset), self.tol.eps_g_m, at_most=True),
-                Check("grasp_yaw_deg", abs(yaw_error), self.tol.eps_g_deg, at_most=True),
-                Check("pointing_down_deg", _tilt_from_down(waypoint), self.tol.eps_g_deg, True),
-            ),
-            measured=Measured(e_x_m=offset[0], e_y_m=offset[1], e_theta_deg=yaw_error),
-        )
-
     def _descent(self, answer: DescentDecision, state: WorldState, brick: int) -> None:
         key = Stage.DESCENT
         waypoint = _checked(key, answer.waypoint, path="linear")
         held = state.brick(brick)
         tool = state.robot.ee_pose
-        plan = self._over_brick(f"{key}_plan", held, waypoint, height=True)
         path = self._clearance(
             state, waypoint, start=tool, opening=answer.gripper_opening_m, ignore=brick
         )
         width = held.size_m[1]
-        self._gate(
-            GateVerdict(
-                plan.gate,
-                (
-                    Check("opening_m", answer.gripper_opening_m, width + self.tol.delta_m, False),
-                    Check(
-                        "turn_deg",
-                        rotation_deg(tool.quat_xyzw, waypoint.quat_xyzw),
-                        self.tol.eps_g_deg,
-                        at_most=True,
-                    ),
-                    *plan.checks,
-                    *_clear(path, self.tol, "way_"),
-                ),
-                measured=plan.measured.model_copy(
-                    update={"clearance_m": path.clearance_m, "closest": path.closest}
-                ),
-            ),
-            key,
-            _failure_of(path, self.tol),
+        plan = plans.grip_plan(
+            f"{key}_plan",
+            tool,
+            _as_pose(waypoint),
+            held,
+            answer.gripper_opening_m,
+            path,
+            self.tol,
+            least_opening_m=width + self.tol.delta_m,
         )
+        self._gate(plan, key, _failure_of(path, self.tol))
         self.world.grip(answer.gripper_opening_m)
         self.world.move(waypoint)
         after = self.world.observe(Progress(current_brick=brick, step=Stage.DESCENT))
@@ -442,7 +476,7 @@ class Orchestrator:
         bx, by, _ = after.brick(brick).pose.position_m
         shift = (bx - held.pose.position_m[0], by - held.pose.position_m[1])
         sigma2 = gates.sigma2_descent(after.robot.gripper_width_m, width, pads, shift, self.tol)
-        if not self.calls.judge(sigma2).passed:
+        if self._refuses(sigma2):
             # Back up the way it came, so that the next descent starts above the brick again.
             self.world.move(
                 WaypointProposal(
@@ -461,26 +495,23 @@ class Orchestrator:
         at = WaypointProposal(position_m=tool.position_m, quat_xyzw=tool.quat_xyzw, path="linear")
         if answer.waypoint is not None:
             at = _checked(key, answer.waypoint, path="linear")
-            plan = self._over_brick(f"{key}_plan", state.brick(brick), at, height=True)
             path = self._clearance(state, at, start=tool, ignore=brick)
-            self._gate(
-                GateVerdict(
-                    plan.gate, (*plan.checks, *_clear(path, self.tol, "way_")), plan.measured
-                ),
-                key,
+            opening = state.robot.gripper_width_m
+            plan = plans.grip_plan(
+                f"{key}_plan", tool, _as_pose(at), state.brick(brick), opening, path, self.tol
             )
+            self._gate(plan, key)
             self.world.move(at)
-        self.world.grip(None)
+        if answer.close:
+            self.world.grip(None)
         after = self.world.observe(Progress(current_brick=brick, step=Stage.GRASP))
         pads = self.calls.measure(after, FINGER_CONTACTS, BrickQuery(brick_id=brick))
         slip = self.calls.measure(after, SLIP, BrickQuery(brick_id=brick))
         grip = Rotation.from_quat(after.robot.ee_pose.quat_xyzw)
         dx, dy, dz = grip.apply(slip.offset_in_gripper_m)
-        turn = _half_turn_deg(
-            quat_yaw(after.brick(brick).pose.quat_xyzw) - quat_yaw(after.robot.ee_pose.quat_xyzw)
-        )
-        verdict = self.calls.judge(gates.sigma3_grasp(pads, (dx, dy, dz), turn, self.tol))
-        if not verdict.passed:
+        turn = plans.Grip.of(after.robot.ee_pose, after.brick(brick)).yaw_deg
+        verdict = gates.sigma3_grasp(pads, (dx, dy, dz), turn, self.tol)
+        if self._refuses(verdict):
             self.world.grip(GRIPPER_GAP_M[1])
             raise _Refused(verdict.refusal(key), FailureCode.GRASP_FAILED)
         return at
@@ -508,10 +539,8 @@ class Orchestrator:
         )
         speed = _speed(state.robot.ee_pose, waypoint)
         carry_s = _carry_s(after.robot.ee_pose, set_down.slot_pose)
-        verdict = self.calls.judge(
-            gates.sigma4_lift(slip, pads, set_down, speed, self.tol, carry_s=carry_s)
-        )
-        if not verdict.passed:
+        verdict = gates.sigma4_lift(slip, pads, set_down, speed, self.tol, carry_s=carry_s)
+        if self._refuses(verdict):
             self._set_aside(brick, grasp, waypoint)
             raise _Regrasp(verdict.refusal(key))
         # A brick creeping faster than v_th is carried only until it would creep out.
@@ -523,16 +552,17 @@ class Orchestrator:
     def _lift_plan(
         self, state: WorldState, brick: int, lift: WaypointProposal
     ) -> gates.GateVerdict:
-        """The lift's plan checked before it moves (see :func:`gates.lift_plan`)."""
+        """The lift's plan checked before it moves (see :func:`plans.lift_plan`)."""
         tool = state.robot.ee_pose
         x, y, z = tool.position_m
         rise = lift.position_m[2] - z
-        start = WaypointProposal(position_m=(x, y, z + LIFT_CHECK_FROM_M), quat_xyzw=tool.quat_xyzw)
+        start = WaypointProposal(position_m=(x, y, z + LIFT_SUPPORT_M), quat_xyzw=tool.quat_xyzw)
         held = state.brick(brick)
         others = [b.pose.position_m[2] + b.size_m[2] / 2 for b in state.bricks if b.id != brick]
         bottom = held.pose.position_m[2] - held.size_m[2] / 2 + rise
-        return gates.lift_plan(
+        return plans.lift_plan(
             sideways_m=(lift.position_m[0] - x, lift.position_m[1] - y),
+            rise_m=rise,
             turn_deg=rotation_deg(tool.quat_xyzw, lift.quat_xyzw),
             speed_mps=_speed(tool, lift),
             path=self._clearance(state, lift, start=start),
@@ -582,7 +612,16 @@ class Orchestrator:
             verdict = gates.sigma5_placement(errors, self.tol).noted(
                 _touch_down(motion, state, slot)
             )
-            if self.calls.judge(verdict).passed:
+            if not self._refuses(verdict):
+                # Judged after the set-down's answer was accepted: its outcome (executed, if
+                # sigma_5 failed unenforced) and its m_i take the verdict too.
+                self.calls.conclude(Outcome.ACCEPTED)
+                last = self.memory.this_brick[-1]
+                verdicts = {**last.verdicts, verdict.gate: verdict.passed}
+                m_i = last.model_copy(update={"verdicts": verdicts})
+                self.memory = self.memory.model_copy(
+                    update={"this_brick": (*self.memory.this_brick[:-1], m_i)}
+                )
                 self._placement_phase(None)
                 return
             refusal = verdict.refusal(Stage.PLACEMENT)
@@ -702,7 +741,7 @@ class Orchestrator:
                     self.tol.max_rotation_deg,
                     True,
                 ),
-                *_clear(worst, self.tol, "way_"),
+                *plans.path_checks(worst, self.tol, "way_"),
                 *hold,
             ),
             measured=gates.misalignment(predicted).model_copy(
@@ -738,32 +777,13 @@ class Orchestrator:
         return self.calls.measure(state, COLLISION, query)
 
     def _release(self, answer: ReleaseDecision, state: WorldState, brick: int) -> None:
+        """Let go and return: the pads open to the answer's opening, the tool rises RETREAT_M
+        straight up, then moves (joint) on to the answer's waypoint; sigma_6 checks both
+        moves before the gripper opens."""
         key = Stage.RELEASE
         ready = _checked(key, answer.waypoint)
-        home = state.robot.ready_pose
-        self._gate(
-            GateVerdict(
-                f"{key}_plan",
-                (
-                    Check(
-                        "opening_m", answer.gripper_opening_m, state.brick(brick).size_m[1], False
-                    ),
-                    Check(
-                        "ready_offset_m",
-                        math.dist(ready.position_m, home.position_m),
-                        self.tol.eps_g_m,
-                        at_most=True,
-                    ),
-                    Check(
-                        "ready_turn_deg",
-                        rotation_deg(ready.quat_xyzw, home.quat_xyzw),
-                        self.tol.eps_g_deg,
-                        at_most=True,
-                    ),
-                ),
-            ),
-            key,
-        )
+        width = state.brick(brick).size_m[1]
+        self._gate(plans.release_plan(answer.gripper_opening_m, width), key)
         x, y, z = state.robot.ee_pose.position_m
         retreat = WaypointProposal(
             position_m=(x, y, z + RETREAT_M), quat_xyzw=state.robot.ee_pose.quat_xyzw, path="linear"
@@ -801,14 +821,6 @@ def _failure_of(path: CollisionReport, tol: Tolerances) -> FailureCode:
     return FailureCode.INVALID_OUTPUT if clear else FailureCode.COLLISION
 
 
-def _clear(report: CollisionReport, tol: Tolerances, prefix: str) -> tuple[Check, ...]:
-    """A path reachable and clear, no overlap beyond what sensing noise can show."""
-    return (
-        Check(f"{prefix}reachable", float(report.reachable), 1.0, at_most=False),
-        Check(f"{prefix}clearance_m", report.clearance_m, -tol.overlap_m, at_most=False),
-    )
-
-
 def _above(slot: WaypointProposal, state: WorldState, path: str = "joint") -> WaypointProposal:
     """The tool over ``slot`` at the current height (or the slot's, if higher)."""
     x, y, z = slot.position_m
@@ -840,18 +852,6 @@ def _speed(tool: Pose, waypoint: WaypointProposal) -> float:
     (as fast as the controller's limits allow)."""
     length = math.dist(tool.position_m, waypoint.position_m)
     return length / waypoint.duration_s if waypoint.duration_s else math.inf
-
-
-def _tilt_from_down(waypoint: WaypointProposal) -> float:
-    """Angle (deg) between the tool's z axis and world down."""
-    axis = Rotation.from_quat(waypoint.quat_xyzw).apply((0.0, 0.0, 1.0))
-    return math.degrees(math.acos(max(-1.0, min(1.0, -float(axis[2])))))
-
-
-def _half_turn_deg(angle_rad: float) -> float:
-    """An angle modulo a half turn, in degrees in [-90, 90): pads grip a brick turned 180 deg
-    the same."""
-    return math.degrees(wrap_angle(2.0 * angle_rad) / 2.0)
 
 
 def _as_pose(waypoint: WaypointProposal | Pose) -> Pose:

@@ -208,56 +208,77 @@ class ReleaseDecision(ReleaseAnswer, Decision):
     waypoint: WaypointProposal
 
 
-#: The single agent's steps: every stage in order, then ``done``.
+#: The single agent's steps: the six agents' stages, in the order of a brick's cycle.
 SingleAgentStep = Literal[
     Stage.PRE_GRASP,
     Stage.DESCENT,
     Stage.GRASP,
     Stage.LIFT,
-    Stage.TRANSFER,
     Stage.PLACEMENT,
     Stage.RELEASE,
-    Stage.RETREAT,
-    "done",
 ]
 
 
 class SingleAgentAnswer(AgentAnswer):
-    """The single-agent ablation: the next waypoint of the whole cycle and a gripper command.
+    """The single-agent ablation: one agent answers every stage of a brick's cycle, with the
+    fields the six agents answer. ``step`` names the stage answered (memory.step); the
+    stage's own fields are read, as its agent's answer would be (:func:`stage_answer`), the
+    others not."""
 
-    The gripper command is applied once the arm has reached the waypoint (or where it is,
-    without a waypoint). ``pre_grasp`` names the brick and the target; ``done`` ends the
-    build after moving to its waypoint, if any.
-    """
+    step: SingleAgentStep | None = Field(
+        None, description="The stage answered: memory.step (a tool turn may leave it out)."
+    )
+    brick_id: Index | None = Field(None, description="pre_grasp: the brick to pick.")
+    target_index: Index | None = Field(None, description="pre_grasp: its target.")
+    waypoint: WaypointProposal | None = Field(
+        None,
+        description="The stage's tool pose: the approach, the grasp pose, the lift's end, "
+        "the slot, the pose to return to; grasp: only to close elsewhere than where the "
+        "tool is.",
+    )
+    gripper_opening_m: Opening | None = Field(
+        None, description="descent: the opening to descend with; release: to let go with."
+    )
+    close: bool = Field(False, description="grasp: true, to close the gripper.")
+    regrasp: bool = Field(
+        False, description="placement: set the brick down near by and grasp it again."
+    )
+
+
+#: The answer model of each stage, which the single agent's answer is read as.
+STAGE_ANSWERS: Final[Mapping[Stage, type[AgentAnswer]]] = {
+    Stage.PRE_GRASP: PreGraspAnswer,
+    Stage.DESCENT: DescentAnswer,
+    Stage.GRASP: GraspAnswer,
+    Stage.LIFT: LiftAnswer,
+    Stage.PLACEMENT: PlacementAnswer,
+    Stage.RELEASE: ReleaseAnswer,
+}
+
+
+def stage_answer(stage: Stage, answer: SingleAgentAnswer) -> AgentAnswer:
+    """The single agent's answer read as the answer of ``stage``'s agent: the fields that
+    agent answers, unvalidated (its decision is validated as any agent's)."""
+    model = STAGE_ANSWERS[stage]
+    return model.model_construct(**{name: getattr(answer, name) for name in model.model_fields})
+
+
+class SingleAgentDecision(SingleAgentAnswer, Decision):
+    """The single agent's decision: it names its step."""
 
     step: SingleAgentStep
-    brick_id: Index | None = None
-    target_index: Index | None = None
-    waypoint: WaypointProposal | None = None
-    gripper: Literal["open", "close", "hold"] = "hold"
-    gripper_opening_m: Opening | None = None
 
 
-class SingleAgentPick(SingleAgentAnswer, Decision):
-    """The single agent's ``pre_grasp``: it names the brick and the target."""
-
-    incomplete: ClassVar[str] = "pre_grasp names no brick_id or target_index"
-
-    brick_id: Index
-    target_index: Index
-
-
-def single_agent_decision(answer: AgentAnswer) -> SingleAgentPick | SingleAgentAnswer:
-    """The single agent's answer as its decision: a pick at ``pre_grasp``; any other step
-    decides nothing it could leave out."""
-    if isinstance(answer, SingleAgentAnswer) and answer.step == Stage.PRE_GRASP:
-        return SingleAgentPick.of(answer)
-    return SingleAgentAnswer.of(answer)
+def single_agent_decision(answer: AgentAnswer) -> AgentAnswer:
+    """The single agent's answer as its step's decision (what the step's agent decides)."""
+    decided = SingleAgentDecision.of(answer)
+    return DECISIONS[STAGE_ANSWERS[decided.step]](stage_answer(decided.step, decided))
 
 
 #: Each answer model's decision, as a function of an answer that calls no more tools (it
 #: raises pydantic's ValidationError on an incomplete one). Agent 3 decides nothing it
-#: could leave out: close or not, where the tool is or at a waypoint.
+#: could leave out: close or not, where the tool is or at a waypoint. The single agent
+#: decides what its step's agent decides.
 DECISIONS: Final[Mapping[type[AgentAnswer], Callable[[AgentAnswer], AgentAnswer]]] = {
     PreGraspAnswer: PreGraspDecision.of,
     DescentAnswer: DescentDecision.of,

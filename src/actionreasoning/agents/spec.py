@@ -8,6 +8,7 @@ ablation (number 0, ``prompts/single_agent.yaml``) holds all six roles, without 
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import cache
 from importlib import resources
@@ -138,31 +139,33 @@ def parse_agents(text: str, tier: ToolTier = DEFAULT_TIER) -> tuple[AgentSpec, .
     return tuple(specs)
 
 
-#: The single agent's task-memory step before its first waypoint.
-SINGLE_AGENT_START: Final = "start"
-
-
 @cache
 def single_agent_spec(tier: ToolTier = DEFAULT_TIER) -> AgentSpec:
-    """The single-agent ablation: all six roles in one agent (``prompts/single_agent.yaml``)
-    with the tools and formulas of all six in ``tier``, and no gate."""
+    """The single-agent ablation: the six agents merged into one (``prompts/single_agent.yaml``
+    says what it is): their roles, and their thinking chains in ``tier``, each under its
+    stage's name; their tools, formulas and thresholds; no gate, and no steps that correct
+    by a gate's refusals, since none refuses it."""
     entry = yaml.safe_load(_text("single_agent.yaml"))
-    what = "the single agent"
     specs = agent_specs(tier)
-    _, formulas = _knowledge(entry, tier, what)
+    roles = "\n".join(f"- {spec.key}: {spec.role}" for spec in specs)
+    chains = tuple(f"{spec.key}: {' '.join(spec.thinking)}" for spec in specs)
+
+    def union(names: Iterable[str]) -> tuple[str, ...]:
+        return tuple(dict.fromkeys(names))
+
     return AgentSpec(
         number=0,
         key=SINGLE_AGENT,
         name=entry["name"],
-        role=entry["role"],
+        role=f"{entry['role']}\n{roles}",
         gate="",
         scope=Scope.ALL,
-        thresholds=tuple(entry["thresholds"]),
+        thresholds=union(name for spec in specs for name in spec.thresholds),
         frames=True,
         robot_extras=("pad_forces_n", "ready_pose"),
-        tools=tuple(dict.fromkeys(name for spec in specs for name in spec.tools)),
-        thinking=_lines(_of_tier(entry["thinking"], tier, what), what),
+        tools=union(name for spec in specs for name in spec.tools),
+        thinking=chains,
         output_model=SingleAgentAnswer,
         tier=tier,
-        formulas=formulas,
+        formulas=union(name for spec in specs for name in spec.formulas),
     )

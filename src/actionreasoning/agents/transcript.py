@@ -127,7 +127,11 @@ class AgentCall(BaseModel):
     ) -> None:
         """Note what became of the answer and, if it was refused or failed, its category:
         ``category`` if given (an error no gate verdict records), else that of the first
-        failed check of its last failed gate verdict."""
+        failed check of its last failed gate verdict. An answer accepted although a verdict
+        failed that the rung did not enforce is ``executed``."""
+        overruled = any(not gate.passed and not gate.enforced for gate in self.gates)
+        if outcome is Outcome.ACCEPTED and overruled:
+            outcome = Outcome.EXECUTED
         self.outcome, self.feedback = outcome, feedback
         if outcome in (Outcome.ACCEPTED, Outcome.EXECUTED, Outcome.PENDING):
             self.category = None

@@ -66,7 +66,9 @@ def parse_answer(
     checked = check_answer(answer, spec, state, workspace, normalise)
     if checked.tool_calls:
         return checked
-    return complete(DECISIONS[spec.output_model], checked)
+    decided = complete(DECISIONS[spec.output_model], checked)
+    # The single agent's decision is its step's agent's: its answer goes on as it is.
+    return decided if isinstance(decided, spec.output_model) else checked
 
 
 def complete(decide: Callable[[AgentAnswer], D], answer: AgentAnswer) -> D:

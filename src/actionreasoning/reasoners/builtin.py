@@ -11,8 +11,8 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Callable
-from dataclasses import dataclass
-from itertools import islice, pairwise, takewhile
+from dataclasses import dataclass, replace
+from itertools import islice, takewhile
 from typing import Literal
 
 import numpy as np
@@ -29,11 +29,10 @@ from actionreasoning.agents.outputs import (
     RegraspRequest,
     ReleaseDecision,
     SingleAgentAnswer,
-    SingleAgentPick,
     WaypointProposal,
 )
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest, Briefing
-from actionreasoning.agents.spec import SINGLE_AGENT, SINGLE_AGENT_START, AgentKey
+from actionreasoning.agents.spec import SINGLE_AGENT, AgentKey
 from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.agents.view import BrickView, TargetView
 from actionreasoning.tools import formulas
@@ -46,10 +45,10 @@ from actionreasoning.tools.grasp_plan import (
 )
 from actionreasoning.tools.placement import PLACEMENT_POSE, PlacementQuery
 from actionreasoning.tools.reach import REACHABILITY, ReachQuery
-from actionreasoning.world.geometry import axis_angle_deg, quat_yaw, top_down_quat
+from actionreasoning.world.geometry import axis_angle_deg, quat_yaw, top_down_quat, wrap_angle
 from actionreasoning.world.models import Pose
 from actionreasoning.world.motion import CARRY_SPEED_MPS, MAX_MOVE_S
-from actionreasoning.world.scene_spec import GRIPPER_GAP_M, RETREAT_M
+from actionreasoning.world.scene_spec import GRIPPER_GAP_M
 from actionreasoning.world.stages import Stage
 
 LIFT_CLEARANCE_M = 0.12
@@ -62,12 +61,6 @@ DESCENT_SLACK_M = 0.04
 PUT_DOWN_GATES = ("sigma4_lift", "placement_regrasp")
 #: Checks of sigma_4 that fail when the brick slips in the grip.
 SLIP_CHECKS = ("relative_speed_mps", "friction_margin_n", "normal_force_n")
-
-#: The single agent's cycle: the step that follows the one executed last.
-NEXT_STEP: dict[str, Stage] = {
-    SINGLE_AGENT_START: Stage.PRE_GRASP,
-    **dict(pairwise((*Stage, Stage.PRE_GRASP))),
-}
 
 
 class BuiltinReasoner:
@@ -268,8 +261,13 @@ def _in_the_way(memory: TaskMemory) -> int | None:
 def _descent(briefing: Briefing) -> DescentDecision:
     view = briefing.view
     brick = view.brick(_current(briefing.memory))
-    down = top_down_quat(quat_yaw(view.robot.tool_pose.quat_xyzw))  # at its present yaw
-    grasp = formulas.grasp_pose(brick.pose, brick.size_m, down)
+    # At the tool's present yaw, or turned to the brick's grasp yaw if that is further off
+    # than eps_g_deg (the approach is then no grasp sigma_3 would accept).
+    yaw = quat_yaw(view.robot.tool_pose.quat_xyzw)
+    off = wrap_angle(2.0 * (quat_yaw(brick.pose.quat_xyzw) - yaw)) / 2.0
+    if abs(math.degrees(off)) > briefing.tolerances.eps_g_deg:
+        yaw += off
+    grasp = formulas.grasp_pose(brick.pose, brick.size_m, top_down_quat(yaw))
     return DescentDecision(
         gripper_opening_m=_descent_opening(brick),
         waypoint=_proposal(grasp, path="linear"),
@@ -396,8 +394,7 @@ def _slot_by_formula(briefing: Briefing) -> tuple[Pose, float]:
     knowledge base's formulas), and its roll in the hand (deg)."""
     view, memory = briefing.view, briefing.memory
     brick, tool = view.brick(_current(memory)), view.robot.tool_pose
-    target = next(t for t in view.targets if t.index == memory.current_target)
-    slot = formulas.slot_pose(target.pose, *formulas.in_hand(tool, brick.pose))
+    slot = formulas.slot_pose(_target(briefing).pose, *formulas.in_hand(tool, brick.pose))
     return slot, axis_angle_deg(brick.pose.quat_xyzw, tool.quat_xyzw)
 
 
@@ -425,7 +422,7 @@ def _misses(briefing: Briefing) -> tuple[float, float, float, int]:
 def _corrected(briefing: Briefing, slot: Pose, dx: float, dy: float, turn: float) -> Pose:
     """``slot`` turned about the vertical axis through the target's centre by ``turn``
     degrees, then shifted by (``dx``, ``dy``)."""
-    target = briefing.view.targets[0].pose.position_m
+    target = _target(briefing).pose.position_m
     spin = Rotation.from_euler("z", turn, degrees=True)
     x, y, z = spin.apply(np.subtract(slot.position_m, target)) + np.asarray(target)
     return Pose(
@@ -438,7 +435,7 @@ def _slot(briefing: Briefing, slot: Pose) -> WaypointProposal:
     """The slot pose as a waypoint, carried at CARRY_SPEED_MPS."""
     tool = briefing.view.robot.tool_pose
     carry = min(math.dist(slot.position_m, tool.position_m) / CARRY_SPEED_MPS, MAX_MOVE_S)
-    return _proposal(slot, duration_s=carry)
+    return _proposal(slot, duration_s=carry or None)  # already there: no move to time
 
 
 def _release(briefing: Briefing) -> ReleaseDecision:
@@ -451,75 +448,25 @@ def _release(briefing: Briefing) -> ReleaseDecision:
 
 
 def _single_agent(briefing: Briefing) -> SingleAgentAnswer:
-    """The merged agent: the same policies, one waypoint of the cycle per call."""
-    memory, view = briefing.memory, briefing.view
-    step = NEXT_STEP[memory.step]
-    used = {p.brick_id for p in memory.placed}
-    left = [b for b in view.bricks if b.id not in used and b.pickable]
-    ready = _ready(briefing)
-    if step == Stage.PRE_GRASP and (not view.targets or not left):
-        return SingleAgentAnswer(
-            step="done", waypoint=_proposal(ready), rationale="nothing left to build"
-        )
-    here = view.robot.tool_pose
-    if step == Stage.PRE_GRASP:
-        pick = _pre_grasp(briefing)
-        opening = _descent_opening(view.brick(pick.brick_id))
-        return SingleAgentPick(
-            step=step,
-            brick_id=pick.brick_id,
-            target_index=pick.target_index,
-            waypoint=pick.waypoint,
-            gripper="open",
-            gripper_opening_m=opening,
-            rationale=pick.rationale,
-        )
-    if step in (Stage.DESCENT, Stage.LIFT):
-        moved = _descent(briefing) if step == Stage.DESCENT else _lift(briefing)
-        return SingleAgentAnswer(step=step, waypoint=moved.waypoint, rationale=moved.rationale)
-    if step == Stage.GRASP:
-        return SingleAgentAnswer(step=step, gripper="close", rationale="close on the brick")
-    if step in (Stage.TRANSFER, Stage.PLACEMENT):
-        slot = _slot(briefing, _slot_plan(briefing, "joint").pose)
-        x, y, z = slot.position_m
-        if step == Stage.TRANSFER:
-            above = (x, y, max(z, here.position_m[2]))
-            return SingleAgentAnswer(
-                step=step,
-                waypoint=slot.model_copy(update={"position_m": above}),
-                rationale="carry the brick above its slot",
-            )
-        return SingleAgentAnswer(
-            step=step,
-            waypoint=WaypointProposal(
-                position_m=slot.position_m, quat_xyzw=slot.quat_xyzw, path="linear"
-            ),
-            rationale="straight down onto the slot",
-        )
-    if step == Stage.RELEASE:
-        release = _release(briefing)
-        return SingleAgentAnswer(
-            step=step,
-            gripper="open",
-            gripper_opening_m=release.gripper_opening_m,
-            rationale=release.rationale,
-        )
-    x, y, z = here.position_m
-    # Up to the ready height at least: the next joint move to a brick sags mid-way, and
-    # unlike the six agents the single agent checks no clearance on the way.
-    up = Pose(position_m=(x, y, max(z + RETREAT_M, ready.position_m[2])), quat_xyzw=here.quat_xyzw)
-    return SingleAgentAnswer(
-        step=step, waypoint=_proposal(up, path="linear"), rationale="straight up"
-    )
+    """The merged agent: at the stage memory.step asks for, that stage's agent's policy,
+    on what the merged prompt shows."""
+    step = briefing.memory.step
+    if step not in STAGE_POLICIES:
+        raise ValueError(f"memory.step {step!r} is no stage the single agent answers")
+    decision = STAGE_POLICIES[step](replace(briefing, agent=Stage(step)))
+    return SingleAgentAnswer(step=Stage(step), **dict(decision))
 
 
-POLICIES: dict[AgentKey, Callable[[Briefing], AgentAnswer]] = {
+STAGE_POLICIES: dict[str, Callable[[Briefing], AgentAnswer]] = {
     Stage.PRE_GRASP: _pre_grasp,
     Stage.DESCENT: _descent,
     Stage.GRASP: _grasp,
     Stage.LIFT: _lift,
     Stage.PLACEMENT: _placement,
     Stage.RELEASE: _release,
+}
+POLICIES: dict[AgentKey, Callable[[Briefing], AgentAnswer]] = {
+    **{Stage(stage): policy for stage, policy in STAGE_POLICIES.items()},
     SINGLE_AGENT: _single_agent,
 }
 
@@ -532,6 +479,15 @@ def _ready(briefing: Briefing) -> Pose:
     if briefing.view.robot.ready_pose is None:
         raise ValueError("the state shows no ready pose")
     return briefing.view.robot.ready_pose
+
+
+def _target(briefing: Briefing) -> TargetView:
+    """The current target, as the state shows it."""
+    index = briefing.memory.current_target
+    found = next((t for t in briefing.view.targets if t.index == index), None)
+    if found is None:
+        raise ValueError(f"the state shows no current target ({index})")
+    return found
 
 
 def _current(memory: TaskMemory) -> int:

@@ -213,10 +213,8 @@ def _missing_field(answer: AgentAnswer, request: AgentRequest) -> Choices:
         for name in DECISION_FIELDS
         if getattr(answer, name, None) is not None
     ]
-    if isinstance(answer, GraspAnswer) and answer.close:
+    if isinstance(answer, GraspAnswer | SingleAgentAnswer) and answer.close:
         changes.append(({"close": False}, "close True -> False"))
-    if isinstance(answer, SingleAgentAnswer) and answer.gripper != "hold":
-        changes.append(({"gripper": "hold"}, f"gripper {answer.gripper} -> hold"))
     return [[change] for change in changes]
 
 

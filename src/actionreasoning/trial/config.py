@@ -15,6 +15,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_serializer, model_valid
 from actionreasoning.agents.answer_errors import AnswerErrors
 from actionreasoning.agents.orchestrator import Budgets
 from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
+from actionreasoning.agents.verification import Verification
 from actionreasoning.control.limits import ControllerLimits
 from actionreasoning.control.safety import SafetyLimits
 from actionreasoning.errors import ConfigError
@@ -53,9 +54,9 @@ class Backend(BaseModel):
 
 class TrialConfig(BaseModel):
     """The scene, physics, perturbations, gate tolerances, budgets, controller and safety
-    limits, success rule, reasoning backend, answer errors and reasoning tier (``tools``:
-    which tools the agents get, :mod:`~actionreasoning.agents.tiers`) of every trial of a
-    run.
+    limits, success rule, reasoning backend, answer errors, reasoning tier (``tools``:
+    which tools the agents get, :mod:`~actionreasoning.agents.tiers`) and rung of
+    verification (``verify``) of every trial of a run.
 
     ``llm`` is None for the classical script, which asks no reasoner. Of a backend only
     what defines it is recorded (:class:`Backend`): where its server is and how patiently
@@ -79,6 +80,10 @@ class TrialConfig(BaseModel):
     llm: LLMConfig | None = LLMConfig()
     answer_errors: AnswerErrors = AnswerErrors()
     tools: ToolTier = DEFAULT_TIER
+    #: The rung of verification (agents/verification.py): which verdicts refuse an answer;
+    #: None: the method's own (``rung_of``). Left out of run.json when None, so runs from
+    #: before rungs existed resume.
+    verify: Annotated[Verification | None, Field(exclude_if=lambda rung: rung is None)] = None
 
     @model_validator(mode="after")
     def _budget_covers_a_trial(self) -> TrialConfig:

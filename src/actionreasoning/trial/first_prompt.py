@@ -7,8 +7,8 @@ from dataclasses import dataclass
 
 from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
-from actionreasoning.agents.single_agent import SingleAgent
 from actionreasoning.agents.spec import SINGLE_AGENT, AgentKey
+from actionreasoning.agents.verification import Verification
 from actionreasoning.errors import ActionReasoningError
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.trial.runner import TrialSpec, trial_world
@@ -41,10 +41,16 @@ def first_prompt(spec: TrialSpec, agent: AgentKey) -> str:
     with trial_world(spec) as world:
         sim = SimWorld(world.controller, spec.goal, world.sensor)
         catcher, config = _Catcher(agent), spec.config
-        runner = (
-            SingleAgent(sim, catcher, config.tolerances, tier=config.tools)
+        runner = Orchestrator(
+            sim,
+            catcher,
+            config.tolerances,
+            config.retries,
+            tier=config.tools,
+            verify=Verification.NONE
             if agent == SINGLE_AGENT
-            else Orchestrator(sim, catcher, config.tolerances, config.retries, tier=config.tools)
+            else config.verify or Verification.FULL,
+            single_agent=agent == SINGLE_AGENT,
         )
         try:
             result = runner.build(spec.goal)

@@ -176,6 +176,9 @@ class TrialResult(Provenance):
     #: The reasoning tier (agents/tiers.py). Lines written before tiers existed ran with
     #: today's "solve" tools.
     tools: str = BEFORE_TIERS
+    #: The rung of verification (agents/verification.py); None in lines written before
+    #: rungs existed (agents: full; single agent: none) and for the classical script.
+    verify: str | None = None
     seed: int
     trial: int
     trial_seed: int

@@ -11,6 +11,9 @@ from enum import StrEnum
 
 import numpy as np
 
+from actionreasoning.agents.verification import Verification
+from actionreasoning.errors import ConfigError
+
 
 class Method(StrEnum):
     """The reasoning methods a trial can run."""
@@ -23,3 +26,22 @@ class Method(StrEnum):
 def trial_seed(run_seed: int, trial: int) -> int:
     """The seed of trial ``trial``: derived from the run seed and the index only."""
     return int(np.random.SeedSequence([run_seed, trial]).generate_state(1)[0])
+
+
+def check_rung(method: Method, verify: Verification | None) -> None:
+    """Refuse a rung of verification the method cannot run under, in one line."""
+    if method is Method.SINGLE_AGENT and verify not in (None, Verification.NONE):
+        raise ConfigError(f"--method single-agent has no stage gating: drop --verify {verify}")
+    if method is Method.CLASSICAL and verify is not None:
+        raise ConfigError(f"--method classical verifies nothing; drop --verify {verify}")
+
+
+def rung_of(method: Method, verify: Verification | None) -> Verification | None:
+    """The rung of verification a method runs under: ``verify`` if given, else the method's
+    own (the six agents' full verification, the single agent's none); None for the
+    classical script, which verifies nothing."""
+    if method is Method.CLASSICAL:
+        return None
+    if verify is not None:
+        return verify
+    return Verification.NONE if method is Method.SINGLE_AGENT else Verification.FULL

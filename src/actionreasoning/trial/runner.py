@@ -12,8 +12,8 @@ import numpy as np
 from actionreasoning.agents.calls import BuildResult, CallHook, failure_of
 from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.reasoner import Reasoner
-from actionreasoning.agents.single_agent import SingleAgent
 from actionreasoning.agents.transcript import AgentCall
+from actionreasoning.agents.verification import Verification
 from actionreasoning.agents.world import World
 from actionreasoning.control.classical import run_classical
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
@@ -35,7 +35,7 @@ from actionreasoning.trial.results import (
     TrialResult,
     refusals_of,
 )
-from actionreasoning.trial.rules import Method, trial_seed
+from actionreasoning.trial.rules import Method, check_rung, rung_of, trial_seed
 from actionreasoning.trial.sim_world import SimWorld
 from actionreasoning.world.geometry import QuatXYZW, Vec3
 from actionreasoning.world.models import READY_POSE, GoalPattern
@@ -61,6 +61,12 @@ class TrialSpec:
             raise ConfigError(f"--method {self.method} needs a reasoning backend (config.llm)")
         if self.method is Method.CLASSICAL and self.config.answer_errors.rate > 0:
             raise ConfigError("--method classical asks no reasoner; drop --answer-errors")
+        check_rung(self.method, self.config.verify)
+
+    @property
+    def rung(self) -> Verification | None:
+        """The rung of verification the trial runs under (None: the classical script)."""
+        return rung_of(self.method, self.config.verify)
 
 
 class TrialObserver:
@@ -221,8 +227,9 @@ def run_agents(
     deadline: float | None = None,
 ) -> BuildResult:
     """The six gated agents, or the merged single agent, building ``spec``'s goal in
-    ``world`` with ``reasoner`` (default: the spec's backend, whose answers are given up at
-    ``deadline``), its answers corrupted at the rate of ``config.answer_errors``."""
+    ``world`` under the run's rung of verification with ``reasoner`` (default: the spec's
+    backend, whose answers are given up at ``deadline``), its answers corrupted at the rate
+    of ``config.answer_errors``."""
     config = spec.config
     assert config.llm is not None  # TrialSpec checks it
     if reasoner is None:
@@ -230,25 +237,16 @@ def run_agents(
     if config.answer_errors.rate > 0:
         seed = trial_seed(spec.run_seed, spec.trial)
         reasoner = ImperfectReasoner(reasoner, config.answer_errors, seed)
-    runner = (
-        SingleAgent(
-            world,
-            reasoner,
-            config.tolerances,
-            on_stage=stage,
-            on_call=on_call,
-            tier=config.tools,
-        )
-        if spec.method is Method.SINGLE_AGENT
-        else Orchestrator(
-            world,
-            reasoner,
-            config.tolerances,
-            config.retries,
-            on_stage=stage,
-            on_call=on_call,
-            tier=config.tools,
-        )
+    runner = Orchestrator(
+        world,
+        reasoner,
+        config.tolerances,
+        config.retries,
+        on_stage=stage,
+        on_call=on_call,
+        tier=config.tools,
+        verify=spec.rung or Verification.FULL,
+        single_agent=spec.method is Method.SINGLE_AGENT,
     )
     return runner.build(spec.goal)
 
@@ -316,6 +314,7 @@ def measure(
         physics=config.physics.name,
         noise=config.noise.name,
         tools=config.tools,
+        verify=spec.rung,
         seed=spec.run_seed,
         trial=spec.trial,
         trial_seed=seed,

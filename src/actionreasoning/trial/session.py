@@ -38,6 +38,7 @@ from actionreasoning.agents.reasoner import AgentReply, AgentRequest, ToolRunner
 from actionreasoning.agents.tiers import DEFAULT_TIER, load_tier
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.agents.validation import OutputError, parse_answer
+from actionreasoning.agents.verification import Verification
 from actionreasoning.errors import (
     ActionReasoningError,
     ConfigError,
@@ -151,6 +152,7 @@ class Conditions:
         *,
         llm: LLMConfig | None = LLMConfig(),
         answer_errors: AnswerErrors = AnswerErrors(),
+        verify: Verification | None = None,
     ) -> Conditions:
         """The conditions named as on the command line; a bad name or file is refused."""
         check_file_name(pattern, "pattern", PatternError)
@@ -163,6 +165,7 @@ class Conditions:
             noise=load_noise(noise),
             answer_errors=answer_errors,
             tools=load_tier(tools),
+            verify=verify,
         )
         return cls(pattern_name=pattern, goal=load_pattern(pattern, config.scene), config=config)
 

@@ -43,6 +43,9 @@ GRASP_ERROR_DEG = 0.5
 #: Measured (``bench/path_deviation.py``, 2 agents trials): the largest distance of the tool
 #: from the path it was planned along, 2.8 mm, rounded up to the millimetre.
 PATH_DEVIATION_M = 0.003
+#: Below this rise a lifted brick still touches its support (its bottom's unevenness and
+#: the pads' give): the lift checks a path from here up, and bounds the tool's drag below it.
+LIFT_SUPPORT_M = 0.01
 #: Brick-on-ground friction the sidewall threshold is measured against: the brick's own
 #: (paper physics' default lateral friction) times the ground's (plane.urdf's 1.0).
 GROUND_FRICTION = 0.5
@@ -174,17 +177,44 @@ def _design(rule: SuccessRule, scene: SceneSpec) -> list[Derivation]:
             "eps_g_m",
             GRASP_ERROR_M,
             "m",
-            "sigma_3: a grip centred on the brick",
+            "sigma_3: a grip centred on the brick; before the approach, the descent and a "
+            "corrected grasp, the forecast of sigma_3 on the pose asked for",
             "the largest centre error a grip closing on a brick at rest left, 1.3 mm in 120 "
-            "grasps, rounded up; + 3 x position noise",
+            "grasps, rounded up; + 3 x position noise. The forecast compares the pose's offset "
+            "along the brick's length and in height (the closing centres it across its width: "
+            "pad_room_m) with the same threshold, since the grip closes where the tool is",
         ),
         Derivation(
             "eps_g_deg",
             GRASP_ERROR_DEG,
             "deg",
-            "sigma_3: pads flat on the brick",
+            "sigma_3: pads flat on the brick; the forecast of sigma_3 before the approach, "
+            "the descent and a corrected grasp; a grasp from above",
             "the largest yaw error a closing grip left, 0.25 deg in 120 grasps, rounded up; "
-            "+ 3 x yaw noise",
+            "+ 3 x yaw noise. The closing does not turn the brick (a grasp 3, 6 or 10 deg off "
+            "keeps 90 % of it: bench/grip_centring.py), so the forecast compares the pose's yaw "
+            "with the same threshold; and the tool points down within it (the pads close level "
+            "on the vertical side walls)",
+        ),
+        Derivation(
+            "hover_clearance_m",
+            c_min,
+            "m",
+            "pre-grasp: the approach hovers clear of the brick it is over",
+            "c_min_m: the clearance sigma_1 asks of every other body, kept from the brick its "
+            "path check leaves out (the descent goes to it), fingertips to the brick's top",
+        ),
+        Derivation(
+            "pad_room_m",
+            0.0,
+            "m",
+            "pre-grasp, descent, a corrected grasp: the open pads pass outside both side "
+            "walls, so the closing centres the brick across its width",
+            "0: the least room between a pad and the side wall it passes, on the straight way "
+            "down from where the fingertips reach the brick's top to the grasp (half the "
+            "opening - the tool's offset across the width - width / 2 / cos(yaw error) - pad "
+            "length / 2 x |tan(yaw error)|); + 3 x position noise. The closing centres a brick "
+            "up to 15 mm off across its width to 0.5 mm (bench/grip_centring.py)",
         ),
         Derivation(
             "v_th_mps",
@@ -201,6 +231,24 @@ def _design(rule: SuccessRule, scene: SceneSpec) -> list[Derivation]:
             "lift: the brick leaves its support level",
             "the fastest of the lift speeds measured at which no brick of 16 rolled more "
             "than 10 deg in the hand",
+        ),
+        Derivation(
+            "lift_drag_m",
+            GRASP_ERROR_M,
+            "m",
+            "lift: the brick breaks away from its support without being dragged in the hand",
+            f"the grip's own largest measured error, {GRASP_ERROR_M} m: the tool's sideways "
+            f"travel while the brick still touches its support (the lift's first "
+            f"{LIFT_SUPPORT_M} m of rise) moves the brick in the hand no further than the grip "
+            "already is off; measured against the tool, so not widened for noise",
+        ),
+        Derivation(
+            "lift_drag_deg",
+            GRASP_ERROR_DEG,
+            "deg",
+            "lift: the brick breaks away from its support without being twisted in the hand",
+            f"the grip's largest measured yaw error, {GRASP_ERROR_DEG} deg: the turn the "
+            f"tool makes over the lift's first {LIFT_SUPPORT_M} m of rise",
         ),
         Derivation(
             "force_noise",
@@ -320,6 +368,16 @@ class Tolerances(BaseModel):
         gt=0,
         description="largest yaw between the pads' closing axis and the brick's width.",
     )
+    hover_clearance_m: float = Field(
+        _DEFAULTS["hover_clearance_m"],
+        gt=0,
+        description="least height of the fingertips over the brick's top at the approach.",
+    )
+    pad_room_m: float = Field(
+        _DEFAULTS["pad_room_m"],
+        ge=0,
+        description="least room between an open pad and the side wall it passes going down.",
+    )
     v_th_mps: float = Field(
         _DEFAULTS["v_th_mps"],
         gt=0,
@@ -329,6 +387,16 @@ class Tolerances(BaseModel):
         _DEFAULTS["v_lift_mps"],
         gt=0,
         description="largest mean speed of a lift.",
+    )
+    lift_drag_m: float = Field(
+        _DEFAULTS["lift_drag_m"],
+        gt=0,
+        description="largest sideways travel of a lift while the brick touches its support.",
+    )
+    lift_drag_deg: float = Field(
+        _DEFAULTS["lift_drag_deg"],
+        gt=0,
+        description="largest turn of a lift while the brick touches its support.",
     )
     force_noise: float = Field(
         0.0, ge=0.0, description="relative noise (std) of a pad force reading."
@@ -401,6 +469,7 @@ class Tolerances(BaseModel):
                 "eps_g_m": eps_g_m,
                 "eps_g_deg": eps_g_deg,
                 "delta_m": opening_slack_m(eps_g_m, eps_g_deg),
+                "pad_room_m": self.pad_room_m + position,
                 "eps_perp_m": self.eps_perp_m + position,
                 "eps_xy_m": self.eps_xy_m + position,
                 "eps_theta_deg": self.eps_theta_deg + yaw,
