@@ -29,6 +29,7 @@ __all__ = [
     "AnswerErrorCounts",
     "BrickResult",
     "Failure",
+    "FirstAttempts",
     "LLMUsage",
     "PlacementMetrics",
     "Refusals",
@@ -122,6 +123,20 @@ class AnswerErrorCounts(_Record):
         )
 
 
+class FirstAttempts(_Record):
+    """An agent's first answers on its bricks (calls of attempt 1): how many it was asked
+    for, and how many of them were accepted (or executed) as they came. Counts add up
+    with ``+``."""
+
+    asked: int = 0
+    accepted: int = 0
+
+    def __add__(self, other: FirstAttempts) -> FirstAttempts:
+        return FirstAttempts(
+            asked=self.asked + other.asked, accepted=self.accepted + other.accepted
+        )
+
+
 def sum_refusals(many: Iterable[Refusals]) -> Refusals:
     """Refusals summed (see :func:`_count` for the order)."""
     return _count(
@@ -176,6 +191,9 @@ class TrialResult(Provenance):
     #: The reasoning tier (agents/tiers.py). Lines written before tiers existed ran with
     #: today's "solve" tools.
     tools: str = BEFORE_TIERS
+    #: The rung of verification (agents/verification.py); None in lines written before
+    #: rungs existed.
+    verify: str | None = None
     seed: int
     trial: int
     trial_seed: int
@@ -194,4 +212,9 @@ class TrialResult(Provenance):
     #: Refused and failed answers, repairs included, by agent and category; lines of trials
     #: with none (and lines written before categories existed) have no such field.
     refusals: Refusals = Field(default_factory=dict, exclude_if=lambda counts: not counts)
+    #: Each agent's answers at its first attempt on a brick and how many were accepted;
+    #: absent where no agent was asked (classical) and in lines written before it existed.
+    first_attempts: dict[str, FirstAttempts] = Field(
+        default_factory=dict, exclude_if=lambda counts: not counts
+    )
     sim_steps: int

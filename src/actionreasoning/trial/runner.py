@@ -13,7 +13,7 @@ from actionreasoning.agents.calls import BuildResult, CallHook, failure_of
 from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.reasoner import Reasoner
 from actionreasoning.agents.single_agent import SingleAgent
-from actionreasoning.agents.transcript import AgentCall
+from actionreasoning.agents.transcript import AgentCall, Outcome
 from actionreasoning.agents.world import World
 from actionreasoning.control.classical import run_classical
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
@@ -30,6 +30,7 @@ from actionreasoning.trial.results import (
     AnswerErrorCounts,
     BrickResult,
     Failure,
+    FirstAttempts,
     LLMUsage,
     PlacementMetrics,
     TrialResult,
@@ -343,6 +344,7 @@ def measure(
         if config.answer_errors.rate
         else None,
         refusals=refusals_of(outcome.transcript),
+        first_attempts=_first_attempts(outcome.transcript),
         sim_steps=scene.ticks,
     )
 
@@ -360,3 +362,16 @@ def _usage_of(
         ),
         LLMUsage(),
     )
+
+
+def _first_attempts(transcript: Sequence[AgentCall]) -> dict[str, FirstAttempts]:
+    """Each agent's calls of attempt 1 and how many were accepted or executed as they came,
+    the agents in the order they were first asked."""
+    counts: dict[str, FirstAttempts] = {}
+    for call in transcript:
+        if call.attempt == 1:
+            accepted = call.outcome in (Outcome.ACCEPTED, Outcome.EXECUTED)
+            counts[call.agent] = counts.get(call.agent, FirstAttempts()) + FirstAttempts(
+                asked=1, accepted=int(accepted)
+            )
+    return counts
