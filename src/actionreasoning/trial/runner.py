@@ -344,7 +344,7 @@ def measure(
         if config.answer_errors.rate
         else None,
         refusals=refusals_of(outcome.transcript),
-        first_attempts=_first_attempts(outcome.transcript),
+        first_attempts=first_attempts_of(outcome.transcript),
         sim_steps=scene.ticks,
     )
 
@@ -364,7 +364,7 @@ def _usage_of(
     )
 
 
-def _first_attempts(transcript: Sequence[AgentCall]) -> dict[str, FirstAttempts]:
+def first_attempts_of(transcript: Sequence[AgentCall]) -> dict[str, FirstAttempts]:
     """Each agent's calls of attempt 1 and how many were accepted or executed as they came,
     the agents in the order they were first asked."""
     counts: dict[str, FirstAttempts] = {}
