@@ -12,10 +12,11 @@ from actionreasoning.runs.summary import success_text
 
 BOARD_COLUMNS = ("Method", "Pattern", "Success", *LEADERBOARD_COLUMNS, "First answers by agent")
 BOARD_CAPTION = (
-    "Success with its Wilson 95 % interval; answers accepted at an agent's first attempt on "
-    "a brick; refused and failed answers (repairs included) and prompt tokens per brick of "
-    "the pattern, and tokens per brick placed. A dash: no reasoner, no token counted, or "
-    "lines written before it was counted."
+    "Success with its Wilson 95 % interval; first answers accepted: of the answers at "
+    "attempt 1 of each request to an agent (once a brick; the placement agent twice, and "
+    "again after a raise), those accepted as they came; refused and failed answers (repairs "
+    "included) and prompt tokens per brick of the pattern, and tokens per brick placed. A "
+    "dash: no reasoner, no token counted, or lines written before it was counted."
 )
 
 

@@ -113,16 +113,16 @@ def success_rates(groups: Sequence[Group], path: Path) -> Path:
             )
             axis.text(
                 x,
-                top + 1,
+                top + 2,
                 f"{group.summary.successes}/{group.summary.trials}",
                 ha="center",
                 fontsize=8,
             )
     axis.set_xticks(range(len(cols)), cols)
     axis.set_ylim(0, 112)
-    axis.set_ylabel("success (%)")
+    axis.set_ylabel("success (%), Wilson 95 % CI")
     figure.legend(loc="lower center", ncol=min(len(rows), 3), fontsize=8, frameon=False)
-    axis.set_title("Success rate per pattern, with Wilson 95 % intervals")
+    axis.set_title("Success rate per pattern")
     figure.tight_layout(rect=(0, 0.1, 1, 1))
     figure.savefig(path)
     return path

@@ -27,9 +27,9 @@ class Leaderboard(BaseModel):
 
     model_config = ConfigDict(frozen=True)
 
-    #: Every agent's answers at its first attempt on a brick, and how many were accepted
-    #: (or executed) as they came; None without agents (classical) and for lines written
-    #: before they were counted.
+    #: Every agent's answers at attempt 1 of a request (once a brick; the placement agent
+    #: twice, and again after a raise), and how many were accepted (or executed) as they
+    #: came; None without agents (classical) and for lines written before they were counted.
     first_attempts: FirstAttempts | None
     first_attempts_by_agent: dict[str, FirstAttempts]
     #: Refused and failed answers (repairs included) over the pattern's bricks; None

@@ -318,9 +318,10 @@ def _leaderboard_lines(summary: RunSummary) -> list[str]:
     if board is None or summary.llm == "none":
         return []
     lines = [
-        "Answers accepted at an agent's first attempt on a brick; refused and failed answers "
-        "(repairs included) and prompt tokens per brick of the pattern, and tokens per brick "
-        "placed:",
+        "First answers accepted: of the answers at attempt 1 of each request to an agent (once "
+        "a brick; the placement agent twice, and again after a raise), those accepted as they "
+        "came. Refused and failed answers (repairs included) and prompt tokens per brick of "
+        "the pattern, and tokens per brick placed:",
         "",
         "| " + " | ".join(LEADERBOARD_COLUMNS) + " |",
         "|---" * len(LEADERBOARD_COLUMNS) + "|",
@@ -329,7 +330,7 @@ def _leaderboard_lines(summary: RunSummary) -> list[str]:
     ]
     if len(board.first_attempts_by_agent) > 1:
         lines += [
-            "First answers of each agent on each brick, and how many were accepted as they came:",
+            "First answers (attempt 1) of each agent, and how many were accepted as they came:",
             "",
             "| Agent | First answers | Accepted |",
             "|---|---|---|",

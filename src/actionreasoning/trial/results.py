@@ -124,7 +124,8 @@ class AnswerErrorCounts(_Record):
 
 
 class FirstAttempts(_Record):
-    """An agent's first answers on its bricks (calls of attempt 1): how many it was asked
+    """An agent's first answers (calls of attempt 1: one a request, so one a brick, two for
+    the placement agent, which also is asked again after a raise): how many it was asked
     for, and how many of them were accepted (or executed) as they came. Counts add up
     with ``+``."""
 
@@ -212,7 +213,7 @@ class TrialResult(Provenance):
     #: Refused and failed answers, repairs included, by agent and category; lines of trials
     #: with none (and lines written before categories existed) have no such field.
     refusals: Refusals = Field(default_factory=dict, exclude_if=lambda counts: not counts)
-    #: Each agent's answers at its first attempt on a brick and how many were accepted;
+    #: Each agent's answers at attempt 1 of a request and how many were accepted;
     #: absent where no agent was asked (classical) and in lines written before it existed.
     first_attempts: dict[str, FirstAttempts] = Field(
         default_factory=dict, exclude_if=lambda counts: not counts
