@@ -174,8 +174,8 @@ class Table:
     rows: list[str]
     patterns: list[str]
     values: dict[tuple[str, str, str], float | None]  # (row, pattern or Average, metric)
-    intervals: dict[tuple[str, str, str], Interval]  # (row, pattern, metric) -> bootstrap
-    # 95 % interval of the mean, where known
+    successful: dict[tuple[str, str], dict[str, MetricStats]]  # (row, pattern) -> metric ->
+    # over successful trials, with the bootstrap interval of the mean where there are any
     success: dict[tuple[str, str], tuple[int, int]]  # (row, pattern) -> (successes, trials);
     # (row, Average): summed over the patterns
     failures: list[FailureRow]
@@ -222,11 +222,11 @@ class Table:
 
     def interval_cell(self, row: str, pattern: str, metric: str) -> str:
         """The bootstrap interval of a cell's mean, ``[0.441, 0.618]``; empty where none."""
-        interval = self.intervals.get((row, pattern, metric))
-        if interval is None:
+        stats = self.successful.get((row, pattern), {}).get(metric)
+        if stats is None or stats.ci_low is None or stats.ci_high is None:
             return ""
         _, _, scale, digits, _ = next(c for c in COLUMNS if c[0] == metric)
-        return f"[{interval.low * scale:.{digits}f}, {interval.high * scale:.{digits}f}]"
+        return f"[{stats.ci_low * scale:.{digits}f}, {stats.ci_high * scale:.{digits}f}]"
 
     def success_cell(self, row: str, pattern: str) -> str:
         """Successful trials out of all with the rate's Wilson interval, or a dash where the
@@ -248,21 +248,16 @@ def comparison_table(groups: Sequence[Group]) -> Table:
     rows, cols = labels(groups), patterns(groups)
     by_key = {(g.label, g.pattern): g for g in groups}
     values: dict[tuple[str, str, str], float | None] = {}
-    intervals: dict[tuple[str, str, str], Interval] = {}
     success: dict[tuple[str, str], tuple[int, int]] = {}
     for row in rows:
         for metric, *_ in COLUMNS:
             means = []
             for pattern in cols:
                 group = by_key.get((row, pattern))
-                stats = None if group is None else group.summary.successful[metric]
-                values[(row, pattern, metric)] = None if stats is None else stats.mean
-                if stats is not None and stats.mean is not None:
-                    means.append(stats.mean)
-                if stats is not None and stats.ci_low is not None and stats.ci_high is not None:
-                    intervals[(row, pattern, metric)] = Interval(
-                        low=stats.ci_low, high=stats.ci_high
-                    )
+                mean = None if group is None else group.summary.successful[metric].mean
+                values[(row, pattern, metric)] = mean
+                if mean is not None:
+                    means.append(mean)
             values[(row, AVERAGE, metric)] = float(np.mean(means)) if means else None
         for pattern in cols:
             group = by_key.get((row, pattern))
@@ -274,7 +269,7 @@ def comparison_table(groups: Sequence[Group]) -> Table:
         rows=rows,
         patterns=cols,
         values=values,
-        intervals=intervals,
+        successful={(g.label, g.pattern): g.summary.successful for g in groups},
         success=success,
         failures=_failures(groups),
         notes=condition_notes(groups),
@@ -444,20 +439,22 @@ def to_csv(table: Table) -> str:
         for pattern in [*table.patterns, AVERAGE]:
             if (row, pattern) not in table.success:
                 continue
+            successful = table.successful.get((row, pattern), {})
             everything = table.all_stats.get((row, pattern), {})
+            interval = table.success_interval(row, pattern)
             values = [
                 *table.success[(row, pattern)],
                 *(table.values[(row, pattern, m)] for m in metrics),
-                *_bounds(table.success_interval(row, pattern)),
-                *(v for m in metrics for v in _bounds(table.intervals.get((row, pattern, m)))),
+                *((None, None) if interval is None else (interval.low, interval.high)),
+                *(v for m in metrics for v in _ci(successful.get(m))),
                 *(v for m in metrics for v in _mean_std(everything.get(m))),
             ]
             writer.writerow([row, pattern, *("" if v is None else repr(v) for v in values)])
     return buffer.getvalue()
 
 
-def _bounds(interval: Interval | None) -> tuple[float | None, float | None]:
-    return (None, None) if interval is None else (interval.low, interval.high)
+def _ci(stats: MetricStats | None) -> tuple[float | None, float | None]:
+    return (None, None) if stats is None else (stats.ci_low, stats.ci_high)
 
 
 def _mean_std(stats: MetricStats | None) -> tuple[float | None, float | None]:

@@ -210,21 +210,14 @@ def _answer_error_totals(
 
 
 def stats_text(stats: MetricStats, scale: float = 1.0, digits: int = 3) -> str:
-    """``0.530 ± 0.153 [0.441, 0.618]``: mean ± standard deviation [bootstrap interval],
-    scaled; n/a without data."""
+    """``0.530 ± 0.153 [0.441, 0.618]``: mean ± standard deviation [bootstrap interval, where
+    known], scaled; n/a without data."""
     if stats.mean is None or stats.std is None:
         return "n/a"
-    return f"{stats.mean * scale:.{digits}f} ± {stats.std * scale:.{digits}f}" + interval_text(
-        stats, scale, digits
-    )
-
-
-def interval_text(stats: MetricStats, scale: float = 1.0, digits: int = 3) -> str:
-    """The bootstrap interval of a mean, `` [0.441, 0.618]`` (with its leading space), or
-    nothing where there is none."""
+    text = f"{stats.mean * scale:.{digits}f} ± {stats.std * scale:.{digits}f}"
     if stats.ci_low is None or stats.ci_high is None:
-        return ""
-    return f" [{stats.ci_low * scale:.{digits}f}, {stats.ci_high * scale:.{digits}f}]"
+        return text
+    return f"{text} [{stats.ci_low * scale:.{digits}f}, {stats.ci_high * scale:.{digits}f}]"
 
 
 def success_text(successes: int, trials: int) -> str:
