@@ -313,7 +313,7 @@ def _leaderboard_lines(summary: RunSummary) -> list[str]:
     lines = [
         "First answers accepted: of the answers at attempt 1 of each request to an agent (once "
         "a brick; the placement agent twice, and again after a raise), those accepted as they "
-        "came. Refused and failed answers (repairs included) and prompt tokens per brick of "
+        "came; refused and failed answers (repairs included) and prompt tokens per brick of "
         "the pattern, and tokens per brick placed:",
         "",
         "| " + " | ".join(LEADERBOARD_COLUMNS) + " |",
