@@ -70,9 +70,12 @@ def test_the_tables_hold_each_runs_figures(runs: list[Path], report: Path) -> No
     markdown = (report / "table.md").read_text()
     assert "| small: Rot. Err ↓ |" in markdown
     assert "| agents (builtin, tools check), precise |" in markdown
-    assert "| classical, precise | 2/2 | 2/2 |" in markdown
+    success = "2/2 (100 %, 95 % CI 34–100 %)"
+    assert f"| classical, precise | {success} | {success} |" in markdown
     latex = (report / "table.tex").read_text()
-    assert r"\multicolumn{3}{c}{\textbf{small}}" in latex and latex.count(r"\\") == 4
+    assert r"\multicolumn{3}{c}{\textbf{small}}" in latex
+    assert latex.count(r"\\") == 4 + 3  # Table I; success with its Wilson intervals
+    assert r"2/2 (100 \%, 95 \% CI 34--100 \%)" in latex
 
 
 @pytest.mark.slow
@@ -130,11 +133,14 @@ def test_the_html_page_renders_in_chromium(runs: list[Path], report: Path) -> No
         "classical, precise",
         "agents (builtin, tools check), precise",
     ]
-    assert cells[0][1:4] == [
-        f"{classical['rotation_error_deg']['mean']:.3f}",
-        f"{classical['center_offset_cm']['mean']:.3f}",
-        f"{classical['iou']['mean'] * 100:.2f}",
+    metrics = (("rotation_error_deg", 1, 3), ("center_offset_cm", 1, 3), ("iou", 100, 2))
+    shown_as = [
+        [f"{classical[m][key] * scale:.{digits}f}" for key in ("mean", "ci_low", "ci_high")]
+        for m, scale, digits in metrics
     ]
+    assert [cell.splitlines() for cell in cells[0][1:4]] == [
+        [mean, f"[{low}, {high}]"] for mean, low, high in shown_as
+    ]  # each mean over its bootstrap interval
     assert len(images) == 3 + 1 + 3  # three plots, one stage grid, three GIFs
     assert all(done and width > 0 and height > 0 for done, width, height in images)
     assert shown is not None and shown["width"] > 100 and shown["height"] > 100
@@ -311,7 +317,8 @@ def test_llm_cost_and_the_failure_taxonomy_are_reported(tmp_path: Path) -> None:
     image = iio.imread(tmp_path / "report" / "llm_cost.png")
     assert image.shape[1] > 500 and image.std() > 10
     table = (tmp_path / "report" / "table.md").read_text()
-    assert "| agents (openai:gemma, tools check), precise | 1/3 | 1/3 |" in table
+    success = "1/3 (33 %, 95 % CI 6–79 %)"  # Wilson: 0.0615 to 0.7923
+    assert f"| agents (openai:gemma, tools check), precise | {success} | {success} |" in table
     meaning = FailureCode.MISPLACED.meaning
     row = (
         f"| agents (openai:gemma, tools check), precise | pyramid | `misplaced` | {meaning} | 2 "

@@ -163,6 +163,8 @@ def _check_options(method: Method, llm: LLMConfig, transcripts: bool, answer_err
 
 
 def _summary_table(summary: RunSummary) -> Table:
+    from actionreasoning.runs.summary import success_text
+
     s = summary.successful
     table = Table(
         title=escape(f"{summary.method} on {summary.pattern}"),
@@ -181,7 +183,7 @@ def _summary_table(summary: RunSummary) -> Table:
         cell("rotation_error_deg"),
         cell("center_offset_cm"),
         cell("iou", 100.0),
-        f"{summary.successes}/{summary.trials}",
+        success_text(summary.successes, summary.trials),
     )
     return table
 
@@ -461,24 +463,58 @@ def _title(run: RunConfig) -> str:
 
 
 def _comparison(table: ComparisonTable) -> Table:
-    """Table I for the terminal: one cell per pattern with its three means and successes."""
+    """Table I for the terminal: one cell per pattern with its three means and successes
+    (with the Wilson interval); a method with no success on a pattern gets a row of its
+    means over all trials."""
     from actionreasoning.report.tables import AVERAGE, COLUMNS
 
     shown = Table(
         title="rotation error (°), centre offset (cm), IoU (%): means over successful trials",
-        caption=f"details in table.md; {AVERAGE}: mean over the patterns",
+        caption=f"details in table.md; {AVERAGE}: mean over the patterns; CI: Wilson 95 %",
     )
     shown.add_column("Method")
     columns = [*table.patterns, AVERAGE]
     for pattern in columns:
         shown.add_column(escape(pattern), justify="right")
+    everything = {(r.label, r.pattern): r for r in table.all_trials}
     for row in table.rows:
         cells = []
         for pattern in columns:
             values = [table.cell(row, pattern, metric) for metric, *_ in COLUMNS]
             text = " ".join(f"[bold]{v}[/]" if best else v for v, best in values)
-            cells.append(f"{text}\n{table.success_cell(row, pattern)} ok")
+            cells.append(f"{text}\n{_successes(table, row, pattern)}")
         shown.add_row(escape(row), *cells)  # labels hold [brackets]
+        if any((row, pattern) in everything for pattern in columns):
+            means = {
+                pattern: " ".join(
+                    f"{(r.stats[metric].mean or 0.0) * scale:.{digits}f}"
+                    for metric, _, scale, digits, _ in COLUMNS
+                )
+                for pattern in columns
+                if (r := everything.get((row, pattern))) is not None
+            }
+            shown.add_row(escape(f"{row}, all trials"), *(means.get(p, "") for p in columns))
+    return shown
+
+
+def _successes(table: ComparisonTable, row: str, pattern: str) -> str:
+    """``17/20 ok, CI 64–95 %``, or a dash where the method did not run the pattern."""
+    interval = table.success_interval(row, pattern)
+    if interval is None:
+        return "–"
+    ok, trials = table.success[(row, pattern)]
+    return f"{ok}/{trials} ok, CI {100 * interval.low:.0f}–{100 * interval.high:.0f} %"
+
+
+def _pairs(table: ComparisonTable) -> Table:
+    """The paired comparisons for the terminal (table.md says what they are)."""
+    from actionreasoning.report.pairs import PAIR_COLUMNS
+
+    shown = Table(title="paired comparisons: McNemar's exact test on trials of the same seed")
+    for column in PAIR_COLUMNS:
+        shown.add_column(column)
+    for pair in table.pairs:
+        shown.add_row(*map(escape, pair.cells))
     return shown
 
 
@@ -506,6 +542,8 @@ def report_command(
     except (ActionReasoningError, OSError) as error:
         _fail(error, out)
     console.print(_comparison(report.table))
+    if report.table.pairs:
+        console.print(_pairs(report.table))
     for note in report.table.notes:
         console.print(note, highlight=False, markup=False, soft_wrap=True)
     if gif and not report.gifs:

@@ -19,6 +19,8 @@ from jinja2 import Environment, PackageLoader, select_autoescape
 
 from actionreasoning.recording.names import VIDEO_FPS
 from actionreasoning.report.collect import Group, load_groups, patterns
+from actionreasoning.report.leaderboard import BOARD_CAPTION, BOARD_COLUMNS
+from actionreasoning.report.pairs import PAIR_COLUMNS, PAIRS_CAPTION
 from actionreasoning.report.pictures import stage_grid, trial_gif
 from actionreasoning.report.plots import (
     course_errors,
@@ -29,11 +31,15 @@ from actionreasoning.report.plots import (
 )
 from actionreasoning.report.runs import unique
 from actionreasoning.report.tables import (
+    ALL_TRIALS_COLUMNS,
+    ALL_TRIALS_NOTE,
     AVERAGE,
     COLUMNS,
     COURSES_PLOT,
+    MEANS_NOTE,
     PACE_COLUMNS,
     REFUSALS_PLOT,
+    SUCCESS_NOTE,
     Table,
     comparison_table,
     to_csv,
@@ -87,7 +93,12 @@ def build_report(directories: Sequence[Path], out: Path, gifs: bool = False) -> 
     report.plots.append(
         (error_distributions(groups, out / "errors.png"), "Per-brick errors by method and pattern")
     )
-    report.plots.append((success_rates(groups, out / "success.png"), "Success rate per pattern"))
+    report.plots.append(
+        (
+            success_rates(groups, out / "success.png"),
+            "Success rate per pattern, with its Wilson 95 % interval",
+        )
+    )
     courses = course_errors(groups, out / COURSES_PLOT)
     if courses is not None:
         report.plots.append((courses, COURSES_CAPTION))
@@ -168,7 +179,10 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
             {
                 "label": row,
                 "cells": [
-                    dict(zip(("text", "best"), table.cell(row, p, metric), strict=True))
+                    {
+                        **dict(zip(("text", "best"), table.cell(row, p, metric), strict=True)),
+                        "interval": table.interval_cell(row, p, metric),
+                    }
                     for p in column_groups
                     for metric, *_ in COLUMNS
                 ],
@@ -183,6 +197,17 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
             }
             for row in table.rows
         ],
+        means_note=MEANS_NOTE,
+        all_trials_note=ALL_TRIALS_NOTE,
+        all_trials_columns=ALL_TRIALS_COLUMNS,
+        all_trials=[r.cells for r in table.all_trials],
+        success_note=SUCCESS_NOTE,
+        board_caption=BOARD_CAPTION,
+        board_columns=BOARD_COLUMNS,
+        board=table.board,
+        pairs_caption=PAIRS_CAPTION,
+        pair_columns=PAIR_COLUMNS,
+        pairs=[pair.cells for pair in table.pairs],
         failures=table.failures,
         answer_errors=table.answer_errors,
         refusals=[_refusal_table(row, p, counts) for (row, p), counts in table.refusals.items()],

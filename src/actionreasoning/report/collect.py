@@ -16,6 +16,7 @@ from typing import Any, TypeVar
 
 from pydantic import TypeAdapter, ValidationError
 
+from actionreasoning.agents.verification import Verification
 from actionreasoning.errors import ConfigError
 from actionreasoning.recording.mp4 import Unfinished, check_mp4
 from actionreasoning.report.runs import Run, read_runs
@@ -24,10 +25,16 @@ from actionreasoning.runs.run_dir import AnyManifest, RecordedManifest, RunManif
 from actionreasoning.runs.summary import RunSummary, summarize
 from actionreasoning.trial.provenance import Provenance
 from actionreasoning.trial.results import TrialResult
+from actionreasoning.trial.rules import Method
 from actionreasoning.world.physics import PhysicsProfile
 from actionreasoning.world.success import SuccessRule
 
 PATTERN_HASH = "pattern_sha256"
+#: The rung of verification each method runs at unless told otherwise, left out of labels.
+DEFAULT_VERIFY: dict[str, str] = {
+    Method.AGENTS: Verification.FULL,
+    Method.SINGLE_AGENT: Verification.NONE,
+}
 T = TypeVar("T")
 
 
@@ -77,13 +84,16 @@ def pattern_title(pattern: str) -> str:
     return PurePath(pattern).stem if pattern.endswith((".json", ".yaml", ".yml")) else pattern
 
 
-def method_label(manifest: AnyManifest) -> str:
-    """How a row names a method: with its reasoning backend and tier where it has one, its
-    physics profile and, where there are any, its noise level and answer error rate."""
+def method_label(manifest: AnyManifest, verify: str | None = None) -> str:
+    """How a row names a method: with its reasoning backend and tier where it has one, and
+    its rung of verification (``verify``, of its results lines) where not the method's
+    default; its physics profile and, where there are any, its noise level and answer error
+    rate."""
+    rung = "" if verify in (None, DEFAULT_VERIFY.get(manifest.method)) else f", verify {verify}"
     name = (
         manifest.method
         if manifest.llm == "none"
-        else f"{manifest.method} ({manifest.llm}, tools {manifest.tier})"
+        else f"{manifest.method} ({manifest.llm}, tools {manifest.tier}{rung})"
     )
     noise = "" if manifest.noise_name == "none" else f", noise {manifest.noise_name}"
     rate = manifest.answer_errors.rate
@@ -109,13 +119,15 @@ def differing(conditions: Sequence[dict[str, Any]]) -> list[str]:
 
 
 def load_groups(directories: Sequence[Path]) -> list[Group]:
-    """The trials of every directory, grouped by conditions and pattern content."""
+    """The trials of every directory, grouped by conditions, the rung of verification of
+    their lines, and pattern content."""
     runs = read_runs(directories)
     found: dict[tuple[str, str], list[Run]] = {}
     for run in runs:
         conditions = run.conditions()
         pattern = conditions.pop(PATTERN_HASH)
-        found.setdefault((json.dumps(conditions, sort_keys=True), pattern), []).append(run)
+        row = json.dumps([conditions, run.results[0].verify], sort_keys=True)
+        found.setdefault((row, pattern), []).append(run)
     rows = _row_labels({row: members[0] for (row, _), members in found.items()})
     columns = _pattern_titles({p: members[0] for (_, p), members in found.items()})
     return [_pool(rows[row], columns[p], members) for (row, p), members in found.items()]
@@ -126,7 +138,7 @@ def _row_labels(rows: dict[str, Run]) -> dict[str, str]:
     share it (``classical, precise [budget.max_steps=2000]``)."""
     by_label: dict[str, list[str]] = {}
     for row, run in rows.items():
-        by_label.setdefault(method_label(run.manifest), []).append(row)
+        by_label.setdefault(method_label(run.manifest, run.results[0].verify), []).append(row)
     labels = {}
     for label, same in by_label.items():
         conditions = {row: rows[row].conditions() for row in same}

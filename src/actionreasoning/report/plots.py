@@ -14,6 +14,7 @@ from matplotlib.figure import Figure
 from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.records import LLMUsage
 from actionreasoning.report.collect import Group, labels, patterns
+from actionreasoning.runs.statistics import wilson
 from actionreasoning.runs.summary import categories_in
 from actionreasoning.trial.results import sum_refusals
 
@@ -89,7 +90,8 @@ def error_distributions(groups: Sequence[Group], path: Path) -> Path:
 
 
 def success_rates(groups: Sequence[Group], path: Path) -> Path:
-    """Bars: success rate of each method on each pattern, with k/n on top."""
+    """Bars: success rate of each method on each pattern, with its Wilson 95 % interval as
+    an error bar and k/n on top."""
     rows, cols = labels(groups), patterns(groups)
     by_key = {(g.label, g.pattern): g for g in groups}
     figure = Figure(figsize=(max(4.5, 1.8 * len(cols) * max(1, len(rows) / 2)), 3.6), dpi=110)
@@ -103,16 +105,22 @@ def success_rates(groups: Sequence[Group], path: Path) -> Path:
             x = c + (r - (len(rows) - 1) / 2) * width
             rate = 100.0 * group.summary.success_rate
             axis.bar(x, rate, width * 0.95, color=colour, label=row if c == 0 else None)
+            interval = wilson(group.summary.successes, group.summary.trials)
+            assert interval is not None  # a group has trials
+            low, top = 100.0 * interval.low, 100.0 * interval.high
+            axis.errorbar(
+                x, rate, yerr=[[rate - low], [top - rate]], color="black", capsize=3, linewidth=1
+            )
             axis.text(
                 x,
-                rate + 1,
+                top + 2,
                 f"{group.summary.successes}/{group.summary.trials}",
                 ha="center",
                 fontsize=8,
             )
     axis.set_xticks(range(len(cols)), cols)
     axis.set_ylim(0, 112)
-    axis.set_ylabel("success (%)")
+    axis.set_ylabel("success (%), Wilson 95 % CI")
     figure.legend(loc="lower center", ncol=min(len(rows), 3), fontsize=8, frameon=False)
     axis.set_title("Success rate per pattern")
     figure.tight_layout(rect=(0, 0.1, 1, 1))

@@ -1,6 +1,9 @@
 """The paper's Table I: methods in rows; per pattern and on average, rotation error (°),
-centre offset (cm) and IoU (%), means over successful trials; as markdown, CSV and LaTeX.
-Rows and pattern columns are the groups of collect.py; the notes say how runs differ. Runs
+centre offset (cm) and IoU (%), means over successful trials with their bootstrap
+intervals; as markdown, CSV and LaTeX. Success comes with its Wilson interval; a method
+that succeeded in no trial of a pattern gets its means over all trials instead, on a row of
+their own. Then the leaderboard and the paired comparisons (McNemar's test). Rows and
+pattern columns are the groups of collect.py; the notes say how runs differ. Runs
 with answer errors get a table of what was corrupted and what caught it, and runs with
 refused answers a table per group of them by agent and error category. Every group gets its
 bricks placed before the first failure and cycle time, and a table of its errors per course.
@@ -17,8 +20,18 @@ import numpy as np
 
 from actionreasoning.records import FailureCode
 from actionreasoning.report.collect import Group, condition_notes, labels, patterns
+from actionreasoning.report.leaderboard import board_lines, board_rows
+from actionreasoning.report.pairs import Pair, pair_lines, paired_comparisons
 from actionreasoning.runs.courses import CourseMetrics
-from actionreasoning.runs.summary import AnswerErrorTotals, category_table, course_table
+from actionreasoning.runs.statistics import BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED, Interval, wilson
+from actionreasoning.runs.summary import (
+    AnswerErrorTotals,
+    MetricStats,
+    category_table,
+    course_table,
+    stats_text,
+    success_text,
+)
 from actionreasoning.trial.results import Refusals
 
 #: (summary metric, column title, scale, digits, lower is better)
@@ -28,6 +41,19 @@ COLUMNS = (
     ("iou", "IoU", 100.0, 2, False),
 )
 AVERAGE = "Average"  # Table I's last column group; for success counts, the total
+MEANS_NOTE = (
+    "Means over successful trials (per-brick values averaged per trial), each pattern's with "
+    f"a bootstrap 95 % interval in brackets ({BOOTSTRAP_RESAMPLES} resamples, seed "
+    f"{BOOTSTRAP_SEED}); {AVERAGE}: the mean over the patterns."
+)
+ALL_TRIALS_NOTE = (
+    "No successful trial, so no figure in Table I: means ± standard deviations over all "
+    "trials [bootstrap 95 % interval of the mean]."
+)
+SUCCESS_NOTE = (
+    "Success: successful trials of all, the rate and its Wilson 95 % interval (all: the "
+    "patterns' trials together)."
+)
 #: The chart of refused answers by agent and category, beside the tables.
 REFUSALS_PLOT = "refusals.png"
 #: The plot of errors per course, beside the per-course tables.
@@ -109,12 +135,47 @@ class PaceRow:
 
 
 @dataclass(frozen=True)
+class AllTrialsRow:
+    """A method's means over all trials of a pattern it succeeded on in none (Table I has
+    dashes there): labelled ``LABEL, all trials``."""
+
+    label: str
+    pattern: str
+    stats: dict[str, MetricStats]  # metric -> over all trials
+    successes: int
+    trials: int
+
+    @property
+    def cells(self) -> list[str]:
+        """The row as ALL_TRIALS_COLUMNS shows it: means ± standard deviations [intervals]."""
+        return [
+            f"{self.label}, all trials",
+            self.pattern,
+            *(
+                stats_text(self.stats[metric], scale, digits)
+                for metric, _, scale, digits, _ in COLUMNS
+            ),
+            success_text(self.successes, self.trials),
+        ]
+
+
+ALL_TRIALS_COLUMNS = (
+    "Method",
+    "Pattern",
+    *(f"{title} {'↓' if lower else '↑'}" for _, title, _, _, lower in COLUMNS),
+    "Success",
+)
+
+
+@dataclass(frozen=True)
 class Table:
     """Cell values (None where a method has no successful trial on a pattern)."""
 
     rows: list[str]
     patterns: list[str]
     values: dict[tuple[str, str, str], float | None]  # (row, pattern or Average, metric)
+    successful: dict[tuple[str, str], dict[str, MetricStats]]  # (row, pattern) -> metric ->
+    # over successful trials, with the bootstrap interval of the mean where there are any
     success: dict[tuple[str, str], tuple[int, int]]  # (row, pattern) -> (successes, trials);
     # (row, Average): summed over the patterns
     failures: list[FailureRow]
@@ -124,6 +185,19 @@ class Table:
     pace: list[PaceRow]  # a row per group
     courses: dict[tuple[str, str], list[CourseMetrics]]  # (row, pattern) -> its courses, if
     # its lines measured bricks
+    all_stats: dict[tuple[str, str], dict[str, MetricStats]]  # (row, pattern) -> metric ->
+    # over all trials
+    board: list[list[str]]  # the leaderboard, a row per group (leaderboard.BOARD_COLUMNS)
+    pairs: list[Pair]  # rows run on the same trials, compared
+
+    @property
+    def all_trials(self) -> list[AllTrialsRow]:
+        """A row of means over all trials for each method and pattern without a success."""
+        return [
+            AllTrialsRow(label, pattern, stats, *self.success[(label, pattern)])
+            for (label, pattern), stats in self.all_stats.items()
+            if not self.success[(label, pattern)][0]
+        ]
 
     @property
     def course_plot(self) -> bool:
@@ -146,12 +220,27 @@ class Table:
         _, _, scale, digits, _ = next(c for c in COLUMNS if c[0] == metric)
         return f"{value * scale:.{digits}f}", value == self.best(pattern, metric)
 
+    def interval_cell(self, row: str, pattern: str, metric: str) -> str:
+        """The bootstrap interval of a cell's mean, ``[0.441, 0.618]``; empty where none."""
+        stats = self.successful.get((row, pattern), {}).get(metric)
+        if stats is None or stats.ci_low is None or stats.ci_high is None:
+            return ""
+        _, _, scale, digits, _ = next(c for c in COLUMNS if c[0] == metric)
+        return f"[{stats.ci_low * scale:.{digits}f}, {stats.ci_high * scale:.{digits}f}]"
+
     def success_cell(self, row: str, pattern: str) -> str:
-        """Successful trials out of all, or a dash where the method did not run the pattern."""
+        """Successful trials out of all with the rate's Wilson interval, or a dash where the
+        method did not run the pattern."""
         if (row, pattern) not in self.success:
             return "–"
-        ok, n = self.success[(row, pattern)]
-        return f"{ok}/{n}"
+        return success_text(*self.success[(row, pattern)])
+
+    def success_interval(self, row: str, pattern: str) -> Interval | None:
+        """The Wilson 95 % interval of a success rate; None where the method did not run
+        the pattern."""
+        if (row, pattern) not in self.success:
+            return None
+        return wilson(*self.success[(row, pattern)])
 
 
 def comparison_table(groups: Sequence[Group]) -> Table:
@@ -180,6 +269,7 @@ def comparison_table(groups: Sequence[Group]) -> Table:
         rows=rows,
         patterns=cols,
         values=values,
+        successful={(g.label, g.pattern): g.summary.successful for g in groups},
         success=success,
         failures=_failures(groups),
         notes=condition_notes(groups),
@@ -191,6 +281,9 @@ def comparison_table(groups: Sequence[Group]) -> Table:
         refusals={(g.label, g.pattern): g.summary.refusals for g in groups if g.summary.refusals},
         pace=[_pace(g) for g in groups],
         courses={(g.label, g.pattern): g.summary.courses for g in groups if g.summary.courses},
+        all_stats={(g.label, g.pattern): g.summary.all_trials for g in groups},
+        board=board_rows(groups),
+        pairs=paired_comparisons(groups),
     )
 
 
@@ -239,10 +332,20 @@ def to_markdown(table: Table) -> str:
         for pattern in groups:
             for metric, *_ in COLUMNS:
                 text, best = table.cell(row, pattern, metric)
-                cells.append(f"**{text}**" if best else text)
+                interval = table.interval_cell(row, pattern, metric)
+                cells.append(" ".join(filter(None, (f"**{text}**" if best else text, interval))))
         lines.append("| " + " | ".join(cells) + " |")
+    lines += ["", MEANS_NOTE, ""]
+    if table.all_trials:
+        lines += [
+            ALL_TRIALS_NOTE,
+            "",
+            "| " + " | ".join(ALL_TRIALS_COLUMNS) + " |",
+            "|---" * len(ALL_TRIALS_COLUMNS) + "|",
+            *("| " + " | ".join(r.cells) + " |" for r in table.all_trials),
+            "",
+        ]
     lines += [
-        "",
         "| Method | "
         + " | ".join(f"{p if p != AVERAGE else 'all'}: success" for p in groups)
         + " |",
@@ -250,7 +353,9 @@ def to_markdown(table: Table) -> str:
     ]
     for row in table.rows:
         lines.append(f"| {row} | " + " | ".join(table.success_cell(row, p) for p in groups) + " |")
-    lines.append("")
+    lines += ["", SUCCESS_NOTE, "", *board_lines(table.board), ""]
+    if table.pairs:
+        lines += [*pair_lines(table.pairs), ""]
     if table.failures:
         lines += [
             "| Method | Pattern | Failure reason | Meaning | Trials | Example |",
@@ -316,20 +421,44 @@ def _pace_and_course_lines(table: Table) -> list[str]:
 
 
 def to_csv(table: Table) -> str:
-    """One line per method and pattern (Average included): every Table I value, unrounded."""
+    """One line per method and pattern (Average included): every Table I value, unrounded;
+    then the Wilson interval of the success rate (fractions), each mean's bootstrap
+    interval, and the means and standard deviations over all trials (patterns only)."""
+    metrics = [m for m, *_ in COLUMNS]
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(
-        ["method", "pattern", "successes", "trials", *(f"{m}_mean" for m, *_ in COLUMNS)]
-    )
+        [
+            "method", "pattern", "successes", "trials", *(f"{m}_mean" for m in metrics),
+            "success_ci_low", "success_ci_high",
+            *(f"{m}_ci_{end}" for m in metrics for end in ("low", "high")),
+            *(f"{m}_all_trials_{what}" for m in metrics for what in ("mean", "std")),
+        ]
+    )  # fmt: skip
     for row in table.rows:
         for pattern in [*table.patterns, AVERAGE]:
             if (row, pattern) not in table.success:
                 continue
-            ok, n = table.success[(row, pattern)]
-            means = [table.values[(row, pattern, m)] for m, *_ in COLUMNS]
-            writer.writerow([row, pattern, ok, n, *("" if v is None else repr(v) for v in means)])
+            successful = table.successful.get((row, pattern), {})
+            everything = table.all_stats.get((row, pattern), {})
+            interval = table.success_interval(row, pattern)
+            values = [
+                *table.success[(row, pattern)],
+                *(table.values[(row, pattern, m)] for m in metrics),
+                *((None, None) if interval is None else (interval.low, interval.high)),
+                *(v for m in metrics for v in _ci(successful.get(m))),
+                *(v for m in metrics for v in _mean_std(everything.get(m))),
+            ]
+            writer.writerow([row, pattern, *("" if v is None else repr(v) for v in values)])
     return buffer.getvalue()
+
+
+def _ci(stats: MetricStats | None) -> tuple[float | None, float | None]:
+    return (None, None) if stats is None else (stats.ci_low, stats.ci_high)
+
+
+def _mean_std(stats: MetricStats | None) -> tuple[float | None, float | None]:
+    return (None, None) if stats is None else (stats.mean, stats.std)
 
 
 def _latex_escape(text: str) -> str:
@@ -370,5 +499,33 @@ def to_latex(table: Table) -> str:
                 text = "--" if text == "–" else text
                 cells.append(rf"\textbf{{{text}}}" if best else text)
         lines.append(" & ".join(cells) + r" \\")
-    lines += [r"\bottomrule", r"\end{tabular}"]
+    lines += [r"\bottomrule", r"\end{tabular}", "", *_latex_success(table)]
     return "\n".join(lines) + "\n"
+
+
+def _latex_success(table: Table) -> list[str]:
+    """Success per pattern and over all, each with its Wilson 95 % interval, as a second
+    tabular."""
+    groups = [*table.patterns, AVERAGE]
+    titles = [p if p != AVERAGE else "all" for p in groups]
+    return [
+        r"\begin{tabular}{l" + "c" * len(groups) + "}",
+        r"\toprule",
+        " & ".join(
+            [r"\textbf{Method}", *(rf"\textbf{{{_latex_escape(t)}: success}}" for t in titles)]
+        )
+        + r" \\",
+        r"\midrule",
+        *(
+            " & ".join(
+                [
+                    _latex_escape(row),
+                    *(_latex_escape(table.success_cell(row, p)).replace("–", "--") for p in groups),
+                ]
+            )
+            + r" \\"
+            for row in table.rows
+        ),
+        r"\bottomrule",
+        r"\end{tabular}",
+    ]

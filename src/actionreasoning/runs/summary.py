@@ -19,6 +19,20 @@ from actionreasoning.runs.courses import (
     per_course,
     placed_before_first_failure,
 )
+from actionreasoning.runs.leaderboard import (
+    LEADERBOARD_COLUMNS,
+    Leaderboard,
+    first_attempts_text,
+    leaderboard,
+    leaderboard_cells,
+)
+from actionreasoning.runs.statistics import (
+    BOOTSTRAP_RESAMPLES,
+    BOOTSTRAP_SEED,
+    Interval,
+    bootstrap_mean,
+    wilson,
+)
 from actionreasoning.trial.provenance import Provenance
 from actionreasoning.trial.results import (
     AnswerErrorCounts,
@@ -37,12 +51,16 @@ METRICS = ("rotation_error_deg", "center_offset_cm", "iou", "symmetric_rotation_
 
 
 class MetricStats(BaseModel):
-    """Mean and (population) standard deviation of a per-trial metric; None without data."""
+    """Mean and (population) standard deviation of a per-trial metric, and the bootstrap
+    95 % interval of the mean (runs/statistics.py); None without data, and the interval
+    absent in summaries written before it was computed."""
 
     model_config = ConfigDict(frozen=True)
 
     mean: float | None
     std: float | None
+    ci_low: float | None = Field(None, exclude_if=lambda value: value is None)
+    ci_high: float | None = Field(None, exclude_if=lambda value: value is None)
 
 
 class AnswerErrorTotals(AnswerErrorCounts):
@@ -68,6 +86,8 @@ class RunSummary(Provenance):
     trials: int
     successes: int
     success_rate: float
+    #: The Wilson 95 % interval of the success rate; None in summaries written before it.
+    success_interval: Interval | None = None
     bricks_placed_mean: float
     bricks_per_trial: int = 0
     success_rule: str
@@ -91,6 +111,8 @@ class RunSummary(Provenance):
     placed_before_first_failure_mean: float | None = None
     #: Needs the run's physics (its time step).
     cycle_time: CycleTime | None = None
+    #: None in summaries written before it was computed.
+    leaderboard: Leaderboard | None = None
 
 
 def describe_rule(rule: SuccessRule) -> str:
@@ -105,9 +127,15 @@ def describe_rule(rule: SuccessRule) -> str:
 
 def _stats(results: Sequence[TrialResult], metric: str) -> MetricStats:
     values = [getattr(r.metrics, metric) for r in results]
-    if not values:
+    interval = bootstrap_mean(values)
+    if interval is None:
         return MetricStats(mean=None, std=None)
-    return MetricStats(mean=float(np.mean(values)), std=float(np.std(values)))
+    return MetricStats(
+        mean=float(np.mean(values)),
+        std=float(np.std(values)),
+        ci_low=interval.low,
+        ci_high=interval.high,
+    )
 
 
 def summarize(
@@ -143,6 +171,7 @@ def summarize(
         trials=len(results),
         successes=len(ok),
         success_rate=len(ok) / len(results),
+        success_interval=wilson(len(ok), len(results)),
         bricks_placed_mean=float(np.mean([r.bricks_placed for r in results])),
         bricks_per_trial=len(first.bricks),
         success_rule=describe_rule(rule),
@@ -167,6 +196,7 @@ def summarize(
             np.mean([placed_before_first_failure(r, rule) for r in results])
         ),
         cycle_time=None if physics is None else cycle_time(results, physics.time_step_s),
+        leaderboard=leaderboard(results),
     )
 
 
@@ -179,15 +209,30 @@ def _answer_error_totals(
     return AnswerErrorTotals(rate=errors.rate, kinds=errors.kinds, **dict(counts))
 
 
-def _cell(stats: MetricStats, scale: float = 1.0, digits: int = 3) -> str:
+def stats_text(stats: MetricStats, scale: float = 1.0, digits: int = 3) -> str:
+    """``0.530 ± 0.153 [0.441, 0.618]``: mean ± standard deviation [bootstrap interval, where
+    known], scaled; n/a without data."""
     if stats.mean is None or stats.std is None:
         return "n/a"
-    return f"{stats.mean * scale:.{digits}f} ± {stats.std * scale:.{digits}f}"
+    text = f"{stats.mean * scale:.{digits}f} ± {stats.std * scale:.{digits}f}"
+    if stats.ci_low is None or stats.ci_high is None:
+        return text
+    return f"{text} [{stats.ci_low * scale:.{digits}f}, {stats.ci_high * scale:.{digits}f}]"
+
+
+def success_text(successes: int, trials: int) -> str:
+    """``17/20 (85 %, 95 % CI 64–95 %)``: the Wilson interval of the success rate."""
+    interval = wilson(successes, trials)
+    if interval is None:
+        return f"{successes}/{trials}"
+    return (
+        f"{successes}/{trials} ({100 * successes / trials:.0f} %, 95 % CI "
+        f"{100 * interval.low:.0f}–{100 * interval.high:.0f} %)"
+    )
 
 
 def summary_markdown(summary: RunSummary) -> str:
     """A Table-I style markdown report of one run."""
-    s = summary.successful
     lines = [
         f"# {summary.method} on {summary.pattern}"
         + (f" under {summary.physics.name} physics" if summary.physics else "")
@@ -204,15 +249,22 @@ def summary_markdown(summary: RunSummary) -> str:
         ),
         "",
         *_condition_lines(summary),
-        "Means ± standard deviations over successful trials (per-brick values averaged per trial).",
+        "Means ± standard deviations over successful trials (per-brick values averaged per "
+        f"trial), a bootstrap 95 % interval of the mean in brackets ({BOOTSTRAP_RESAMPLES} "
+        f"resamples, seed {BOOTSTRAP_SEED}); success with its Wilson 95 % interval."
+        + ("" if summary.successes else " No trial succeeded: the second row is over all trials."),
         "",
         "| Method | Rot. Err (°) ↓ | Ctr. Off. (cm) ↓ | IoU (%) ↑ | Sym. Rot. Err (°) ↓ "
         "| Success |",
         "|---|---|---|---|---|---|",
-        f"| {summary.method} | {_cell(s['rotation_error_deg'])} | {_cell(s['center_offset_cm'])} | "
-        f"{_cell(s['iou'], 100.0, 2)} | {_cell(s['symmetric_rotation_error_deg'])} | "
-        f"{summary.successes}/{summary.trials} ({summary.success_rate:.0%}) |",
+        _table_row(summary.method, summary.successful, summary),
+        *(
+            []
+            if summary.successes
+            else [_table_row(f"{summary.method}, all trials", summary.all_trials, summary)]
+        ),
         "",
+        *_leaderboard_lines(summary),
         f"Bricks placed per trial: {summary.bricks_placed_mean:.2f}.",
         f"Success rule: {summary.success_rule}.",
         "",
@@ -238,6 +290,50 @@ def summary_markdown(summary: RunSummary) -> str:
     if summary.llm_usage.calls:
         lines += ["", *_llm_lines(summary)]
     return "\n".join(lines) + "\n"
+
+
+def _table_row(label: str, stats: Mapping[str, MetricStats], summary: RunSummary) -> str:
+    """A row of summary.md's Table I: the means of ``stats``, the run's success."""
+    cells = [
+        stats_text(stats["rotation_error_deg"]),
+        stats_text(stats["center_offset_cm"]),
+        stats_text(stats["iou"], 100.0, 2),
+        stats_text(stats["symmetric_rotation_error_deg"]),
+        success_text(summary.successes, summary.trials),
+    ]
+    return f"| {label} | " + " | ".join(cells) + " |"
+
+
+def _leaderboard_lines(summary: RunSummary) -> list[str]:
+    """The leaderboard figures, and each agent's first answers where there are several;
+    nothing for the classical script, which has none."""
+    board = summary.leaderboard
+    if board is None or summary.llm == "none":
+        return []
+    lines = [
+        "First answers accepted: of the answers at attempt 1 of each request to an agent (once "
+        "a brick; the placement agent twice, and again after a raise), those accepted as they "
+        "came; refused and failed answers (repairs included) and prompt tokens per brick of "
+        "the pattern, and tokens per brick placed:",
+        "",
+        "| " + " | ".join(LEADERBOARD_COLUMNS) + " |",
+        "|---" * len(LEADERBOARD_COLUMNS) + "|",
+        "| " + " | ".join(leaderboard_cells(board)) + " |",
+        "",
+    ]
+    if len(board.first_attempts_by_agent) > 1:
+        lines += [
+            "First answers (attempt 1) of each agent, and how many were accepted as they came:",
+            "",
+            "| Agent | First answers | Accepted |",
+            "|---|---|---|",
+            *(
+                f"| `{agent}` | {n.asked} | {first_attempts_text(n)} |"
+                for agent, n in board.first_attempts_by_agent.items()
+            ),
+            "",
+        ]
+    return lines
 
 
 def _course_lines(summary: RunSummary) -> list[str]:

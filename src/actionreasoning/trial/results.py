@@ -29,6 +29,7 @@ __all__ = [
     "AnswerErrorCounts",
     "BrickResult",
     "Failure",
+    "FirstAttempts",
     "LLMUsage",
     "PlacementMetrics",
     "Refusals",
@@ -122,6 +123,21 @@ class AnswerErrorCounts(_Record):
         )
 
 
+class FirstAttempts(_Record):
+    """An agent's first answers (calls of attempt 1: one a request, so one a brick, two for
+    the placement agent, which also is asked again after a raise): how many it was asked
+    for, and how many of them were accepted (or executed) as they came. Counts add up
+    with ``+``."""
+
+    asked: int = 0
+    accepted: int = 0
+
+    def __add__(self, other: FirstAttempts) -> FirstAttempts:
+        return FirstAttempts(
+            asked=self.asked + other.asked, accepted=self.accepted + other.accepted
+        )
+
+
 def sum_refusals(many: Iterable[Refusals]) -> Refusals:
     """Refusals summed (see :func:`_count` for the order)."""
     return _count(
@@ -197,4 +213,9 @@ class TrialResult(Provenance):
     #: Refused and failed answers, repairs included, by agent and category; lines of trials
     #: with none (and lines written before categories existed) have no such field.
     refusals: Refusals = Field(default_factory=dict, exclude_if=lambda counts: not counts)
+    #: Each agent's answers at attempt 1 of a request and how many were accepted;
+    #: absent where no agent was asked (classical) and in lines written before it existed.
+    first_attempts: dict[str, FirstAttempts] = Field(
+        default_factory=dict, exclude_if=lambda counts: not counts
+    )
     sim_steps: int

@@ -12,7 +12,7 @@ import numpy as np
 from actionreasoning.agents.calls import BuildResult, CallHook, failure_of
 from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.reasoner import Reasoner
-from actionreasoning.agents.transcript import AgentCall
+from actionreasoning.agents.transcript import AgentCall, Outcome
 from actionreasoning.agents.verification import Verification
 from actionreasoning.agents.world import World
 from actionreasoning.control.classical import run_classical
@@ -30,6 +30,7 @@ from actionreasoning.trial.results import (
     AnswerErrorCounts,
     BrickResult,
     Failure,
+    FirstAttempts,
     LLMUsage,
     PlacementMetrics,
     TrialResult,
@@ -342,6 +343,7 @@ def measure(
         if config.answer_errors.rate
         else None,
         refusals=refusals_of(outcome.transcript),
+        first_attempts=first_attempts_of(outcome.transcript),
         sim_steps=scene.ticks,
     )
 
@@ -359,3 +361,16 @@ def _usage_of(
         ),
         LLMUsage(),
     )
+
+
+def first_attempts_of(transcript: Sequence[AgentCall]) -> dict[str, FirstAttempts]:
+    """Each agent's calls of attempt 1 and how many were accepted or executed as they came,
+    the agents in the order they were first asked."""
+    counts: dict[str, FirstAttempts] = {}
+    for call in transcript:
+        if call.attempt == 1:
+            accepted = call.outcome in (Outcome.ACCEPTED, Outcome.EXECUTED)
+            counts[call.agent] = counts.get(call.agent, FirstAttempts()) + FirstAttempts(
+                asked=1, accepted=int(accepted)
+            )
+    return counts
