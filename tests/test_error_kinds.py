@@ -124,6 +124,7 @@ def test_every_kind_expects_a_category_with_a_meaning() -> None:
         K.CM_AS_M: C.FRAME_UNITS, K.INTO_OBSTACLE: C.COLLISION,
         K.SKIPPED_HOVER: C.PREMATURE_ACTION, K.TOO_FAST: C.DYNAMICS,
         K.WRONG_CHOICE: C.WRONG_CHOICE, K.MISSING_FIELD: C.SCHEMA,
+        K.NEAR_OFFSET: C.MISALIGNMENT, K.NEAR_YAW: C.MISALIGNMENT,
     }  # fmt: skip
     assert all(c.meaning for c in C)
 

@@ -79,15 +79,17 @@ def pattern_title(pattern: str) -> str:
 
 def method_label(manifest: AnyManifest) -> str:
     """How a row names a method: with its reasoning backend and tier where it has one, its
-    physics profile and, where there are any, its noise level and answer error rate."""
+    physics profile and, where there are any, its noise level and answer error rate (with
+    its persistence)."""
     name = (
         manifest.method
         if manifest.llm == "none"
         else f"{manifest.method} ({manifest.llm}, tools {manifest.tier})"
     )
     noise = "" if manifest.noise_name == "none" else f", noise {manifest.noise_name}"
-    rate = manifest.answer_errors.rate
+    rate, persistence = manifest.answer_errors.rate, manifest.answer_errors.persistence
     errors = f", answer errors {rate:g}" if rate else ""
+    errors += f" (persistence {persistence:g})" if rate and persistence else ""
     return f"{name}, {manifest.physics_name}{noise}{errors}"
 
 
