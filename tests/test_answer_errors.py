@@ -671,6 +671,60 @@ def test_at_rate_1_every_answer_a_kind_applies_to_is_corrupted(kinematics, wall)
     assert [c.call for c in result.transcript] == list(range(len(result.transcript)))
 
 
+@dataclass
+class Stateless:
+    """Answer errors as drawn before persistence existed: each call's own draw."""
+
+    errors: AnswerErrors
+    trial_seed: int
+    inner: Reasoner = field(default_factory=BuiltinReasoner)
+    name: str = "builtin"
+
+    def decide(self, request: AgentRequest) -> AgentReply:
+        reply = self.inner.decide(request)
+        rng = np.random.default_rng([self.trial_seed, ANSWER_ERROR_STREAM, request.call])
+        if rng.random() >= self.errors.rate:
+            return reply
+        found = corruption(reply.answer, request, self.errors.kinds, rng)
+        return reply if found is None else replace(reply, answer=found[0], corruption=found[1])
+
+
+def test_at_persistence_0_a_build_draws_as_it_did_without_persistence(kinematics, wall) -> None:
+    errors = AnswerErrors(rate=0.3)
+    for runner, seed in ((Orchestrator, 4), (Orchestrator, 1), (SingleAgent, 2)):
+        built = [
+            runner(FakeWorld(wall, BRICKS, *kinematics), reasoner).build(wall).transcript
+            for reasoner in (
+                ImperfectReasoner(BuiltinReasoner(), errors, seed),
+                Stateless(errors, seed),
+            )
+        ]
+        assert [c.model_dump() for c in built[0]] == [c.model_dump() for c in built[1]]
+        assert not any(c.corruption.repeated for c in built[0] if c.corruption)
+
+
+def test_at_persistence_1_a_build_repeats_each_refused_mistake(kinematics, wall) -> None:
+    errors = AnswerErrors(rate=0.3, persistence=1.0)
+    repeats = 0
+    for seed in range(4):
+        reasoner = ImperfectReasoner(BuiltinReasoner(), errors, trial_seed=seed)
+        transcript = (
+            Orchestrator(FakeWorld(wall, BRICKS, *kinematics), reasoner).build(wall).transcript
+        )
+        for index, call in enumerate(transcript):
+            before = [c for c in transcript[:index] if c.agent == call.agent]
+            if not before or before[-1].corruption is None:
+                continue
+            earlier = before[-1]
+            if earlier.outcome in (Outcome.REFUSED, Outcome.RAISED, Outcome.REGRASP):
+                assert call.corruption is not None and call.corruption.repeated, (seed, index)
+                assert call.corruption.kind is earlier.corruption.kind  # type: ignore[union-attr]
+                repeats += 1
+            else:  # the mistake ran: nothing to repeat
+                assert call.corruption is None or not call.corruption.repeated
+    assert repeats >= 4
+
+
 # --- what caught them: results lines ----------------------------------------------------
 
 
@@ -776,6 +830,8 @@ def test_lines_at_rate_0_have_no_answer_errors_field_and_the_schema_has_one() ->
 
 
 def test_summaries_sum_the_counts_and_name_the_rate() -> None:
+    """Counts as lines written before ``caught`` hold them: summary.md shows ``caught_by``
+    (tests/test_error_catches.py: today's)."""
     flip, hover = CorruptionKind.SIGN_FLIP, CorruptionKind.SKIPPED_HOVER
     results = [
         line(AnswerErrorCounts(corrupted=2, by_kind={flip: 2}, caught_by={"g:c": 1, "missed": 1})),
@@ -809,8 +865,17 @@ def test_summaries_sum_the_counts_and_name_the_rate() -> None:
         (("--answer-errors", "nan"), "--answer-errors nan"),
         (("--answer-errors", "inf"), "--answer-errors inf"),
         (("--method", "classical", "--answer-errors", "0.1"), "drop --answer-errors"),
+        (("--answer-errors", "0.1", "--answer-error-persistence", "2"),
+         "--answer-error-persistence 2.0: give a probability from 0 to 1"),
+        (("--answer-errors", "0.1", "--answer-error-persistence", "nan"),
+         "--answer-error-persistence nan"),
+        (("--answer-errors", "0.1", "--answer-error-kinds", "near_yaw,bogus"),
+         "unknown kind 'bogus'"),
+        (("--answer-errors", "0.1", "--answer-error-kinds", ""), "an empty kind name"),
+        (("--answer-error-persistence", "0.5",), "drop --answer-error-persistence"),
+        (("--answer-error-kinds", "near_yaw",), "drop --answer-error-kinds"),
     ],
-)
+)  # fmt: skip
 def test_bad_answer_error_rates_are_refused_in_one_line(
     tmp_path: Path, args: tuple[str, ...], needle: str
 ) -> None:
