@@ -31,6 +31,7 @@ from actionreasoning.agents.answer_errors import (
     parse_kinds,
 )
 from actionreasoning.agents.calls import BuildResult
+from actionreasoning.agents.catches import premove_refusals
 from actionreasoning.agents.feedback import Refusal
 from actionreasoning.agents.memory import PlacedBrick, PlacementPhase
 from actionreasoning.agents.orchestrator import Orchestrator
@@ -56,6 +57,7 @@ from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import GoalPattern
 from actionreasoning.world.scene_spec import SceneSpec
 from actionreasoning.world.stages import Stage
+from actionreasoning.world.success import SuccessRule
 from actionreasoning.world.tolerances import Tolerances
 
 SPEC = SceneSpec()
@@ -932,17 +934,19 @@ def test_eval_with_answer_errors_is_the_same_run_to_run_and_resumed(tmp_path: Pa
     assert run("c", 1).returncode == 0
     assert run("c", 2).returncode == 0
     assert lines("c") == lines("a")
-    records = [json.loads(line) for line in lines("a").splitlines()]
-    counts = [AnswerErrorCounts.model_validate(r["answer_errors"]) for r in records]
-    assert sum(c.corrupted for c in counts) > 0
-    for trial, count in enumerate(counts):
+    records = [TrialResult.model_validate_json(line) for line in lines("a").splitlines()]
+    counts = [r.answer_errors for r in records]
+    assert sum(c.corrupted for c in counts if c is not None) > 0
+    for trial, record in enumerate(records):
         calls = [
             AgentCall.model_validate_json(text)
             for text in (tmp_path / "a" / "transcripts" / f"trial_{trial:03d}.jsonl")
             .read_text()
             .splitlines()
         ]
-        assert AnswerErrorCounts.of(calls) == count
+        misplaced = {b.id for b in record.bricks if not SuccessRule().is_placed(b)}
+        assert AnswerErrorCounts.of(calls, record.failure, misplaced) == record.answer_errors
+        assert premove_refusals(calls) == record.premove_refusals
     stored = json.loads((tmp_path / "a" / "run.json").read_text())["config"]["answer_errors"]
     assert stored == {"rate": 0.2, "kinds": [k.value for k in ALL]}
     summary = json.loads((tmp_path / "a" / "summary.json").read_text())["answer_errors"]
