@@ -16,24 +16,39 @@ from typing import Any
 
 import numpy as np
 import pytest
-from actionreasoning.agents.single_agent import SingleAgent
 from conftest import DOCS, SMALL_PATTERN, assert_clean_error, cli, doc_table
 from fake_world import FakeWorld
 from scipy.spatial.transform import Rotation
 
-from actionreasoning.agents.answer_errors import AnswerCorruption, AnswerErrors, CorruptionKind
+from actionreasoning.agents.answer_errors import (
+    GUARDING_TOLERANCES,
+    NEAR_MISS_FACTORS,
+    NEAR_MISSES,
+    AnswerCorruption,
+    AnswerErrors,
+    Caught,
+    CorruptionKind,
+    parse_kinds,
+)
 from actionreasoning.agents.calls import BuildResult
+from actionreasoning.agents.catches import premove_refusals
+from actionreasoning.agents.feedback import Refusal
+from actionreasoning.agents.memory import PlacedBrick, PlacementPhase
 from actionreasoning.agents.orchestrator import Orchestrator
-from actionreasoning.agents.outputs import AgentAnswer, PreGraspAnswer, ToolCall
+from actionreasoning.agents.outputs import AgentAnswer, LiftAnswer, PreGraspAnswer, ToolCall
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest, Reasoner
+from actionreasoning.agents.spec import agent_specs
 from actionreasoning.agents.transcript import AgentCall, CheckRecord, GateRecord, Outcome
+from actionreasoning.agents.verification import Verification, judged_after_move
 from actionreasoning.agents.view import target_supports
+from actionreasoning.errors import ConfigError
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.reasoners.imperfect import (
     ANSWER_ERROR_STREAM,
     CM_AS_M_FACTOR,
     ImperfectReasoner,
     corruption,
+    repeated,
 )
 from actionreasoning.runs.summary import summarize, summary_markdown
 from actionreasoning.trial.results import AnswerErrorCounts, PlacementMetrics, TrialResult
@@ -41,6 +56,9 @@ from actionreasoning.world import noise
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import GoalPattern
 from actionreasoning.world.scene_spec import SceneSpec
+from actionreasoning.world.stages import Stage
+from actionreasoning.world.success import SuccessRule
+from actionreasoning.world.tolerances import Tolerances
 
 SPEC = SceneSpec()
 BRICKS = sample_pick_poses(np.random.default_rng(0), 3, SPEC)
@@ -89,10 +107,16 @@ def agents(kinematics, wall) -> list[Exchange]:
     return recorded(Orchestrator, FakeWorld(wall, BRICKS, *kinematics))
 
 
+def single_agent(world: FakeWorld, reasoner: Reasoner) -> Orchestrator:
+    """The single-agent ablation on ``world``: the merged agent, nothing but validation
+    refusing."""
+    return Orchestrator(world, reasoner, verify=Verification.NONE, single_agent=True)
+
+
 @pytest.fixture(scope="module")
 def single(kinematics, wall) -> list[Exchange]:
     """Every call of the single agent building the wall."""
-    return recorded(SingleAgent, FakeWorld(wall, BRICKS, *kinematics))
+    return recorded(single_agent, FakeWorld(wall, BRICKS, *kinematics))
 
 
 def first(exchanges: list[Exchange], step: str, placed: int | None = 0) -> Exchange:
@@ -207,25 +231,16 @@ def test_into_obstacle_goes_to_a_placed_brick_or_into_the_ground(agents) -> None
     assert hit == set(placed)
 
 
-def test_skipped_hover_lowers_the_approach_and_the_single_agents_carry(agents, single) -> None:
+def test_skipped_hover_lowers_the_approach(agents, single) -> None:
+    """The approach is the one answered move that stops above its goal: the carry over the
+    slot is a controller primitive for both methods."""
     for exchange in (first(agents, "pre_grasp"), first(single, "pre_grasp")):
         answer, _ = corrupt(exchange, CorruptionKind.SKIPPED_HOVER)
         brick = exchange.request.state.brick(exchange.answer.brick_id)  # type: ignore[attr-defined]
         x, y, _ = exchange.answer.waypoint.position_m  # type: ignore[attr-defined]
         assert answer.waypoint.position_m == (x, y, brick.pose.position_m[2])  # type: ignore[attr-defined]
-    carry = first(single, "transfer", placed=1)
-    answer, record = corrupt(carry, CorruptionKind.SKIPPED_HOVER)
-    target = carry.request.state.goal.targets[carry.request.memory.current_target]  # type: ignore[index]
-    placement = first(single, "placement", placed=1).answer
-    assert answer.waypoint.position_m[2] == target.pose.position_m[2]  # type: ignore[attr-defined]
-    assert answer.waypoint.position_m[2] == pytest.approx(
-        placement.waypoint.position_m[2], abs=0.005
-    )  # type: ignore[attr-defined]
-    assert set(changed(carry.answer, answer)) == {"waypoint.position_m.2"}
-    assert f"target {target.index}" in record.detail
     for step in ("descent", "lift", "placement", "release"):
         assert not applies(first(agents, step), CorruptionKind.SKIPPED_HOVER)
-    for step in ("descent", "lift", "placement", "retreat"):
         assert not applies(first(single, step, None), CorruptionKind.SKIPPED_HOVER)
 
 
@@ -283,11 +298,8 @@ def test_missing_field_leaves_out_one_decision_the_answer_made(agents, single) -
         (first(agents, "descent"), {"waypoint", "gripper_opening_m"}),
         (first(agents, "grasp"), {"close"}),
         (first(agents, "release"), {"waypoint", "gripper_opening_m"}),
-        (
-            first(single, "pre_grasp"),
-            {"waypoint", "brick_id", "target_index", "gripper", "gripper_opening_m"},
-        ),
-        (first(single, "grasp"), {"gripper"}),
+        (first(single, "pre_grasp"), {"waypoint", "brick_id", "target_index"}),
+        (first(single, "grasp"), {"close"}),
     ]
     for exchange, fields in cases:
         seen = set()
@@ -295,7 +307,7 @@ def test_missing_field_leaves_out_one_decision_the_answer_made(agents, single) -
             answer, record = corrupt(exchange, CorruptionKind.MISSING_FIELD, seed)
             (name,) = {k.split(".", 1)[0] for k in changed(exchange.answer, answer)}
             seen.add(name)
-            expected = {"close": False, "gripper": "hold"}.get(name)
+            expected = {"close": False}.get(name)
             assert getattr(answer, name) == expected
             assert record.detail.startswith(name)
         assert seen == fields, exchange.step
@@ -308,19 +320,16 @@ def applies(exchange: Exchange, kind: CorruptionKind) -> bool:
 
 
 def test_answers_no_kind_applies_to_are_left_as_they_are(agents, single) -> None:
-    grasp = first(agents, "grasp")
-    assert [k for k in ALL if applies(grasp, k)] == [CorruptionKind.MISSING_FIELD]
-    done = next(e for e in single if e.step == "done")
-    assert done.answer.waypoint is not None and not any(applies(done, k) for k in ALL)  # type: ignore[attr-defined]
+    for grasp in (first(agents, "grasp"), first(single, "grasp")):
+        assert [k for k in ALL if applies(grasp, k)] == [CorruptionKind.MISSING_FIELD]
     tools = Exchange(
         first(agents, "pre_grasp").request,
         PreGraspAnswer(tool_calls=[ToolCall(name="grasp_options", arguments={"brick_id": 0})]),
     )
     assert not any(applies(tools, k) for k in ALL)
-    for exchange in (done, tools):
-        reasoner = ImperfectReasoner(Fixed(exchange.answer), AnswerErrors(rate=1.0), 7)
-        reply = reasoner.decide(exchange.request)
-        assert reply.answer is exchange.answer and reply.corruption is None
+    reasoner = ImperfectReasoner(Fixed(tools.answer), AnswerErrors(rate=1.0), 7)
+    reply = reasoner.decide(tools.request)
+    assert reply.answer is tools.answer and reply.corruption is None
 
 
 def test_every_corruption_of_every_answer_keeps_numbers_finite_and_the_original(
@@ -346,6 +355,203 @@ def test_every_corruption_of_every_answer_keeps_numbers_finite_and_the_original(
                 assert changed(exchange.answer, answer)
                 assert type(answer) is exchange.request.spec.output_model
     assert tried > 300
+
+
+# --- near-misses ------------------------------------------------------------------------
+
+
+def test_the_guarding_tolerances_name_tolerance_fields_of_steps() -> None:
+    steps = {str(s) for s in Stage}
+    assert set(GUARDING_TOLERANCES) <= steps
+    for step, names in GUARDING_TOLERANCES.items():
+        assert {name for name in names if name} <= set(Tolerances.model_fields), step
+    assert set(GUARDING_TOLERANCES) == {str(spec.key) for spec in agent_specs()}
+    assert GUARDING_TOLERANCES["release"] == (None, None)
+    assert NEAR_MISSES <= set(AnswerErrors().kinds)  # in the default kinds
+
+
+def test_near_misses_are_off_by_one_to_three_of_the_tolerance_that_guards_the_step(
+    agents, single
+) -> None:
+    low, high = NEAR_MISS_FACTORS
+    factors: dict[CorruptionKind, list[float]] = {kind: [] for kind in NEAR_MISSES}
+    directions: set[int] = set()
+    tried = set()
+    for exchange in agents + single:
+        guard = GUARDING_TOLERANCES.get(exchange.step, (None, None))
+        before = getattr(exchange.answer, "waypoint", None)
+        for kind in NEAR_MISSES:
+            name = guard[0] if kind is CorruptionKind.NEAR_OFFSET else guard[1]
+            if name is None or before is None:
+                assert not applies(exchange, kind), (exchange.step, kind)
+                continue
+            tried.add(exchange.step)
+            position, yaw = (
+                math.nan if name is None else getattr(exchange.request.tolerances, name)
+                for name in guard
+            )
+            for seed in range(6):
+                answer, record = corrupt(exchange, kind, seed)
+                after = answer.waypoint  # type: ignore[attr-defined]
+                if kind is CorruptionKind.NEAR_OFFSET:
+                    shift = np.subtract(after.position_m, before.position_m)
+                    assert shift[2] == 0.0 and after.quat_xyzw == before.quat_xyzw
+                    factors[kind].append(math.hypot(*shift[:2]) / position)
+                    directions.add(int(math.degrees(math.atan2(shift[1], shift[0])) // 90))
+                    assert f"x {guard[0]} " in record.detail
+                else:
+                    assert after.position_m == before.position_m
+                    turn = (
+                        Rotation.from_quat(after.quat_xyzw)
+                        * Rotation.from_quat(before.quat_xyzw).inv()
+                    )
+                    x, y, z = turn.as_rotvec(degrees=True)
+                    assert abs(x) < 1e-6 and abs(y) < 1e-6
+                    factors[kind].append(abs(z) / yaw)
+                    directions.add(int(np.sign(z)) + 10)
+                    assert f"x {guard[1]} " in record.detail
+    assert tried == {"pre_grasp", "descent", "lift", "placement"}
+    for kind, seen in factors.items():
+        assert all(low - 1e-9 <= f <= high + 1e-9 for f in seen), kind
+        assert min(seen) < low + 0.3 and max(seen) > high - 0.3, kind  # the whole range drawn
+    assert directions == {-2, -1, 0, 1, 9, 11}  # every quadrant, both turns
+
+
+def test_near_misses_read_the_requests_tolerances(agents) -> None:
+    """Under noise the tolerances are widened, and so are the near-misses."""
+    exchange = first(agents, "descent")
+    wide = exchange.request.tolerances.model_copy(update={"eps_g_m": 0.05, "eps_g_deg": 20.0})
+    widened = Exchange(replace(exchange.request, tolerances=wide), exchange.answer)
+    answer, _ = corrupt(widened, CorruptionKind.NEAR_OFFSET)
+    shift = np.subtract(answer.waypoint.position_m, exchange.answer.waypoint.position_m)  # type: ignore[attr-defined]
+    assert 0.05 <= math.hypot(*shift[:2]) <= 0.15
+    answer, record = corrupt(widened, CorruptionKind.NEAR_YAW)
+    assert "x eps_g_deg 20)" in record.detail
+
+
+# --- persistence ------------------------------------------------------------------------
+
+
+def after_refusal(request: AgentRequest, agent: str | None = None, **memory: Any) -> AgentRequest:
+    """The next call's request: the memory holds a refusal of ``agent``'s answer (default:
+    the request's own agent) and ``memory``'s fields."""
+    refusal = Refusal(agent=agent or str(request.spec.key), gate="g", note="refused")
+    refusals = (*request.memory.refusals, refusal)
+    update = {"refusals": refusals, "last_feedback": refusal.text(), **memory}
+    return replace(request, call=request.call + 1, memory=request.memory.model_copy(update=update))
+
+
+def mistake(record: AnswerCorruption) -> str:
+    """What a corruption's detail says changed, its values left out where a repeat may
+    recompute them (a wrong choice's group)."""
+    if record.kind is CorruptionKind.WRONG_CHOICE:
+        return record.detail.rsplit("(", 1)[1]
+    return record.detail
+
+
+def test_at_persistence_1_the_answer_after_each_refusal_repeats_the_mistake(agents, single) -> None:
+    kinds = set()
+    for exchange in agents + single:
+        for kind, seed in ((kind, seed) for kind in ALL for seed in range(2)):
+            errors = AnswerErrors(rate=1.0, kinds=(kind,), persistence=1.0)
+            reasoner = ImperfectReasoner(Fixed(exchange.answer), errors, seed)
+            request = replace(exchange.request, call=0)
+            made = reasoner.decide(request).corruption
+            if made is None:
+                continue
+            assert not made.repeated
+            for _ in range(3):
+                request = after_refusal(request)
+                again = reasoner.decide(request).corruption
+                assert again is not None and again.repeated, (exchange.step, made.kind)
+                assert again.kind is made.kind and mistake(again) == mistake(made)
+                assert again.original == made.original
+            kinds.add(made.kind)
+    assert kinds == set(ALL)
+
+
+def test_a_repeat_needs_a_refusal_of_the_same_agent_in_the_same_phase_and_brick(agents) -> None:
+    errors = AnswerErrors(rate=1.0, persistence=1.0)
+    lift = first(agents, "lift")
+
+    def follow_up(exchange: Exchange, *updates: dict[str, Any]) -> bool | None:
+        """Whether the answer after the corrupted one, asked with each of ``updates`` in
+        turn, repeated its mistake (the last of them)."""
+        reasoner = ImperfectReasoner(Fixed(exchange.answer), errors, 1)
+        request = replace(exchange.request, call=0)
+        assert reasoner.decide(request).corruption is not None
+        for update in updates:
+            request = replace(request, call=request.call + 1, **update)
+            reply = reasoner.decide(request)
+        return None if reply.corruption is None else reply.corruption.repeated
+
+    refused = after_refusal(lift.request)
+    assert follow_up(lift, {"memory": refused.memory}) is True
+    assert follow_up(lift, {"memory": lift.request.memory}) is False  # nothing refused
+    other = after_refusal(lift.request, agent="placement")  # another agent was refused
+    assert follow_up(lift, {"memory": other.memory}) is False
+    placed = (*lift.request.memory.placed, PlacedBrick(brick_id=9, target_index=9))
+    moved_on = after_refusal(lift.request, placed=placed)  # a brick was placed since
+    assert follow_up(lift, {"memory": moved_on.memory}) is False
+    # Ag5: each phase follows up its own mistake.
+    carry = first(agents, "placement")
+    assert carry.request.memory.phase is PlacementPhase.CARRY
+    set_down = after_refusal(carry.request, phase=PlacementPhase.SET_DOWN)
+    carry_again = after_refusal(carry.request)
+    assert follow_up(carry, {"memory": set_down.memory}) is False
+    assert follow_up(carry, {"memory": set_down.memory}, {"memory": carry_again.memory}) is True
+
+
+def test_persistence_draws_apart_so_that_at_0_every_draw_is_as_without_it(agents) -> None:
+    exchange = first(agents, "descent")
+
+    def follow_ups(persistence: float, seed: int) -> list[AgentReply]:
+        """The reply after a refusal of each corrupted answer, over 400 calls."""
+        errors = AnswerErrors(rate=0.5, persistence=persistence)
+        reasoner = ImperfectReasoner(Fixed(exchange.answer), errors, seed)
+        found = []
+        for call in range(0, 800, 2):
+            request = replace(exchange.request, call=call)
+            if reasoner.decide(request).corruption is not None:
+                found.append(reasoner.decide(after_refusal(request)))
+        return found
+
+    fresh = replies(exchange, AnswerErrors(rate=0.5), 3, range(800))  # stateless: by call index
+    for persistence in (0.0, 0.5):
+        found = follow_ups(persistence, seed=3)
+        drawn = [r for r in found if r.corruption is None or not r.corruption.repeated]
+        assert all(r in fresh for r in drawn)  # the call's own draw, untouched
+        if persistence == 0.0:
+            assert len(drawn) == len(found)
+        else:
+            assert len(drawn) / len(found) == pytest.approx(0.5, abs=0.1)
+            assert follow_ups(persistence, seed=3) == found  # seeded
+
+
+def test_a_mistake_the_next_answer_has_no_room_for_is_not_repeated(agents) -> None:
+    lift = first(agents, "lift")
+    tools_only = LiftAnswer(tool_calls=[ToolCall(name="slip_estimate", arguments={"brick_id": 0})])
+    rng = np.random.default_rng(0)
+    assert repeated(tools_only, lift.request, CorruptionKind.SIGN_FLIP, 2, rng) is None
+
+    @dataclass
+    class Then:
+        """Answers ``answers`` in turn."""
+
+        answers: list[AgentAnswer]
+        name: str = "then"
+
+        def decide(self, request: AgentRequest) -> AgentReply:
+            return AgentReply(answer=self.answers.pop(0))
+
+    errors = AnswerErrors(rate=1.0, kinds=(CorruptionKind.NEAR_OFFSET,), persistence=1.0)
+    reasoner = ImperfectReasoner(Then([lift.answer, tools_only, lift.answer]), errors, 0)
+    request = replace(lift.request, call=0)
+    assert reasoner.decide(request).corruption is not None
+    request = after_refusal(request)
+    assert reasoner.decide(request).corruption is None  # no waypoint: nothing to repeat
+    again = reasoner.decide(after_refusal(request)).corruption
+    assert again is not None and not again.repeated  # drawn anew: no mistake was refused
 
 
 # --- the draws --------------------------------------------------------------------------
@@ -412,7 +618,25 @@ def test_the_setting_refuses_rates_outside_0_to_1_and_no_kinds() -> None:
             AnswerErrors(rate=rate)
     with pytest.raises(ValueError):
         AnswerErrors(rate=0.5, kinds=())
+    for persistence in (-0.1, 1.5, math.nan):
+        with pytest.raises(ValueError):
+            AnswerErrors(rate=0.5, persistence=persistence)
+    # At persistence 0 run.json records the setting as it did before persistence existed.
     assert AnswerErrors().model_dump(mode="json") == {"rate": 0.0, "kinds": [k.value for k in ALL]}
+    assert AnswerErrors(persistence=0.5).model_dump(mode="json")["persistence"] == 0.5
+
+
+def test_kinds_are_named_once_each_in_the_enums_order() -> None:
+    assert parse_kinds("all") == ALL
+    assert parse_kinds(" near_yaw, sign_flip,near_yaw") == (
+        CorruptionKind.SIGN_FLIP,
+        CorruptionKind.NEAR_YAW,
+    )
+    for text, needle in (("sign_flip,bogus", "unknown kind 'bogus'"), ("a,,b", "unknown kind")):
+        with pytest.raises(ConfigError, match=needle):
+            parse_kinds(text)
+    with pytest.raises(ConfigError, match="an empty kind name"):
+        parse_kinds("sign_flip,")
 
 
 # --- in the orchestrator's transcript ---------------------------------------------------
@@ -445,6 +669,60 @@ def test_at_rate_1_every_answer_a_kind_applies_to_is_corrupted(kinematics, wall)
     assert [c.call for c in result.transcript] == list(range(len(result.transcript)))
 
 
+@dataclass
+class Stateless:
+    """Answer errors as drawn before persistence existed: each call's own draw."""
+
+    errors: AnswerErrors
+    trial_seed: int
+    inner: Reasoner = field(default_factory=BuiltinReasoner)
+    name: str = "builtin"
+
+    def decide(self, request: AgentRequest) -> AgentReply:
+        reply = self.inner.decide(request)
+        rng = np.random.default_rng([self.trial_seed, ANSWER_ERROR_STREAM, request.call])
+        if rng.random() >= self.errors.rate:
+            return reply
+        found = corruption(reply.answer, request, self.errors.kinds, rng)
+        return reply if found is None else replace(reply, answer=found[0], corruption=found[1])
+
+
+def test_at_persistence_0_a_build_draws_as_it_did_without_persistence(kinematics, wall) -> None:
+    errors = AnswerErrors(rate=0.3)
+    for runner, seed in ((Orchestrator, 4), (Orchestrator, 1), (single_agent, 2)):
+        built = [
+            runner(FakeWorld(wall, BRICKS, *kinematics), reasoner).build(wall).transcript
+            for reasoner in (
+                ImperfectReasoner(BuiltinReasoner(), errors, seed),
+                Stateless(errors, seed),
+            )
+        ]
+        assert [c.model_dump() for c in built[0]] == [c.model_dump() for c in built[1]]
+        assert not any(c.corruption.repeated for c in built[0] if c.corruption)
+
+
+def test_at_persistence_1_a_build_repeats_each_refused_mistake(kinematics, wall) -> None:
+    errors = AnswerErrors(rate=0.3, persistence=1.0)
+    repeats = 0
+    for seed in range(4):
+        reasoner = ImperfectReasoner(BuiltinReasoner(), errors, trial_seed=seed)
+        transcript = (
+            Orchestrator(FakeWorld(wall, BRICKS, *kinematics), reasoner).build(wall).transcript
+        )
+        for index, call in enumerate(transcript):
+            before = [c for c in transcript[:index] if c.agent == call.agent]
+            if not before or before[-1].corruption is None:
+                continue
+            earlier = before[-1]
+            if earlier.outcome in (Outcome.REFUSED, Outcome.RAISED, Outcome.REGRASP):
+                assert call.corruption is not None and call.corruption.repeated, (seed, index)
+                assert call.corruption.kind is earlier.corruption.kind  # type: ignore[union-attr]
+                repeats += 1
+            else:  # the mistake ran: nothing to repeat
+                assert call.corruption is None or not call.corruption.repeated
+    assert repeats >= 4
+
+
 # --- what caught them: results lines ----------------------------------------------------
 
 
@@ -452,21 +730,27 @@ def gate(name: str, *checks: tuple[str, bool]) -> GateRecord:
     records = [
         CheckRecord(name=c, value=0.0, relation="<=", threshold=1.0, passed=ok) for c, ok in checks
     ]
-    return GateRecord(gate=name, passed=all(ok for _, ok in checks), checks=records)
+    passed = all(ok for _, ok in checks)
+    return GateRecord(gate=name, passed=passed, checks=records, after_move=judged_after_move(name))
 
 
 def test_a_corrupted_answer_is_counted_by_what_caught_it() -> None:
-    corrupted = AnswerCorruption(kind=CorruptionKind.SIGN_FLIP, detail="x", original={})
+    """(tests/test_error_catches.py classifies each case; here they are counted.)"""
+    flip, hover = CorruptionKind.SIGN_FLIP, CorruptionKind.SKIPPED_HOVER
+    corrupted = AnswerCorruption(kind=flip, detail="x", original={})
     call = AgentCall(
         call=0, agent="lift", brick=0, target=0, attempt=1, prompt_chars=1, answer={},
         corruption=corrupted,
     )  # fmt: skip
     sigma4 = gate("sigma4_lift", ("normal_force_n", True), ("slip_mps", False), ("tilt", False))
+    sigma5 = gate("sigma5_placement", ("e_xy_m", False))
     cases = [
         ({"outcome": Outcome.REGRASP, "gates": [gate("lift_plan", ("c", True)), sigma4]},
          "sigma4_lift:slip_mps"),
-        ({"outcome": Outcome.RAISED, "gates": [gate("a", ("x", False)), gate("b", ("y", False))]},
-         "b:y"),
+        ({"outcome": Outcome.RAISED, "gates": [gate("a", ("x", False)), sigma5]},
+         "sigma5_placement:e_xy_m"),
+        ({"outcome": Outcome.REFUSED, "gates": [gate("lift_answer", ("valid_answer", False))]},
+         "lift_answer:valid_answer"),
         ({"outcome": Outcome.REFUSED}, "refused"),
         ({"outcome": Outcome.ACCEPTED, "gates": [gate("a", ("x", True))]}, "missed"),
         ({"outcome": Outcome.EXECUTED}, "missed"),
@@ -476,26 +760,49 @@ def test_a_corrupted_answer_is_counted_by_what_caught_it() -> None:
     for update, caught in cases:
         assert call.model_copy(update=update).caught_by == caught
     calls = [call.model_copy(update=update) for update, _ in cases]
+    calls[1] = calls[1].model_copy(
+        update={"corruption": corrupted.model_copy(update={"kind": hover, "repeated": True})}
+    )
     calls.append(call.model_copy(update={"corruption": None}))
     counts = AnswerErrorCounts.of(calls)
     assert counts.corrupted == len(cases)
-    assert counts.by_kind == {CorruptionKind.SIGN_FLIP: len(cases)}
+    assert counts.by_kind == {flip: len(cases) - 1, hover: 1}
+    assert counts.repeated == {hover: 1}
     assert counts.caught_by == {
-        "b:y": 1, "missed": 2, "refused": 1, "sigma4_lift:slip_mps": 1, "trial_stopped": 2,
+        "lift_answer:valid_answer": 1, "missed": 2, "refused": 1, "sigma4_lift:slip_mps": 1,
+        "sigma5_placement:e_xy_m": 1, "trial_stopped": 2,
     }  # fmt: skip
-    assert counts + counts == AnswerErrorCounts(
-        corrupted=14,
-        by_kind={CorruptionKind.SIGN_FLIP: 14},
-        caught_by={k: 2 * n for k, n in counts.caught_by.items()},
-    )
+    assert counts.caught == {
+        flip: {Caught.BEFORE: 2, Caught.AFTER: 1, Caught.MISSED: 2, Caught.TRIAL_STOPPED: 2},
+        hover: {Caught.AFTER: 1},
+    }
+    assert counts.checks == {
+        "lift_answer:valid_answer": {flip: 1},
+        "refused": {flip: 1},
+        "sigma4_lift:slip_mps": {flip: 1},
+        "sigma5_placement:e_xy_m": {hover: 1},
+    }
+    assert counts.led_to == {flip: {"harmless": 2}}  # no brick placed, no failure
+    assert counts.would_catch == {}
+    double = counts + counts
+    assert double.corrupted == 16 and double.by_kind == {flip: 14, hover: 2}
+    assert double.caught[flip] == {k: 2 * n for k, n in counts.caught[flip].items()}
+    assert double.checks["sigma5_placement:e_xy_m"] == {hover: 2}
+    assert double.repeated == {hover: 2} and double.led_to == {flip: {"harmless": 4}}
+    stored = json.loads(counts.model_dump_json())
+    assert "would_catch" not in stored and stored["caught"]["skipped_hover"] == {"after": 1}
 
 
 def test_a_build_counts_every_corrupted_answer_once(kinematics, wall) -> None:
     result = imperfect_build(kinematics, wall, rate=0.3)
-    counts = AnswerErrorCounts.of(result.transcript)
+    counts = AnswerErrorCounts.of(result.transcript, result.failure)
     assert counts.corrupted == sum(c.corruption is not None for c in result.transcript) > 2
     assert sum(counts.by_kind.values()) == sum(counts.caught_by.values()) == counts.corrupted
-    assert any(":" in caught for caught in counts.caught_by)  # a gate caught one
+    assert sum(n for row in counts.caught.values() for n in row.values()) == counts.corrupted
+    caught = sum(counts.caught[k].get(w, 0) for k in counts.caught for w in ("before", "after"))
+    assert sum(n for row in counts.checks.values() for n in row.values()) == caught > 0
+    missed = sum(row.get(Caught.MISSED, 0) for row in counts.caught.values())
+    assert sum(n for row in counts.led_to.values() for n in row.values()) == missed
 
 
 def line(counts: AnswerErrorCounts | None = None, trial: int = 0) -> TrialResult:
@@ -521,6 +828,8 @@ def test_lines_at_rate_0_have_no_answer_errors_field_and_the_schema_has_one() ->
 
 
 def test_summaries_sum_the_counts_and_name_the_rate() -> None:
+    """Counts as lines written before ``caught`` hold them: summary.md shows ``caught_by``
+    (tests/test_error_catches.py: today's)."""
     flip, hover = CorruptionKind.SIGN_FLIP, CorruptionKind.SKIPPED_HOVER
     results = [
         line(AnswerErrorCounts(corrupted=2, by_kind={flip: 2}, caught_by={"g:c": 1, "missed": 1})),
@@ -554,8 +863,17 @@ def test_summaries_sum_the_counts_and_name_the_rate() -> None:
         (("--answer-errors", "nan"), "--answer-errors nan"),
         (("--answer-errors", "inf"), "--answer-errors inf"),
         (("--method", "classical", "--answer-errors", "0.1"), "drop --answer-errors"),
+        (("--answer-errors", "0.1", "--answer-error-persistence", "2"),
+         "--answer-error-persistence 2.0: give a probability from 0 to 1"),
+        (("--answer-errors", "0.1", "--answer-error-persistence", "nan"),
+         "--answer-error-persistence nan"),
+        (("--answer-errors", "0.1", "--answer-error-kinds", "near_yaw,bogus"),
+         "unknown kind 'bogus'"),
+        (("--answer-errors", "0.1", "--answer-error-kinds", ""), "an empty kind name"),
+        (("--answer-error-persistence", "0.5",), "drop --answer-error-persistence"),
+        (("--answer-error-kinds", "near_yaw",), "drop --answer-error-kinds"),
     ],
-)
+)  # fmt: skip
 def test_bad_answer_error_rates_are_refused_in_one_line(
     tmp_path: Path, args: tuple[str, ...], needle: str
 ) -> None:
@@ -574,13 +892,15 @@ def test_the_docs_table_is_the_enum_in_order() -> None:
 def test_the_single_agents_corrupted_answers_are_marked_and_counted(kinematics, wall) -> None:
     def build(seed: int) -> BuildResult:
         reasoner = ImperfectReasoner(BuiltinReasoner(), AnswerErrors(rate=0.3), trial_seed=seed)
-        return SingleAgent(FakeWorld(wall, BRICKS, *kinematics), reasoner).build(wall)
+        return single_agent(FakeWorld(wall, BRICKS, *kinematics), reasoner).build(wall)
 
     result = build(seed=2)
     corrupted = [c for c in result.transcript if c.corruption is not None]
     assert corrupted and all(c.corruption.original != c.answer for c in corrupted)  # type: ignore[union-attr]
     counts = AnswerErrorCounts.of(result.transcript)
-    assert set(counts.caught_by) <= {"missed", "trial_stopped"}  # nothing gates it
+    # Nothing gates it: what is caught, validation caught (its answers' data, or the reach).
+    caught = {key.split(":")[0] for key in counts.caught_by} - {"missed", "trial_stopped"}
+    assert all(gate.endswith("_answer") or gate == "controller" for gate in caught)
     assert [c.model_dump() for c in build(seed=2).transcript] == [
         c.model_dump() for c in result.transcript
     ]
@@ -612,17 +932,19 @@ def test_eval_with_answer_errors_is_the_same_run_to_run_and_resumed(tmp_path: Pa
     assert run("c", 1).returncode == 0
     assert run("c", 2).returncode == 0
     assert lines("c") == lines("a")
-    records = [json.loads(line) for line in lines("a").splitlines()]
-    counts = [AnswerErrorCounts.model_validate(r["answer_errors"]) for r in records]
-    assert sum(c.corrupted for c in counts) > 0
-    for trial, count in enumerate(counts):
+    records = [TrialResult.model_validate_json(line) for line in lines("a").splitlines()]
+    counts = [r.answer_errors for r in records]
+    assert sum(c.corrupted for c in counts if c is not None) > 0
+    for trial, record in enumerate(records):
         calls = [
             AgentCall.model_validate_json(text)
             for text in (tmp_path / "a" / "transcripts" / f"trial_{trial:03d}.jsonl")
             .read_text()
             .splitlines()
         ]
-        assert AnswerErrorCounts.of(calls) == count
+        misplaced = {b.id for b in record.bricks if not SuccessRule().is_placed(b)}
+        assert AnswerErrorCounts.of(calls, record.failure, misplaced) == record.answer_errors
+        assert premove_refusals(calls) == record.premove_refusals
     stored = json.loads((tmp_path / "a" / "run.json").read_text())["config"]["answer_errors"]
     assert stored == {"rate": 0.2, "kinds": [k.value for k in ALL]}
     summary = json.loads((tmp_path / "a" / "summary.json").read_text())["answer_errors"]

@@ -108,4 +108,3 @@ def check_transcript(path: Path, method: Method) -> None:
         "collision_check",
         "reachability",
     ]
-

@@ -21,7 +21,7 @@ from test_run_dir import manifest, result
 from test_trial_config import run_config
 from test_validation import AGENTS, DOWN, STATE, waypoint
 
-from actionreasoning.agents import gates, orchestrator, put_down, single_agent
+from actionreasoning.agents import gates, orchestrator, plans, put_down
 from actionreasoning.agents.answer_errors import AnswerCorruption, AnswerErrors, CorruptionKind
 from actionreasoning.agents.error_kinds import CHECK_CATEGORIES, ErrorCategory, check_category
 from actionreasoning.agents.orchestrator import Orchestrator
@@ -43,7 +43,7 @@ from actionreasoning.world.scene_spec import SceneSpec
 C = ErrorCategory
 K = CorruptionKind
 #: The modules whose gates and pre-move checks refuse answers.
-CHECKING = (gates, orchestrator, put_down, single_agent)
+CHECKING = (gates, orchestrator, plans, put_down)
 
 # --- every check has a category ---------------------------------------------------------
 
@@ -124,6 +124,7 @@ def test_every_kind_expects_a_category_with_a_meaning() -> None:
         K.CM_AS_M: C.FRAME_UNITS, K.INTO_OBSTACLE: C.COLLISION,
         K.SKIPPED_HOVER: C.PREMATURE_ACTION, K.TOO_FAST: C.DYNAMICS,
         K.WRONG_CHOICE: C.WRONG_CHOICE, K.MISSING_FIELD: C.SCHEMA,
+        K.NEAR_OFFSET: C.MISALIGNMENT, K.NEAR_YAW: C.MISALIGNMENT,
     }  # fmt: skip
     assert all(c.meaning for c in C)
 

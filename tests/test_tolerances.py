@@ -10,6 +10,7 @@ import pytest
 from conftest import DOCS
 
 from actionreasoning.agents.gates import sigma5_placement
+from actionreasoning.agents.plans import Grip
 from actionreasoning.tools.geometry import AlignmentErrors
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.scenarios import NOISE
@@ -42,6 +43,39 @@ def test_each_design_threshold_follows_from_its_inputs() -> None:
     assert t.delta_h_m == pytest.approx(2 * t.eps_perp_m)
     assert t.overlap_m == 0.0
     assert [row.name for row in derivations()] == list(Tolerances.model_fields)
+
+
+def test_each_pre_move_tolerance_follows_from_its_inputs() -> None:
+    """The pre-move checks' own thresholds (agents/plans.py): the approach keeps sigma_1's
+    clearance from the brick its path check leaves out; the pads need room of no less than
+    zero (more under noise, the brick's place being uncertain); a lift drags the brick no
+    further, and twists it no more, than the grip's own measured error."""
+    t = Tolerances()
+    assert t.hover_clearance_m == t.c_min_m == pytest.approx(0.05 * 0.76 / 2 + 0.003)
+    assert t.pad_room_m == 0.0
+    assert (t.lift_drag_m, t.lift_drag_deg) == (0.002, 0.5)
+    noisy = t.under(NOISE["medium"].sensing())
+    position = 3 * NOISE["medium"].perception.position_std_m
+    assert noisy.pad_room_m == pytest.approx(position)
+    assert (noisy.lift_drag_m, noisy.lift_drag_deg) == (0.002, 0.5)  # against the tool itself
+    assert noisy.hover_clearance_m == t.hover_clearance_m
+
+
+def test_the_opening_delta_leaves_the_pads_no_room_at_the_grip_tolerance() -> None:
+    """delta (sigma_2) and the pads' room (the pre-move checks) are one geometry: an opening
+    of width + delta passes the side walls with the tool eps_g off across the brick and
+    turned eps_g_deg, with nothing to spare."""
+    t = Tolerances()
+    grip = Grip(
+        along_m=0.0,
+        across_m=t.eps_g_m,
+        up_m=0.0,
+        yaw_deg=t.eps_g_deg,
+        tilt_deg=0.0,
+        world_offset_m=(0.0, t.eps_g_m, 0.0),
+    )
+    assert grip.pad_room_m(W + t.delta_m, W) == pytest.approx(0.0, abs=1e-5)
+    assert grip.pad_room_m(W + t.delta_m + 0.002, W) == pytest.approx(0.001, abs=1e-5)
 
 
 def test_a_stricter_success_rule_makes_stricter_gates() -> None:

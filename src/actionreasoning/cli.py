@@ -149,13 +149,38 @@ def _fail(error: ActionReasoningError | OSError, where: Path | None = None) -> N
     raise typer.Exit(code=2)
 
 
-def _check_options(method: Method, llm: LLMConfig, transcripts: bool, answer_errors: float) -> None:
+def _check_options(
+    method: Method,
+    llm: LLMConfig,
+    transcripts: bool,
+    answer_errors: float,
+    persistence: float = 0.0,
+    kinds: str = "all",
+) -> None:
     if transcripts and method is Method.CLASSICAL:
         raise ConfigError("--transcripts records agent calls; --method classical makes none")
-    if not (math.isfinite(answer_errors) and 0.0 <= answer_errors <= 1.0):
-        raise ConfigError(f"--answer-errors {answer_errors}: give a probability from 0 to 1")
+    for option, value in (
+        ("--answer-errors", answer_errors),
+        ("--answer-error-persistence", persistence),
+    ):
+        if not (math.isfinite(value) and 0.0 <= value <= 1.0):
+            raise ConfigError(f"{option} {value}: give a probability from 0 to 1")
     if answer_errors > 0 and method is Method.CLASSICAL:
         raise ConfigError("--method classical asks no reasoner; drop --answer-errors")
+    if answer_errors == 0:
+        given = [
+            option
+            for option, set_ in (
+                ("--answer-error-persistence", persistence > 0),
+                ("--answer-error-kinds", kinds.strip() != "all"),
+            )
+            if set_
+        ]
+        if given:
+            raise ConfigError(
+                f"{' and '.join(given)} shape the errors of --answer-errors, which is 0: give "
+                f"--answer-errors a rate above 0, or drop {' and '.join(given)}"
+            )
     if method is Method.CLASSICAL:
         given = (["--llm"] if llm.spec != "builtin" else []) + llm.sampling.options()
         if given:
@@ -223,6 +248,23 @@ VerifyOption = Annotated[
         "full (the gates and the pre-move checks), gates (sigma_1-sigma_6 only), checks "
         "(the pre-move checks only), none. Default: full for the agents, none for the "
         "single agent (the ablation ladder: docs/agents-and-gates.md).",
+    ),
+]
+AnswerErrorPersistenceOption = Annotated[
+    float,
+    typer.Option(
+        metavar="P",
+        help="With --answer-errors: the probability (0 to 1) that the answer after a refused "
+        "corrupted one repeats its mistake (the same kind on the same field), as a model "
+        "holding a misconception does.",
+    ),
+]
+AnswerErrorKindsOption = Annotated[
+    str,
+    typer.Option(
+        metavar="KINDS",
+        help="With --answer-errors: the kinds of mistake drawn from, comma-separated "
+        "(sign_flip,near_offset,...; see docs/agents-and-gates.md), or 'all'.",
     ),
 ]
 RepairsOption = Annotated[
@@ -299,6 +341,8 @@ def eval_command(
     reasoning_effort: EffortOption = None,
     answer_errors: AnswerErrorsOption = 0.0,
     verify: VerifyOption = None,
+    answer_error_persistence: AnswerErrorPersistenceOption = 0.0,
+    answer_error_kinds: AnswerErrorKindsOption = "all",
     repairs: RepairsOption = 2,
     tool_turns: ToolTurnsOption = 2,
     workers: WorkersOption = 1,
@@ -317,7 +361,7 @@ def eval_command(
     an OpenAI-compatible server comes from OPENAI_API_KEY only, extra headers (a JSON
     object) from ACTIONREASONING_LLM_HEADERS.
     """
-    from actionreasoning.agents.answer_errors import AnswerErrors
+    from actionreasoning.agents.answer_errors import AnswerErrors, parse_kinds
     from actionreasoning.reasoners.backend import LLMConfig, ServerOptions
     from actionreasoning.reasoners.llm import LLMLimits
     from actionreasoning.trial.session import Conditions
@@ -335,10 +379,21 @@ def eval_command(
             record=record,
             sampling=Sampling(temperature, top_p, max_tokens, llm_seed, reasoning_effort),
         )
-        _check_options(method, backend, transcripts, answer_errors)
+        _check_options(
+            method,
+            backend,
+            transcripts,
+            answer_errors,
+            answer_error_persistence,
+            answer_error_kinds,
+        )
         check_rung(method, verify)
         budget = TrialBudget(max_steps=max_steps, max_wall_s=max_trial_s)
-        errors = AnswerErrors(rate=answer_errors)
+        errors = AnswerErrors(
+            rate=answer_errors,
+            kinds=parse_kinds(answer_error_kinds),
+            persistence=answer_error_persistence,
+        )
         conditions = Conditions.load(
             pattern,
             physics,
@@ -459,6 +514,8 @@ def _title(run: RunConfig) -> str:
         title += f" / verify {config.verify}"
     if config.answer_errors.rate:
         title += f" / answer errors {config.answer_errors.rate:g}"
+    if config.answer_errors.persistence:
+        title += f" (persistence {config.answer_errors.persistence:g})"
     return title
 
 

@@ -47,7 +47,7 @@ from actionreasoning.report.tables import (
     to_markdown,
 )
 from actionreasoning.runs.run_dir import output_directory
-from actionreasoning.runs.summary import COURSE_COLUMNS, categories_in, course_cells
+from actionreasoning.runs.summary import CAUGHT_TITLES, COURSE_COLUMNS, categories_in, course_cells
 from actionreasoning.trial.results import Refusals, TrialResult
 
 HTML_FILE = "report.html"
@@ -210,6 +210,12 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
         pairs=[pair.cells for pair in table.pairs],
         failures=table.failures,
         answer_errors=table.answer_errors,
+        caught_titles=list(CAUGHT_TITLES.values()),
+        premove_refusals=[
+            {"label": row, "pattern": pattern, "check": check, "count": n}
+            for (row, pattern), counts in table.premove_refusals.items()
+            for check, n in counts.items()
+        ],
         refusals=[_refusal_table(row, p, counts) for (row, p), counts in table.refusals.items()],
         notes=table.notes,
         pace_columns=PACE_COLUMNS,

@@ -88,7 +88,7 @@ def method_label(manifest: AnyManifest, verify: str | None = None) -> str:
     """How a row names a method: with its reasoning backend and tier where it has one, and
     its rung of verification (``verify``, of its results lines) where not the method's
     default; its physics profile and, where there are any, its noise level and answer error
-    rate."""
+    rate (with its persistence)."""
     rung = "" if verify in (None, DEFAULT_VERIFY.get(manifest.method)) else f", verify {verify}"
     name = (
         manifest.method
@@ -96,8 +96,9 @@ def method_label(manifest: AnyManifest, verify: str | None = None) -> str:
         else f"{manifest.method} ({manifest.llm}, tools {manifest.tier}{rung})"
     )
     noise = "" if manifest.noise_name == "none" else f", noise {manifest.noise_name}"
-    rate = manifest.answer_errors.rate
+    rate, persistence = manifest.answer_errors.rate, manifest.answer_errors.persistence
     errors = f", answer errors {rate:g}" if rate else ""
+    errors += f" (persistence {persistence:g})" if rate and persistence else ""
     return f"{name}, {manifest.physics_name}{noise}{errors}"
 
 

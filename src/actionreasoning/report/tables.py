@@ -3,21 +3,24 @@ centre offset (cm) and IoU (%), means over successful trials with their bootstra
 intervals; as markdown, CSV and LaTeX. Success comes with its Wilson interval; a method
 that succeeded in no trial of a pattern gets its means over all trials instead, on a row of
 their own. Then the leaderboard and the paired comparisons (McNemar's test). Rows and
-pattern columns are the groups of collect.py; the notes say how runs differ. Runs
-with answer errors get a table of what was corrupted and what caught it, and runs with
-refused answers a table per group of them by agent and error category. Every group gets its
-bricks placed before the first failure and cycle time, and a table of its errors per course.
+pattern columns are the groups of collect.py; the notes say how runs differ. Runs with
+answer errors get a table of what was corrupted and what caught it, runs with refused
+answers a table per group of them by agent and error category, and runs whose checks refused
+answers nobody corrupted a list of those checks. Every group gets its bricks placed before
+the first failure and cycle time, and a table of its errors per course.
 """
 
 from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Sequence
+from collections import Counter
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from actionreasoning.agents.answer_errors import Caught
 from actionreasoning.records import FailureCode
 from actionreasoning.report.collect import Group, condition_notes, labels, patterns
 from actionreasoning.report.leaderboard import board_lines, board_rows
@@ -25,6 +28,7 @@ from actionreasoning.report.pairs import Pair, pair_lines, paired_comparisons
 from actionreasoning.runs.courses import CourseMetrics
 from actionreasoning.runs.statistics import BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED, Interval, wilson
 from actionreasoning.runs.summary import (
+    CAUGHT_TITLES,
     AnswerErrorTotals,
     MetricStats,
     category_table,
@@ -94,7 +98,28 @@ class AnswerErrorRow:
 
     @property
     def caught(self) -> str:
-        return ", ".join(f"{check} {n}" for check, n in self.totals.caught_by.items()) or "–"
+        """The checks that caught them (each with its count; where lines predate those
+        counts, what stopped each answer, flat)."""
+        if not self.totals.caught:
+            return ", ".join(f"{check} {n}" for check, n in self.totals.caught_by.items()) or "–"
+        checks = {check: sum(row.values()) for check, row in self.totals.checks.items()}
+        return ", ".join(f"{check} {n}" for check, n in checks.items()) or "–"
+
+    @property
+    def where(self) -> list[int]:
+        """How many were caught before the move, after it, missed, and stopped the trial
+        (CAUGHT_TITLES' order)."""
+        return [sum(row.get(caught, 0) for row in self.totals.caught.values()) for caught in Caught]
+
+    @property
+    def led_to(self) -> str:
+        """What the misses led to, summed over kinds."""
+        return _summed(self.totals.led_to.values())
+
+    @property
+    def would_catch(self) -> str:
+        """The checks the misses failed that the run did not enforce, summed over kinds."""
+        return _summed(self.totals.would_catch.values())
 
     @property
     def refused_as(self) -> str:
@@ -105,6 +130,14 @@ class AnswerErrorRow:
             for category, n in categories.items()
         ]
         return ", ".join(pairs) or "–"
+
+
+def _summed(rows: Iterable[Mapping[str, int]]) -> str:
+    """Counts (name -> count, a row per kind) summed over the rows, as ``name n, ...``."""
+    total = Counter[str]()
+    for row in rows:
+        total.update(row)
+    return ", ".join(f"{name} {n}" for name, n in sorted(total.items())) or "–"
 
 
 @dataclass(frozen=True)
@@ -182,6 +215,9 @@ class Table:
     notes: list[str]  # how the runs' conditions differ (collect.condition_notes)
     answer_errors: list[AnswerErrorRow]  # the groups run with answer errors
     refusals: dict[tuple[str, str], Refusals]  # (row, pattern) -> refused answers, where any
+    # (row, pattern) -> answers nobody corrupted that a pre-move check, sigma_1 or sigma_6
+    # refused, by gate:check, where any
+    premove_refusals: dict[tuple[str, str], dict[str, int]]
     pace: list[PaceRow]  # a row per group
     courses: dict[tuple[str, str], list[CourseMetrics]]  # (row, pattern) -> its courses, if
     # its lines measured bricks
@@ -279,6 +315,11 @@ def comparison_table(groups: Sequence[Group]) -> Table:
             if g.summary.answer_errors is not None
         ],
         refusals={(g.label, g.pattern): g.summary.refusals for g in groups if g.summary.refusals},
+        premove_refusals={
+            (g.label, g.pattern): g.summary.premove_refusals
+            for g in groups
+            if g.summary.premove_refusals
+        },
         pace=[_pace(g) for g in groups],
         courses={(g.label, g.pattern): g.summary.courses for g in groups if g.summary.courses},
         all_stats={(g.label, g.pattern): g.summary.all_trials for g in groups},
@@ -369,15 +410,31 @@ def to_markdown(table: Table) -> str:
     else:
         lines.append("No trial failed.")
     if table.answer_errors:
+        where = " | ".join(CAUGHT_TITLES.values())
         lines += [
             "",
-            "| Method | Pattern | Answer error rate | Corrupted | By kind | Caught by "
-            "| Refused as |",
-            "|---|---|---|---|---|---|---|",
+            f"| Method | Pattern | Answer error rate | Persistence | Corrupted | By kind | {where} "
+            "| Caught by | Missed: led to | Missed: would be caught by | Refused as |",
+            "|---" * 15 + "|",
             *(
-                f"| {a.label} | {a.pattern} | {a.totals.rate:g} | {a.totals.corrupted} | "
-                f"{a.kinds} | {a.caught} | {a.refused_as} |"
+                f"| {a.label} | {a.pattern} | {a.totals.rate:g} | {a.totals.persistence:g} | "
+                f"{a.totals.corrupted} | {a.kinds} | {' | '.join(map(str, a.where))} | "
+                f"{a.caught} | {a.led_to} | {a.would_catch} | {a.refused_as} |"
                 for a in table.answer_errors
+            ),
+        ]
+    if table.premove_refusals:
+        lines += [
+            "",
+            "Answers nobody corrupted, refused before the move by a pre-move check, σ1 or σ6 "
+            "(each a check refusing an answer its reasoner believed right):",
+            "",
+            "| Method | Pattern | Check | Answers |",
+            "|---|---|---|---|",
+            *(
+                f"| {row} | {pattern} | `{check}` | {n} |"
+                for (row, pattern), counts in table.premove_refusals.items()
+                for check, n in counts.items()
             ),
         ]
     for (row, pattern), counts in table.refusals.items():

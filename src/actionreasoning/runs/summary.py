@@ -9,7 +9,7 @@ from typing import Any, TypeVar
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from actionreasoning.agents.answer_errors import AnswerErrors, CorruptionKind
+from actionreasoning.agents.answer_errors import AnswerErrors, Caught, CorruptionKind
 from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.records import FailureCode
 from actionreasoning.runs.courses import (
@@ -64,10 +64,12 @@ class MetricStats(BaseModel):
 
 
 class AnswerErrorTotals(AnswerErrorCounts):
-    """A run's answer errors: the rate and kinds it ran with, its trials' counts summed."""
+    """A run's answer errors: the rate, kinds and persistence it ran with (persistence absent
+    at 0), its trials' counts summed."""
 
     rate: float
     kinds: tuple[CorruptionKind, ...]
+    persistence: float = Field(0.0, exclude_if=lambda persistence: persistence == 0.0)
 
 
 class RunSummary(Provenance):
@@ -106,6 +108,11 @@ class RunSummary(Provenance):
     #: Refused and failed answers by agent and category, summed over the trials (absent
     #: when there were none).
     refusals: Refusals = Field(default_factory=dict, exclude_if=lambda counts: not counts)
+    #: Answers nobody corrupted that a pre-move check, sigma_1 or sigma_6 refused, by
+    #: ``gate:check``, summed over the trials (absent when there were none).
+    premove_refusals: dict[str, int] = Field(
+        default_factory=dict, exclude_if=lambda counts: not counts
+    )
     #: Per course, over all trials; absent in summaries written before courses were measured.
     courses: list[CourseMetrics] = Field(default_factory=list)
     placed_before_first_failure_mean: float | None = None
@@ -191,6 +198,9 @@ def summarize(
         resumed_trials=resumed_trials,
         answer_errors=_answer_error_totals(results, answer_errors),
         refusals=sum_refusals(r.refusals for r in results),
+        premove_refusals=dict(
+            sorted(sum((Counter(r.premove_refusals) for r in results), Counter[str]()).items())
+        ),
         courses=per_course(results),
         placed_before_first_failure_mean=float(
             np.mean([placed_before_first_failure(r, rule) for r in results])
@@ -206,7 +216,9 @@ def _answer_error_totals(
     if errors is None or not errors.rate:
         return None
     counts = sum((r.answer_errors or AnswerErrorCounts() for r in results), AnswerErrorCounts())
-    return AnswerErrorTotals(rate=errors.rate, kinds=errors.kinds, **dict(counts))
+    return AnswerErrorTotals(
+        rate=errors.rate, kinds=errors.kinds, persistence=errors.persistence, **dict(counts)
+    )
 
 
 def stats_text(stats: MetricStats, scale: float = 1.0, digits: int = 3) -> str:
@@ -285,6 +297,8 @@ def summary_markdown(summary: RunSummary) -> str:
             "",
             *category_table("Agent", summary.refusals),
         ]
+    if summary.premove_refusals:
+        lines += ["", *premove_refusal_lines(summary.premove_refusals)]
     if summary.answer_errors is not None:
         lines += ["", *_answer_error_lines(summary.answer_errors)]
     if summary.llm_usage.calls:
@@ -384,14 +398,43 @@ def course_table(courses: Sequence[CourseMetrics]) -> list[str]:
     ]
 
 
+def premove_refusal_lines(counts: Mapping[str, int]) -> list[str]:
+    """The answers nobody corrupted that a pre-move check, sigma_1 or sigma_6 refused."""
+    return [
+        "Answers nobody corrupted, refused before the move by a pre-move check, σ1 or σ6 "
+        "(each a check refusing an answer its reasoner believed right):",
+        "",
+        "| Check | Answers |",
+        "|---|---|",
+        *(f"| `{check}` | {n} |" for check, n in counts.items()),
+    ]
+
+
+#: Where a corrupted answer was caught, as summary.md and the report title it.
+CAUGHT_TITLES = {
+    Caught.BEFORE: "Before the move",
+    Caught.AFTER: "After the move",
+    Caught.MISSED: "Missed",
+    Caught.TRIAL_STOPPED: "Trial stopped",
+}
+
+
 def _answer_error_lines(totals: AnswerErrorTotals) -> list[str]:
     """The answers eval --answer-errors corrupted, by kind, and what caught them."""
     kinds = "all kinds" if set(totals.kinds) == set(CorruptionKind) else ", ".join(totals.kinds)
+    persistence = f", persistence {totals.persistence:g}" if totals.persistence else ""
+    repeats = sum(totals.repeated.values())
     lines = [
-        f"Answer errors: each answer corrupted with probability {totals.rate:g} ({kinds}); "
-        f"{totals.corrupted} answers corrupted.",
+        f"Answer errors: each answer corrupted with probability {totals.rate:g} "
+        f"({kinds}{persistence}); {totals.corrupted} answers corrupted"
+        + (f", {repeats} of them repeating a refused mistake." if repeats else "."),
     ]
-    if totals.corrupted:
+    if not totals.corrupted:
+        return lines
+    if totals.caught:
+        lines += ["", *_caught_table(totals), "", *_check_table(totals)]
+        lines += _consequence_lines(totals)
+    else:  # lines written before `caught`: what stopped each answer, flat
         lines += ["", "| Kind | Meaning | Answers |", "|---|---|---|"]
         lines += [f"| `{k}` | {k.meaning} | {n} |" for k, n in totals.by_kind.items()]
         lines += ["", "| Caught by | Answers |", "|---|---|"]
@@ -404,6 +447,56 @@ def _answer_error_lines(totals: AnswerErrorTotals) -> list[str]:
             "",
             *category_table("Kind", totals.refused_as, {"Expected": expected}),
         ]
+    return lines
+
+
+def _caught_table(totals: AnswerErrorTotals) -> list[str]:
+    """Kind by where it was caught: before the move, after it, missed, trial stopped."""
+    header = ["Kind", "Meaning", "Answers", "Repeats", *CAUGHT_TITLES.values()]
+    lines = ["| " + " | ".join(header) + " |", "|---" * len(header) + "|"]
+    for kind, n in totals.by_kind.items():
+        where = totals.caught.get(kind, {})
+        cells = [f"`{kind}`", kind.meaning, str(n), str(totals.repeated.get(kind, 0))]
+        cells += [str(where.get(caught, 0)) for caught in Caught]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def _check_table(totals: AnswerErrorTotals) -> list[str]:
+    """The checks that caught corrupted answers (before or after the move), by kind."""
+    kinds = [k for k in CorruptionKind if any(k in row for row in totals.checks.values())]
+    if not kinds:
+        return ["No check caught a corrupted answer."]
+    header = ["Caught by", *(f"`{k}`" for k in kinds), "Total"]
+    lines = ["| " + " | ".join(header) + " |", "|---" * len(header) + "|"]
+    for check, row in totals.checks.items():
+        cells = [f"`{check}`", *(str(row.get(k, 0)) for k in kinds), str(sum(row.values()))]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def _consequence_lines(totals: AnswerErrorTotals) -> list[str]:
+    """What the missed answers led to, and what would have caught them on another rung."""
+    if not totals.led_to:
+        return []
+    lines = [
+        "",
+        "What the missed answers led to (the first check to refuse anything later in the "
+        "brick's cycle, else the trial's failure if the brick was never placed, `misplaced` if "
+        "it ended outside the success rule, else `harmless`), and the check they failed that "
+        "this run did not enforce:",
+        "",
+        "| Kind | Led to | Would be caught by |",
+        "|---|---|---|",
+    ]
+    for kind, led in totals.led_to.items():
+        would = totals.would_catch.get(kind, {})
+        cells = [
+            f"`{kind}`",
+            ", ".join(f"`{what}` {n}" for what, n in led.items()),
+            ", ".join(f"`{check}` {n}" for check, n in would.items()) or "–",
+        ]
+        lines.append("| " + " | ".join(cells) + " |")
     return lines
 
 

@@ -9,12 +9,13 @@ which name the code that wrote it.
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Iterable, Sequence
+from collections.abc import Collection, Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from actionreasoning.agents.answer_errors import CorruptionKind
+from actionreasoning.agents.answer_errors import Caught, CorruptionKind
+from actionreasoning.agents.catches import catch_of
 from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.tiers import BEFORE_TIERS
 from actionreasoning.records import Failure, LLMUsage
@@ -39,6 +40,9 @@ __all__ = [
 ]
 
 K = TypeVar("K")
+#: Keys of nested counts: names (a kind, a category, a check).
+N = TypeVar("N", bound=str)
+M = TypeVar("M", bound=str)
 
 #: Refused and failed answers by agent and error category: agent -> category -> count.
 Refusals = dict[str, dict[ErrorCategory, int]]
@@ -75,51 +79,88 @@ class PlacementMetrics(_Record):
 
 
 class AnswerErrorCounts(_Record):
-    """What ``eval --answer-errors`` corrupted, by kind, and what caught the corrupted answers:
+    """What ``eval --answer-errors`` corrupted, by kind, and what caught the corrupted
+    answers (agents/catches.py). Counts add up with ``+``.
+
+    ``caught``: kind -> where each was caught: ``before`` the move, ``after`` it,
+    ``missed`` (it ran) or ``trial_stopped`` (the trial ended on it); ``checks``: the
+    check (``gate:check``) that caught them, before or after the move -> kind -> count;
+    ``led_to``: kind -> what the misses led to (a later check, the trial's failure reason,
+    ``misplaced`` or ``harmless``); ``would_catch``: kind -> the check a miss failed that its
+    rung did not enforce; ``repeated``: kind -> how many repeated a refused mistake
+    (persistence); ``refused_as``: kind -> the error category its refused or failed answers
+    got, to compare with the kind's ``expected``. ``caught_by`` is the earlier flat record:
     ``gate:check`` (the first failed check of the last failed verdict on the answer),
-    ``refused`` (refused before any gate), ``missed`` (accepted or executed) or
-    ``trial_stopped`` (the trial ended on it); and the error category each kind's refused
-    or failed answers got (``refused_as``, to compare with the kind's ``expected``; absent
-    when none was). Counts add up with ``+``."""
+    ``refused`` (refused before any gate), ``missed`` or ``trial_stopped``. Each field but
+    ``corrupted``, ``by_kind`` and ``caught_by`` is absent when empty (and in lines written
+    before it existed)."""
 
     corrupted: int = 0
     by_kind: dict[CorruptionKind, int] = Field(default_factory=dict)
     caught_by: dict[str, int] = Field(default_factory=dict)
+    repeated: dict[CorruptionKind, int] = Field(
+        default_factory=dict, exclude_if=lambda counts: not counts
+    )
+    caught: dict[CorruptionKind, dict[Caught, int]] = Field(
+        default_factory=dict, exclude_if=lambda counts: not counts
+    )
+    checks: dict[str, dict[CorruptionKind, int]] = Field(
+        default_factory=dict, exclude_if=lambda counts: not counts
+    )
+    led_to: dict[CorruptionKind, dict[str, int]] = Field(
+        default_factory=dict, exclude_if=lambda counts: not counts
+    )
+    would_catch: dict[CorruptionKind, dict[str, int]] = Field(
+        default_factory=dict, exclude_if=lambda counts: not counts
+    )
     refused_as: dict[CorruptionKind, dict[ErrorCategory, int]] = Field(
         default_factory=dict, exclude_if=lambda counts: not counts
     )
 
     @classmethod
-    def of(cls, transcript: Sequence[AgentCall]) -> AnswerErrorCounts:
-        """The corrupted calls of a trial's transcript, counted."""
-        return sum(
-            (
-                cls(
-                    corrupted=1,
-                    by_kind={call.corruption.kind: 1},
-                    caught_by={call.caught_by: 1},
-                    refused_as={}
-                    if call.category is None
-                    else {call.corruption.kind: {call.category: 1}},
-                )
-                for call in transcript
-                if call.corruption is not None
-            ),
-            cls(),
-        )
+    def of(
+        cls,
+        transcript: Sequence[AgentCall],
+        failure: Failure | None = None,
+        misplaced: Collection[int] = (),
+    ) -> AnswerErrorCounts:
+        """The corrupted calls of a trial's transcript, counted; ``failure`` is the trial's
+        and ``misplaced`` its bricks outside the success rule (what misses led to)."""
+        counts = cls()
+        for index, call in enumerate(transcript):
+            if call.corruption is None:
+                continue
+            catch = catch_of(transcript, index, failure, misplaced)
+            kind = catch.kind
+            counts += cls(
+                corrupted=1,
+                by_kind={kind: 1},
+                caught_by={call.caught_by: 1},
+                repeated={kind: 1} if catch.repeated else {},
+                caught={kind: {catch.caught: 1}},
+                checks={} if catch.check is None else {catch.check: {kind: 1}},
+                led_to={} if catch.led_to is None else {kind: {catch.led_to: 1}},
+                would_catch={} if catch.would_catch is None else {kind: {catch.would_catch: 1}},
+                refused_as={} if call.category is None else {kind: {call.category: 1}},
+            )
+        return counts
 
     def __add__(self, other: AnswerErrorCounts) -> AnswerErrorCounts:
         kinds = Counter(self.by_kind) + Counter(other.by_kind)
         caught = Counter(self.caught_by) + Counter(other.caught_by)
-        pairs = Counter[tuple[CorruptionKind, ErrorCategory]]()
-        for refused in (self.refused_as, other.refused_as):
-            for kind, categories in refused.items():
-                pairs.update({(kind, category): n for category, n in categories.items()})
+        repeated = Counter(self.repeated) + Counter(other.repeated)
         return AnswerErrorCounts(
             corrupted=self.corrupted + other.corrupted,
             by_kind={kind: kinds[kind] for kind in CorruptionKind if kind in kinds},
             caught_by=dict(sorted(caught.items())),
-            refused_as=_nested(pairs, CorruptionKind),
+            repeated={kind: repeated[kind] for kind in CorruptionKind if kind in repeated},
+            caught=_added(self.caught, other.caught, list(CorruptionKind), list(Caught)),
+            checks=_added(self.checks, other.checks, None, list(CorruptionKind)),
+            led_to=_added(self.led_to, other.led_to, list(CorruptionKind), None),
+            would_catch=_added(self.would_catch, other.would_catch, list(CorruptionKind), None),
+            refused_as=_added(
+                self.refused_as, other.refused_as, list(CorruptionKind), list(ErrorCategory)
+            ),
         )
 
 
@@ -136,6 +177,24 @@ class FirstAttempts(_Record):
         return FirstAttempts(
             asked=self.asked + other.asked, accepted=self.accepted + other.accepted
         )
+
+
+def _added(
+    one: Mapping[N, Mapping[M, int]],
+    two: Mapping[N, Mapping[M, int]],
+    keys: Sequence[N] | None,
+    inner: Sequence[M] | None,
+) -> dict[N, dict[M, int]]:
+    """Two nested counts summed: the outer keys in the order of ``keys`` and the inner in
+    that of ``inner`` (None: sorted), without zeros."""
+    pairs = Counter[tuple[N, M]]()
+    for counts in (one, two):
+        for key, row in counts.items():
+            pairs.update({(key, name): n for name, n in row.items()})
+    outer = keys if keys is not None else sorted({key for key, _ in pairs})
+    names = inner if inner is not None else sorted({name for _, name in pairs})
+    nested = {key: {name: pairs[key, name] for name in names if pairs[key, name]} for key in outer}
+    return {key: row for key, row in nested.items() if row}
 
 
 def sum_refusals(many: Iterable[Refusals]) -> Refusals:
@@ -216,6 +275,11 @@ class TrialResult(Provenance):
     #: Each agent's answers at attempt 1 of a request and how many were accepted;
     #: absent where no agent was asked (classical) and in lines written before it existed.
     first_attempts: dict[str, FirstAttempts] = Field(
+        default_factory=dict, exclude_if=lambda counts: not counts
+    )
+    #: Answers nobody corrupted that an enforced pre-move check, sigma_1 or sigma_6 refused,
+    #: by ``gate:check`` (agents/catches.py); absent when there were none.
+    premove_refusals: dict[str, int] = Field(
         default_factory=dict, exclude_if=lambda counts: not counts
     )
     sim_steps: int

@@ -10,6 +10,7 @@ from typing import Protocol
 import numpy as np
 
 from actionreasoning.agents.calls import BuildResult, CallHook, failure_of
+from actionreasoning.agents.catches import premove_refusals
 from actionreasoning.agents.orchestrator import Orchestrator
 from actionreasoning.agents.reasoner import Reasoner
 from actionreasoning.agents.transcript import AgentCall, Outcome
@@ -339,11 +340,16 @@ def measure(
         },
         decisions=outcome.decisions,
         fallback_decisions=outcome.fallbacks,
-        answer_errors=AnswerErrorCounts.of(outcome.transcript)
+        answer_errors=AnswerErrorCounts.of(
+            outcome.transcript,
+            failure,
+            {b.id for b, ok in zip(bricks, within, strict=True) if not ok},
+        )
         if config.answer_errors.rate
         else None,
         refusals=refusals_of(outcome.transcript),
         first_attempts=first_attempts_of(outcome.transcript),
+        premove_refusals=premove_refusals(outcome.transcript),
         sim_steps=scene.ticks,
     )
 
