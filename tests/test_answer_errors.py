@@ -7,6 +7,7 @@ and the single agent on the scripted FakeWorld (no physics)."""
 from __future__ import annotations
 
 import json
+import itertools
 import math
 import subprocess
 from collections.abc import Callable
@@ -434,8 +435,9 @@ def test_near_misses_read_the_requests_tolerances(agents) -> None:
 
 def after_refusal(request: AgentRequest, agent: str | None = None, **memory: Any) -> AgentRequest:
     """The next call's request: the memory holds a refusal of ``agent``'s answer (default:
-    the request's own agent) and ``memory``'s fields."""
-    refusal = Refusal(agent=agent or str(request.spec.key), gate="g", note="refused")
+    the stage asked, as the orchestrator names an agent's refusals, and the single
+    agent's) and ``memory``'s fields."""
+    refusal = Refusal(agent=agent or str(request.memory.step), gate="g", note="refused")
     refusals = (*request.memory.refusals, refusal)
     update = {"refusals": refusals, "last_feedback": refusal.text(), **memory}
     return replace(request, call=request.call + 1, memory=request.memory.model_copy(update=update))
@@ -957,3 +959,19 @@ def test_eval_with_answer_errors_is_the_same_run_to_run_and_resumed(tmp_path: Pa
     table = (tmp_path / "report" / "table.md").read_text()
     assert "| agents (builtin, tools check), paper, answer errors 0.2 | two | 0.2 |" in table
     assert 'id="answer-errors"' in (tmp_path / "report" / "report.html").read_text()
+
+
+def test_at_persistence_1_the_single_agents_refused_mistake_is_repeated(kinematics, wall) -> None:
+    """The single agent's refusals name the stage it answered, as an agent's do: its next
+    answer at that stage repeats the mistake."""
+    errors = AnswerErrors(rate=0.3, persistence=1.0)
+    repeats = 0
+    for seed in range(4):
+        reasoner = ImperfectReasoner(BuiltinReasoner(), errors, trial_seed=seed)
+        transcript = single_agent(FakeWorld(wall, BRICKS, *kinematics), reasoner).build(wall)
+        for earlier, call in itertools.pairwise(transcript.transcript):
+            if earlier.corruption is not None and earlier.outcome == "refused":
+                assert call.corruption is not None and call.corruption.repeated
+                assert call.corruption.kind == earlier.corruption.kind
+                repeats += 1
+    assert repeats

@@ -76,8 +76,8 @@ class CorruptionKind(StrEnum):
     SKIPPED_HOVER = (
         "skipped_hover",
         "a move that should stop above its goal goes down to it: the approach to the brick's "
-        "centre height, the carry to the slot's",
-        "Ag1's waypoint; the single agent's pre_grasp and transfer waypoints",
+        "centre height",
+        "Ag1's waypoint; the single agent's pre_grasp",
         ErrorCategory.PREMATURE_ACTION,
     )
     TOO_FAST = (
@@ -96,7 +96,7 @@ class CorruptionKind(StrEnum):
     MISSING_FIELD = (
         "missing_field",
         "one decision field the answer set (drawn) left out: waypoint, gripper_opening_m, "
-        "brick_id or target_index None, close False, the single agent's gripper hold",
+        "brick_id or target_index None, close False",
         "an answer with a decision",
         ErrorCategory.SCHEMA,
     )
@@ -104,14 +104,14 @@ class CorruptionKind(StrEnum):
         "near_offset",
         "the waypoint's position shifted horizontally in a drawn direction by k times the "
         "position tolerance that guards it (k drawn from 1 to 3)",
-        "a waypoint of agents 1 to 5, or of the single agent's steps pre_grasp to placement",
+        "a waypoint of a stage a tolerance guards it at (GUARDING_TOLERANCES)",
         ErrorCategory.MISALIGNMENT,
     )
     NEAR_YAW = (
         "near_yaw",
         "the waypoint's orientation turned about world z by +k or -k (drawn) times the yaw "
         "tolerance that guards it (k drawn from 1 to 3)",
-        "a waypoint of agents 1 to 5, or of the single agent's steps pre_grasp to placement",
+        "a waypoint of a stage a tolerance guards it at (GUARDING_TOLERANCES)",
         ErrorCategory.MISALIGNMENT,
     )
 

@@ -103,7 +103,7 @@ class AgentCaller:
         progress = Progress(
             placed_ids=tuple(p.brick_id for p in memory.placed),
             current_brick=memory.current_brick,
-            step=spec.key,
+            step=memory.step,  # the stage asked (the single agent answers every stage)
         )
         state = self.world.observe(progress)
         context = self.world.tools(state)

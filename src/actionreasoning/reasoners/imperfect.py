@@ -4,7 +4,7 @@
 outside agent) in :class:`ImperfectReasoner`. Each answer is corrupted with probability
 RATE by one kind of mistake (:class:`~actionreasoning.agents.answer_errors.CorruptionKind`),
 drawn uniformly among the configured kinds that apply to it; an answer none applies to (a
-tool-only answer, the single agent's ``done``) is left as it is. The draws come from the
+tool-only answer) is left as it is. The draws come from the
 trial's seed and the call's index alone, so the same trial is corrupted the same way, and a
 retry (a new call) draws anew. A corrupted answer is built in the agent's answer model
 (whose decision fields may be left out, where a decision's may not) with ``model_copy`` (no
@@ -109,13 +109,14 @@ class ImperfectReasoner:
         self.errors = errors
         self.trial_seed = trial_seed
         self.name = inner.name
-        #: The last corrupted answer of each agent (and Ag5 phase) not yet followed up.
+        #: The last corrupted answer at each stage (and Ag5 phase) not yet followed up.
         self._mistakes: dict[tuple[str, str | None], Mistake] = {}
 
     def decide(self, request: AgentRequest) -> AgentReply:
         """The inner reasoner's reply, its answer corrupted if this call's draws say so."""
         reply = self.inner.decide(request)
-        slot = (str(request.spec.key), request.memory.phase)
+        # The stage asked: an agent's own, or the one the single agent answers now.
+        slot = (str(request.memory.step), request.memory.phase)
         earlier = self._mistakes.pop(slot, None)
         found = None
         if (
@@ -147,7 +148,7 @@ def follows_refusal(mistake: Mistake, request: AgentRequest) -> bool:
     """Whether ``request`` (the next to the agent that made ``mistake``) follows a refusal
     of it: the same brick is being built, and the memory holds a refusal of this agent's
     made since (refused, raised or put down)."""
-    memory, key = request.memory, str(request.spec.key)
+    memory, key = request.memory, str(request.memory.step)
     if len(memory.placed) != mistake.placed or len(memory.refusals) <= mistake.refusals:
         return False
     return any(refusal.agent == key for refusal in memory.refusals[mistake.refusals :])
@@ -175,8 +176,6 @@ def repeated(
     """``answer`` with the mistake ``kind``/``mark`` made again (a change of that mark drawn
     uniformly, where a group holds several), its record (``repeated``) and the mark; None if
     the answer gives no room for it."""
-    if _done(answer):
-        return None
     if kind in NEAR_CHANGES:
         assert isinstance(mark, Near)
         change = NEAR_CHANGES[kind](answer, request, mark)
@@ -197,8 +196,6 @@ def _corrupted(
 ) -> tuple[AgentAnswer, AnswerCorruption, Hashable] | None:
     """:func:`corruption` with the mistake's mark. The near-misses draw their direction and
     factor after the kind, so that the other kinds draw as they did before near-misses."""
-    if _done(answer):
-        return None
     applicable: dict[CorruptionKind, Choices] = {}
     for kind in kinds:
         if kind in NEAR_CHANGES:
@@ -240,11 +237,6 @@ def _made(
     )
     made = request.spec.output_model.of(answer).model_copy(update=change.update)
     return made, corrupted, change.mark
-
-
-def _done(answer: AgentAnswer) -> bool:
-    """The single agent's ``done``: left as it is."""
-    return isinstance(answer, SingleAgentAnswer) and answer.step == "done"
 
 
 # --- the kinds: what each can change in an answer -------------------------------------
@@ -310,21 +302,13 @@ def _skipped_hover(answer: AgentAnswer, request: AgentRequest) -> Choices:
     waypoint = _waypoint(answer)
     if waypoint is None:
         return []
-    step = _step(answer, request)
     picked = _choice(answer)
-    if step == Stage.PRE_GRASP and picked is not None:
-        if picked.brick_id not in {b.id for b in request.state.bricks}:
-            return []
-        goal = request.state.brick(picked.brick_id).pose.position_m[2]
-        what = f"the centre of brick {picked.brick_id}"
-    elif step == Stage.TRANSFER and request.memory.current_target is not None:
-        targets = {t.index: t for t in request.state.goal.targets}
-        target = targets.get(request.memory.current_target)
-        if target is None:
-            return []
-        goal, what = target.pose.position_m[2], f"the centre of target {target.index}"
-    else:
+    if _step(answer, request) != Stage.PRE_GRASP or picked is None:
         return []
+    if picked.brick_id not in {b.id for b in request.state.bricks}:
+        return []
+    goal = request.state.brick(picked.brick_id).pose.position_m[2]
+    what = f"the centre of brick {picked.brick_id}"
     x, y, z = waypoint.position_m
     if z - goal < MIN_MOVE_M:
         return []
