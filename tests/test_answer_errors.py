@@ -6,8 +6,8 @@ and the single agent on the scripted FakeWorld (no physics)."""
 
 from __future__ import annotations
 
-import json
 import itertools
+import json
 import math
 import subprocess
 from collections.abc import Callable
