@@ -170,8 +170,13 @@ def test_with_the_gates_only_a_failed_plan_is_recorded_and_sigma_3_refuses_after
     kinematics, one_brick
 ) -> None:
     world = FakeWorld(one_brick, BRICKS, *kinematics)
-    result = build(world, Scripted({"descent": [along(OFF_ALONG)]}), Verification.GATES)
+    reasoner = Scripted({"descent": [along(OFF_ALONG)]})
+    result = build(world, reasoner, Verification.GATES)
     assert_within_the_rule(world, result)
+    # The grasp's memory holds m_1, m_2: the descent's decision and the check it failed.
+    m_1, m_2 = reasoner.asked("grasp")[0].memory.this_brick
+    assert (m_1.agent, m_1.passed, m_2.agent, m_2.passed) == ("pre_grasp", True, "descent", False)
+    assert m_2.failed == ("descent_plan",) and "rationale" not in m_2.decision
     descent = calls(result, "descent")[0]
     (plan,) = [g for g in descent.gates if g.gate == "descent_plan"]
     assert not plan.passed and not plan.enforced and descent.outcome == "executed"
@@ -359,3 +364,24 @@ def test_a_trial_answered_unlike_the_built_in_at_every_stage_succeeds_in_the_sim
         plans = [g for g in call.gates if g.gate.endswith(("_plan", "_choice"))]
         assert all(g.passed for g in plans), (call.agent, call.feedback)
     assert {c.agent for c in run.transcript if c.attempt > 1} <= {"placement"}  # sigma_5 only
+
+
+def test_memory_carries_the_earlier_agents_decisions_for_this_brick(kinematics, one_brick) -> None:
+    """m_1 ... m_(i-1): each agent reads the decisions accepted before it in this brick's
+    cycle (not their rationales), in order, each with its verdict."""
+    reasoner = Scripted()
+    world = FakeWorld(one_brick, BRICKS, *kinematics)
+    result = build(world, reasoner)
+    asked = [(r.spec.key, r.memory.this_brick) for r in reasoner.requests]
+    for (agent, memory), before in zip(asked, range(len(asked)), strict=True):
+        assert [m.agent for m in memory] == [key for key, _ in asked[:before]], agent
+    answers = [c.answer for c in result.transcript]
+    for m_i, answer in zip(asked[-1][1], answers, strict=False):
+        assert m_i.passed and _within(m_i.decision, answer)
+
+
+def _within(part: object, whole: object) -> bool:
+    """Whether ``part`` is ``whole`` with some of its mapping fields (defaults) left out."""
+    if isinstance(part, dict) and isinstance(whole, dict):
+        return all(name in whole and _within(value, whole[name]) for name, value in part.items())
+    return part == whole

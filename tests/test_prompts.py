@@ -137,7 +137,8 @@ def test_prompt_command_prints_what_an_agent_is_sent_in_trial_zero() -> None:
         ("placement", "set_down"),
     ]
     assert done[0].decision["brick_id"] == 0 and "rationale" not in done[0].decision
-    assert done[-1].verdicts == {"placement_plan": True, "sigma5_placement": True}
+    assert all(m.passed and not m.failed for m in done)
+    assert '"passed":true' in memory and "failed" not in memory
     assert '"ready_pose":{"position_m":[0.45,-0.25,0.4]' in result.stdout
 
 

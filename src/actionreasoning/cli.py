@@ -563,6 +563,18 @@ def _successes(table: ComparisonTable, row: str, pattern: str) -> str:
     return f"{ok}/{trials} ok, CI {100 * interval.low:.0f}–{100 * interval.high:.0f} %"
 
 
+def _ladder(table: ComparisonTable) -> Table:
+    """The ablation ladder for the terminal (table.md says what it is)."""
+    from actionreasoning.report.ladder import LADDER_COLUMNS
+
+    shown = Table(title="the ablation ladder: rungs of verification under each condition")
+    for column in LADDER_COLUMNS:
+        shown.add_column(column)
+    for row in table.ladder:
+        shown.add_row(*map(escape, row.cells))
+    return shown
+
+
 def _pairs(table: ComparisonTable) -> Table:
     """The paired comparisons for the terminal (table.md says what they are)."""
     from actionreasoning.report.pairs import PAIR_COLUMNS
@@ -599,6 +611,8 @@ def report_command(
     except (ActionReasoningError, OSError) as error:
         _fail(error, out)
     console.print(_comparison(report.table))
+    if report.table.ladder:
+        console.print(_ladder(report.table))
     if report.table.pairs:
         console.print(_pairs(report.table))
     for note in report.table.notes:

@@ -38,8 +38,9 @@ class StepDecision(BaseModel):
     decision: dict[str, Any] = Field(
         description="The answer's decision fields (no rationale, no tool calls)."
     )
-    verdicts: dict[str, bool] = Field(
-        default_factory=dict, description="Each check judged on it: passed or not."
+    passed: bool = Field(description="Whether every verdict judged on it passed (sigma_i).")
+    failed: tuple[str, ...] = Field(
+        (), description="The verdicts that failed on it, which its rung did not enforce."
     )
 
 

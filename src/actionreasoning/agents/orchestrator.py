@@ -309,17 +309,30 @@ class Orchestrator:
     def _remember_decision(self, key: Stage, decision: AgentAnswer) -> None:
         """Keep m_i, the accepted decision of ``key`` and its verdicts, for the agents after
         it in this brick's cycle."""
-        verdicts = {g.gate: g.passed for g in self.result.transcript[-1].gates}
+        failed = tuple(g.gate for g in self.result.transcript[-1].gates if not g.passed)
         m_i = StepDecision(
             agent=key,
             phase=self.memory.phase,
             decision=decision.model_dump(
                 mode="json", exclude={"rationale", "tool_calls"}, exclude_defaults=True
             ),
-            verdicts=verdicts,
+            passed=not failed,
+            failed=failed,
         )
         self.memory = self.memory.model_copy(
             update={"last_feedback": "", "this_brick": (*self.memory.this_brick, m_i)}
+        )
+
+    def _judged_after_acceptance(self, verdict: GateVerdict) -> None:
+        """A verdict that did not refuse, judged after its answer was accepted (sigma_5 on
+        the set-down): the answer's outcome (executed, if it failed unenforced) and its m_i
+        take it too."""
+        self.calls.conclude(Outcome.ACCEPTED)
+        last = self.memory.this_brick[-1]
+        failed = (*last.failed, *(() if verdict.passed else (verdict.gate,)))
+        m_i = last.model_copy(update={"passed": not failed, "failed": failed})
+        self.memory = self.memory.model_copy(
+            update={"this_brick": (*self.memory.this_brick[:-1], m_i)}
         )
 
     def _remember(
@@ -613,15 +626,7 @@ class Orchestrator:
                 _touch_down(motion, state, slot)
             )
             if not self._refuses(verdict):
-                # Judged after the set-down's answer was accepted: its outcome (executed, if
-                # sigma_5 failed unenforced) and its m_i take the verdict too.
-                self.calls.conclude(Outcome.ACCEPTED)
-                last = self.memory.this_brick[-1]
-                verdicts = {**last.verdicts, verdict.gate: verdict.passed}
-                m_i = last.model_copy(update={"verdicts": verdicts})
-                self.memory = self.memory.model_copy(
-                    update={"this_brick": (*self.memory.this_brick[:-1], m_i)}
-                )
+                self._judged_after_acceptance(verdict)
                 self._placement_phase(None)
                 return
             refusal = verdict.refusal(Stage.PLACEMENT)

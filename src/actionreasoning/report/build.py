@@ -19,6 +19,7 @@ from jinja2 import Environment, PackageLoader, select_autoescape
 
 from actionreasoning.recording.names import VIDEO_FPS
 from actionreasoning.report.collect import Group, load_groups, patterns
+from actionreasoning.report.ladder import LADDER_CAPTION, LADDER_COLUMNS
 from actionreasoning.report.leaderboard import BOARD_CAPTION, BOARD_COLUMNS
 from actionreasoning.report.pairs import PAIR_COLUMNS, PAIRS_CAPTION
 from actionreasoning.report.pictures import stage_grid, trial_gif
@@ -205,6 +206,9 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
         board_caption=BOARD_CAPTION,
         board_columns=BOARD_COLUMNS,
         board=table.board,
+        ladder_caption=LADDER_CAPTION,
+        ladder_columns=LADDER_COLUMNS,
+        ladder=[row.cells for row in table.ladder],
         pairs_caption=PAIRS_CAPTION,
         pair_columns=PAIR_COLUMNS,
         pairs=[pair.cells for pair in table.pairs],

@@ -23,6 +23,7 @@ import numpy as np
 from actionreasoning.agents.answer_errors import Caught
 from actionreasoning.records import FailureCode
 from actionreasoning.report.collect import Group, condition_notes, labels, patterns
+from actionreasoning.report.ladder import LadderRow, ladder_lines, ladders
 from actionreasoning.report.leaderboard import board_lines, board_rows
 from actionreasoning.report.pairs import Pair, pair_lines, paired_comparisons
 from actionreasoning.runs.courses import CourseMetrics
@@ -225,6 +226,7 @@ class Table:
     # over all trials
     board: list[list[str]]  # the leaderboard, a row per group (leaderboard.BOARD_COLUMNS)
     pairs: list[Pair]  # rows run on the same trials, compared
+    ladder: list[LadderRow]  # the rungs of verification under each condition
 
     @property
     def all_trials(self) -> list[AllTrialsRow]:
@@ -325,6 +327,7 @@ def comparison_table(groups: Sequence[Group]) -> Table:
         all_stats={(g.label, g.pattern): g.summary.all_trials for g in groups},
         board=board_rows(groups),
         pairs=paired_comparisons(groups),
+        ladder=ladders(groups),
     )
 
 
@@ -395,6 +398,8 @@ def to_markdown(table: Table) -> str:
     for row in table.rows:
         lines.append(f"| {row} | " + " | ".join(table.success_cell(row, p) for p in groups) + " |")
     lines += ["", SUCCESS_NOTE, "", *board_lines(table.board), ""]
+    if table.ladder:
+        lines += [*ladder_lines(table.ladder), ""]
     if table.pairs:
         lines += [*pair_lines(table.pairs), ""]
     if table.failures:
