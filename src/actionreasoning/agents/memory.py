@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from enum import StrEnum
-from typing import Any, Literal
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.agents.feedback import Refusal
+from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.world.stages import Stage
 
 
@@ -29,15 +30,19 @@ class PlacementPhase(StrEnum):
 
 
 class StepDecision(BaseModel):
-    """m_i: what an earlier agent decided for the current brick, and its verdicts."""
+    """m_i: what an earlier agent decided for the current brick (the decision fields its
+    answer set, not its rationale or tool calls), and its verdict."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     agent: Stage
     phase: PlacementPhase | None = None
-    decision: dict[str, Any] = Field(
-        description="The answer's decision fields (no rationale, no tool calls)."
-    )
+    brick_id: int | None = None
+    target_index: int | None = None
+    gripper_opening_m: float | None = None
+    close: bool | None = None
+    regrasp: bool | None = None
+    waypoint: WaypointProposal | None = None
     passed: bool = Field(description="Whether every verdict judged on it passed (sigma_i).")
     failed: tuple[str, ...] = Field(
         (), description="The verdicts that failed on it, which its rung did not enforce."

@@ -79,7 +79,7 @@ from actionreasoning.tools.placement import (
     PlacementQuery,
     carried_pose,
 )
-from actionreasoning.world.geometry import Vec3, rotation_deg
+from actionreasoning.world.geometry import Vec3, rotation_deg, round_floats
 from actionreasoning.world.models import (
     BrickStatus,
     GoalPattern,
@@ -95,6 +95,9 @@ from actionreasoning.world.tolerances import LIFT_SUPPORT_M, Tolerances
 T = TypeVar("T")
 D = TypeVar("D", bound=AgentAnswer)
 
+#: Decimals an earlier agent's decision is recalled to in memory: a millimetre, a
+#: thousandth of a quaternion (the state shows what is measured to 0.01 mm).
+MEMORY_DIGITS = 3
 #: How long a brick still moving in the hand after the lift is held still before sigma_4
 #: judges it: a swing of a brick hanging from a pad dies out within about half a second.
 SETTLE_S = 0.5
@@ -310,14 +313,17 @@ class Orchestrator:
         """Keep m_i, the accepted decision of ``key`` and its verdicts, for the agents after
         it in this brick's cycle."""
         failed = tuple(g.gate for g in self.result.transcript[-1].gates if not g.passed)
-        m_i = StepDecision(
-            agent=key,
-            phase=self.memory.phase,
-            decision=decision.model_dump(
-                mode="json", exclude={"rationale", "tool_calls"}, exclude_defaults=True
-            ),
-            passed=not failed,
-            failed=failed,
+        decided = decision.model_dump(
+            mode="json", exclude={"rationale", "tool_calls"}, exclude_defaults=True
+        )
+        m_i = StepDecision.model_validate(
+            {
+                **round_floats(decided, MEMORY_DIGITS),
+                "agent": key,
+                "phase": self.memory.phase,
+                "passed": not failed,
+                "failed": failed,
+            }
         )
         self.memory = self.memory.model_copy(
             update={"last_feedback": "", "this_brick": (*self.memory.this_brick, m_i)}

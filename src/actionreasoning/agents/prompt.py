@@ -40,8 +40,19 @@ THRESHOLDS_HEADING = "## Thresholds"
 
 
 def compact_json(data: Any) -> str:
-    """Compact JSON with floats rounded as in prompts."""
-    return json.dumps(round_floats(data, DIGITS), separators=(",", ":"))
+    """Compact JSON with floats rounded as in prompts, a whole one written as an integer
+    (0.0 as 0: the same number, read back)."""
+    return json.dumps(_whole(round_floats(data, DIGITS)), separators=(",", ":"))
+
+
+def _whole(value: Any) -> Any:
+    if isinstance(value, float) and value.is_integer():
+        return int(value)
+    if isinstance(value, list):
+        return [_whole(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _whole(v) for k, v in value.items()}
+    return value
 
 
 @cache

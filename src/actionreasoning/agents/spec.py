@@ -108,6 +108,17 @@ def _knowledge(entry: dict[str, Any], tier: ToolTier, what: str) -> tuple[tuple[
     return tools, formulas
 
 
+def _frames(value: object, tier: ToolTier, what: str) -> bool:
+    """Whether an agent's prompt explains the frames in ``tier``: in every tier (true), none
+    (false), or in the tiers listed (where it composes poses, rather than copying a
+    solver's)."""
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, list) and set(value) <= set(ToolTier):
+        return tier in value
+    raise ValueError(f"{what}: frames is true, false or a list of tiers ({TIERS})")
+
+
 def parse_agents(text: str, tier: ToolTier = DEFAULT_TIER) -> tuple[AgentSpec, ...]:
     """The agents of an ``agents.yaml`` text in ``tier``, checked: known tools, formulas and
     thresholds, and every step of a thinking chain a line of text."""
@@ -126,7 +137,7 @@ def parse_agents(text: str, tier: ToolTier = DEFAULT_TIER) -> tuple[AgentSpec, .
                 gate=entry["gate"],
                 scope=Scope(entry["scope"]),
                 thresholds=tuple(entry["thresholds"]),
-                frames=entry["frames"],
+                frames=_frames(entry["frames"], tier, what),
                 robot_extras=tuple(entry.get("robot_extras", ())),
                 tools=tools,
                 thinking=_lines(_of_tier(entry["thinking"], tier, what), what),

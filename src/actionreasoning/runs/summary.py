@@ -84,6 +84,9 @@ class RunSummary(Provenance):
     noise: NoiseLevel | None = None
     #: The reasoning tier; None in summaries written before tiers existed (solve).
     tools: str | None = None
+    #: The rung of verification (agents/verification.py); None for the classical script and
+    #: in summaries written before rungs existed.
+    verify: str | None = None
     seed: int
     trials: int
     successes: int
@@ -174,6 +177,7 @@ def summarize(
         physics=physics,
         noise=noise,
         tools=tools,
+        verify=first.verify,
         seed=first.seed,
         trials=len(results),
         successes=len(ok),
@@ -250,7 +254,13 @@ def summary_markdown(summary: RunSummary) -> str:
         + (f" under {summary.physics.name} physics" if summary.physics else "")
         + (f", noise {summary.noise.name}" if summary.noise else "")
         + (f", tools {summary.tools}" if summary.tools and summary.llm != "none" else "")
-        + (f", answer errors {summary.answer_errors.rate:g}" if summary.answer_errors else ""),
+        + (f", verify {summary.verify}" if summary.verify else "")
+        + (f", answer errors {summary.answer_errors.rate:g}" if summary.answer_errors else "")
+        + (
+            f" (persistence {summary.answer_errors.persistence:g})"
+            if summary.answer_errors and summary.answer_errors.persistence
+            else ""
+        ),
         "",
         f"Reasoning backend: `{summary.llm}` · seed {summary.seed} · {summary.trials} trials · "
         f"wall time {summary.wall_time_s:.1f} s"

@@ -334,17 +334,17 @@ class Tolerances(BaseModel):
     c_min_m: float = Field(
         _DEFAULTS["c_min_m"],
         gt=0,
-        description="least clearance of arm, gripper and held brick along a path.",
+        description="least clearance along a path.",
     )
     delta_m: float = Field(
         _DEFAULTS["delta_m"],
         gt=0,
-        description="least opening beyond the brick's width for the descent.",
+        description="least opening beyond the brick's width to descend.",
     )
     sidewall_contact_n: float = Field(
         _DEFAULTS["sidewall_contact_n"],
         gt=0,
-        description="a pad force above this on the way down touches a side wall.",
+        description="a pad force above this going down touches a wall.",
     )
     grip_load_factor: float = Field(
         _DEFAULTS["grip_load_factor"],
@@ -361,27 +361,27 @@ class Tolerances(BaseModel):
     eps_g_m: float = Field(
         _DEFAULTS["eps_g_m"],
         gt=0,
-        description="largest distance of the tool from the brick's centre (or from over it).",
+        description="largest offset of a grip from the brick's centre.",
     )
     eps_g_deg: float = Field(
         _DEFAULTS["eps_g_deg"],
         gt=0,
-        description="largest yaw between the pads' closing axis and the brick's width.",
+        description="largest yaw of a grip from the brick's.",
     )
     hover_clearance_m: float = Field(
         _DEFAULTS["hover_clearance_m"],
         gt=0,
-        description="least height of the fingertips over the brick's top at the approach.",
+        description="least height of the fingertips over the brick at the approach.",
     )
     pad_room_m: float = Field(
         _DEFAULTS["pad_room_m"],
         ge=0,
-        description="least room between an open pad and the side wall it passes going down.",
+        description="least room between an open pad and a side wall going down.",
     )
     v_th_mps: float = Field(
         _DEFAULTS["v_th_mps"],
         gt=0,
-        description="largest speed of the brick in the gripper.",
+        description="largest speed of the brick in the hand.",
     )
     v_lift_mps: float = Field(
         _DEFAULTS["v_lift_mps"],
@@ -391,12 +391,12 @@ class Tolerances(BaseModel):
     lift_drag_m: float = Field(
         _DEFAULTS["lift_drag_m"],
         gt=0,
-        description="largest sideways travel of a lift while the brick touches its support.",
+        description="largest sideways travel over a lift's first 1 cm.",
     )
     lift_drag_deg: float = Field(
         _DEFAULTS["lift_drag_deg"],
         gt=0,
-        description="largest turn of a lift while the brick touches its support.",
+        description="largest turn over a lift's first 1 cm.",
     )
     force_noise: float = Field(
         0.0, ge=0.0, description="relative noise (std) of a pad force reading."
@@ -404,12 +404,12 @@ class Tolerances(BaseModel):
     eps_perp_m: float = Field(
         _DEFAULTS["eps_perp_m"],
         gt=0,
-        description="largest height of a set brick's bottom above its seat.",
+        description="largest height of a set brick over its seat.",
     )
     eps_xy_m: float = Field(
         _DEFAULTS["eps_xy_m"],
         gt=0,
-        description="largest planar offset of a set brick from its target.",
+        description="largest planar offset of a set brick.",
     )
     eps_theta_deg: float = Field(
         _DEFAULTS["eps_theta_deg"], gt=0, description="largest yaw error of a set brick."
@@ -420,23 +420,22 @@ class Tolerances(BaseModel):
     max_offset_m: float = Field(
         _DEFAULTS["max_offset_m"],
         gt=0,
-        description="success rule: largest distance of a brick's centre from its target's.",
+        description="success rule: largest centre offset.",
     )
     max_rotation_deg: float = Field(
         _DEFAULTS["max_rotation_deg"],
         gt=0,
-        description="success rule: largest rotation of a brick from its target.",
+        description="success rule: largest rotation.",
     )
     delta_h_m: float = Field(
         _DEFAULTS["delta_h_m"],
         gt=0,
-        description="how far the tool is raised after a missed set-down.",
+        description="raise after a missed set-down.",
     )
     overlap_m: float = Field(
         _DEFAULTS["overlap_m"],
         ge=0,
-        description="largest overlap of two measured bodies still counted as clear "
-        "(sensing noise).",
+        description="largest overlap still counted as clear (sensing noise).",
     )
 
     @classmethod
