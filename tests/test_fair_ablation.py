@@ -8,10 +8,13 @@ accepts an answer the physics allows, however it differs from the built-in's.
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import pytest
+from conftest import assert_clean_error, cli
 from fake_world import FakeWorld, presses
 from test_orchestrator_fake import (
     BRICKS,
@@ -391,3 +394,37 @@ def _within(part: object, whole: object) -> bool:
     if isinstance(part, float):
         return part == round(float(whole), MEMORY_DIGITS)  # type: ignore[arg-type]
     return part == whole
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (("--method", "single-agent", "--verify", "gates"), "drop --verify gates"),
+        (("--method", "classical", "--verify", "full"), "drop --verify full"),
+    ],
+)
+def test_a_rung_the_method_cannot_run_is_refused_in_one_line(
+    tmp_path: Path, args: tuple[str, ...], needle: str
+) -> None:
+    result = cli("eval", *args, "--trials", "1", "--out", str(tmp_path / "o"))
+    assert_clean_error(result, needle)
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.slow
+def test_the_rung_is_recorded_in_run_json_and_on_every_line(tmp_path: Path, small_pattern) -> None:
+    out = tmp_path / "gates"
+    args = ("--pattern", str(small_pattern), "--physics", "precise", "--trials", "1")
+    result = cli("eval", "--verify", "gates", *args, "--transcripts", "--out", str(out))
+    assert result.returncode == 0, result.stderr
+    assert json.loads((out / "run.json").read_text())["config"]["verify"] == "gates"
+    (line,) = (out / "results.jsonl").read_text().splitlines()
+    assert json.loads(line)["verify"] == "gates"
+    calls = [json.loads(c) for c in (out / "transcripts" / "trial_000.jsonl").open()]
+    enforced = {g["gate"]: g["enforced"] for c in calls for g in c["gates"]}
+    assert enforced["descent_plan"] is False and enforced["sigma2_descent"] is True
+    single = tmp_path / "single"
+    assert cli("eval", "--method", "single-agent", *args, "--out", str(single)).returncode == 0
+    assert "verify" not in json.loads((single / "run.json").read_text())["config"]
+    (line,) = (single / "results.jsonl").read_text().splitlines()
+    assert json.loads(line)["verify"] == "none"

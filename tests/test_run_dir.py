@@ -11,6 +11,7 @@ from typing import Any
 import pytest
 from rich.console import Console
 
+from actionreasoning.agents.verification import Verification
 from actionreasoning.control.limits import ControllerLimits
 from actionreasoning.errors import ConfigError
 from actionreasoning.reasoners.backend import LLMConfig
@@ -152,6 +153,16 @@ def test_a_resume_under_other_conditions_is_refused_naming_the_field(tmp_path: P
     with pytest.raises(ConfigError, match=r"noise\.perception\.position_std_m 0\.0 there"):
         open_run(tmp_path, manifest(noise=NOISE["medium"]))
     assert open_run(tmp_path, MANIFEST) == [result(0)]
+
+
+def test_a_resume_at_another_rung_of_verification_is_refused(tmp_path: Path) -> None:
+    """The rung is part of run.json (at the method's own, left out: runs from before rungs
+    resume)."""
+    assert "verify" not in MANIFEST.model_dump_json()
+    open_run(tmp_path, MANIFEST)
+    (tmp_path / "results.jsonl").write_text(result(0).model_dump_json() + "\n")
+    with pytest.raises(ConfigError, match=r"verify None there, 'gates' now"):
+        open_run(tmp_path, manifest(verify=Verification.GATES))
 
 
 def test_an_interrupt_while_a_whole_line_is_synced_keeps_the_line(

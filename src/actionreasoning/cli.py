@@ -26,7 +26,7 @@ from actionreasoning.reasoners.registry import backend_help
 from actionreasoning.reasoners.sampling import MAX_COMPLETION_TOKENS, Effort, Sampling
 from actionreasoning.recording.names import VIDEO_FPS
 from actionreasoning.runs.layout import RunDir
-from actionreasoning.trial.rules import Method, check_rung
+from actionreasoning.trial.rules import Method, check_rung, rung_of
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.geometry import quat_yaw
 from actionreasoning.world.models import Supply
@@ -402,7 +402,8 @@ def eval_command(
             tools,
             llm=backend,
             answer_errors=errors,
-            verify=verify,
+            # The method's own rung is recorded as none given: one run, however it is spelled.
+            verify=None if verify == rung_of(method, None) else verify,
         )
     except ActionReasoningError as error:
         _fail(error)
