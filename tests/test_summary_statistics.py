@@ -16,15 +16,18 @@ from test_courses import brick
 from test_report import table_after
 from test_run_dir import manifest, result
 
+from actionreasoning.agents.answer_errors import Caught
+from actionreasoning.agents.answer_errors import CorruptionKind as K
 from actionreasoning.agents.error_kinds import ErrorCategory as C
 from actionreasoning.agents.transcript import AgentCall, Outcome
+from actionreasoning.agents.verification import Verification
 from actionreasoning.records import LLMUsage
 from actionreasoning.report.build import build_report
 from actionreasoning.runs.run_dir import RunManifest
 from actionreasoning.runs.statistics import bootstrap_mean, mcnemar_exact, wilson
 from actionreasoning.runs.summary import MetricStats, RunSummary, summarize, summary_markdown
 from actionreasoning.trial.config import TrialConfig
-from actionreasoning.trial.results import FirstAttempts, TrialResult
+from actionreasoning.trial.results import AnswerErrorCounts, FirstAttempts, TrialResult
 from actionreasoning.trial.runner import first_attempts_of
 from actionreasoning.world.physics import PRECISE
 from actionreasoning.world.scenarios import NOISE
@@ -282,3 +285,61 @@ def test_a_rung_of_verification_other_than_the_methods_own_is_a_row_of_its_own(
     assert report.table.rows == [AGENTS, "agents (builtin, tools check, verify gates), precise"]
     (pair,) = report.table.pairs
     assert (pair.common, pair.test.b, pair.test.c) == (2, 2, 0)
+
+
+def test_the_ladder_sets_the_rungs_side_by_side_with_their_tests_and_catches(
+    tmp_path: Path,
+) -> None:
+    """The single agent succeeds in 3 of 5, the gated rung in 5 of 5 (b 0, c 2: p = 0.5),
+    the method in 4 of 5; the method's corrupted answers: two caught before the move by
+    the descent's plan, one after by sigma_5, one missed that did no harm."""
+    single = RunManifest.sealed(
+        "single-agent", "pyramid", "0" * 64, 0, TrialConfig(physics=PRECISE)
+    )
+    caught = AnswerErrorCounts(
+        corrupted=4,
+        by_kind={K.SIGN_FLIP: 4},
+        caught={K.SIGN_FLIP: {Caught.BEFORE: 2, Caught.AFTER: 1, Caught.MISSED: 1}},
+        checks={
+            "descent_plan:grip_offset_m": {K.SIGN_FLIP: 2},
+            "sigma5_placement:e_xy_m": {K.SIGN_FLIP: 1},
+        },
+        led_to={K.SIGN_FLIP: {"harmless": 1}},
+    )
+    runs = [
+        write_run(
+            tmp_path / "single",
+            single,
+            lines([True, False, True, False, True], method="single-agent", verify="none"),
+        ),
+        write_run(
+            tmp_path / "gates",
+            manifest(physics=PRECISE, verify=Verification.GATES),
+            lines([True] * 5, verify="gates"),
+        ),
+        write_run(
+            tmp_path / "full",
+            manifest(physics=PRECISE),
+            [
+                t.model_copy(update={"answer_errors": caught if t.trial == 0 else None})
+                for t in lines([True, True, True, True, False], verify="full")
+            ],
+        ),
+    ]
+    report = build_report(runs, tmp_path / "report")
+    condition = "builtin, tools check, precise, noise none, no answer errors"
+    cells = [row.cells for row in report.table.ladder]
+    assert [c[:4] for c in cells] == [
+        [condition, "single agent", "3/5 (23–88 %)", "–"],
+        [condition, "σ1–σ6 only", "5/5 (57–100 %)", "0.5 (b 0, c 2)"],
+        [condition, "both (the method)", "4/5 (38–96 %)", "1 (b 1, c 2)"],
+    ]
+    assert cells[2][4:] == [
+        "4",
+        "2",
+        "1",
+        "1 (0)",
+        "descent_plan:grip_offset_m 2, sigma5_placement:e_xy_m 1",
+    ]
+    rows = table_after((tmp_path / "report" / "table.md").read_text(), "The ablation ladder.")
+    assert rows[0].startswith(f"| {condition} | single agent | 3/5 (23–88 %) |")

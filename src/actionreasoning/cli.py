@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 import signal
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from enum import StrEnum
 from pathlib import Path
@@ -564,27 +564,13 @@ def _successes(table: ComparisonTable, row: str, pattern: str) -> str:
     return f"{ok}/{trials} ok, CI {100 * interval.low:.0f}–{100 * interval.high:.0f} %"
 
 
-def _ladder(table: ComparisonTable) -> Table:
-    """The ablation ladder for the terminal (table.md says what it is)."""
-    from actionreasoning.report.ladder import LADDER_COLUMNS
-
-    shown = Table(title="the ablation ladder: rungs of verification under each condition")
-    for column in LADDER_COLUMNS:
+def _cells_table(title: str, columns: Sequence[str], rows: Sequence[Sequence[str]]) -> Table:
+    """A report's table of text cells for the terminal (table.md says what it is)."""
+    shown = Table(title=title)
+    for column in columns:
         shown.add_column(column)
-    for row in table.ladder:
-        shown.add_row(*map(escape, row.cells))
-    return shown
-
-
-def _pairs(table: ComparisonTable) -> Table:
-    """The paired comparisons for the terminal (table.md says what they are)."""
-    from actionreasoning.report.pairs import PAIR_COLUMNS
-
-    shown = Table(title="paired comparisons: McNemar's exact test on trials of the same seed")
-    for column in PAIR_COLUMNS:
-        shown.add_column(column)
-    for pair in table.pairs:
-        shown.add_row(*map(escape, pair.cells))
+    for row in rows:
+        shown.add_row(*map(escape, row))
     return shown
 
 
@@ -604,6 +590,8 @@ def report_command(
     content; others are set side by side, and the report names the fields that differ.
     """
     from actionreasoning.report.build import build_report
+    from actionreasoning.report.ladder import LADDER_COLUMNS
+    from actionreasoning.report.pairs import PAIR_COLUMNS
     from actionreasoning.runs.run_dir import check_output_path
 
     try:
@@ -613,9 +601,13 @@ def report_command(
         _fail(error, out)
     console.print(_comparison(report.table))
     if report.table.ladder:
-        console.print(_ladder(report.table))
+        title = "the ablation ladder: rungs of verification under each condition"
+        rows = [row.cells for row in report.table.ladder]
+        console.print(_cells_table(title, LADDER_COLUMNS, rows))
     if report.table.pairs:
-        console.print(_pairs(report.table))
+        title = "paired comparisons: McNemar's exact test on trials of the same seed"
+        rows = [pair.cells for pair in report.table.pairs]
+        console.print(_cells_table(title, PAIR_COLUMNS, rows))
     for note in report.table.notes:
         console.print(note, highlight=False, markup=False, soft_wrap=True)
     if gif and not report.gifs:

@@ -26,7 +26,7 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import partial
-from typing import NoReturn, TypeVar
+from typing import NoReturn, TypeVar, get_args
 
 from scipy.spatial.transform import Rotation
 
@@ -54,6 +54,7 @@ from actionreasoning.agents.outputs import (
     RegraspRequest,
     ReleaseDecision,
     SingleAgentAnswer,
+    SingleAgentStep,
     WaypointProposal,
     placement_decision,
     stage_answer,
@@ -142,15 +143,8 @@ class _Regrasp(Exception):
         self.category = category
 
 
-#: The six agents' stages, in the order of a brick's cycle.
-AGENT_STAGES = (
-    Stage.PRE_GRASP,
-    Stage.DESCENT,
-    Stage.GRASP,
-    Stage.LIFT,
-    Stage.PLACEMENT,
-    Stage.RELEASE,
-)
+#: The six agents' stages, in the order of a brick's cycle: the single agent's steps.
+AGENT_STAGES: tuple[Stage, ...] = get_args(SingleAgentStep)
 
 
 class Orchestrator:

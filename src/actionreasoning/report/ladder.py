@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from actionreasoning.agents.answer_errors import Caught, CorruptionKind
 from actionreasoning.agents.verification import Verification
 from actionreasoning.report.collect import Group
+from actionreasoning.report.pairs import captioned_table
 from actionreasoning.runs.statistics import McNemar, mcnemar_exact, wilson
 from actionreasoning.trial.results import AnswerErrorCounts, TrialResult
 from actionreasoning.trial.rules import Method, rung_of
@@ -103,15 +104,8 @@ class LadderRow:
 
 def ladder_lines(rows: Sequence[LadderRow]) -> list[str]:
     """The ladder as markdown: what it is, then a table (LADDER_COLUMNS)."""
-    if not rows:
-        return []
-    return [
-        f"The ablation ladder. {LADDER_CAPTION}",
-        "",
-        "| " + " | ".join(LADDER_COLUMNS) + " |",
-        "|---" * len(LADDER_COLUMNS) + "|",
-        *("| " + " | ".join(row.cells) + " |" for row in rows),
-    ]
+    cells = [row.cells for row in rows]
+    return captioned_table(f"The ablation ladder. {LADDER_CAPTION}", LADDER_COLUMNS, cells)
 
 
 def ladders(groups: Sequence[Group]) -> list[LadderRow]:

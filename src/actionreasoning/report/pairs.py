@@ -142,12 +142,20 @@ def _compare(a: Group, b: Group) -> Pair | None:
 
 def pair_lines(pairs: Sequence[Pair]) -> list[str]:
     """The paired comparisons as markdown: what they are, then a table (PAIR_COLUMNS)."""
-    if not pairs:
+    rows = [pair.cells for pair in pairs]
+    return captioned_table(f"Paired comparisons. {PAIRS_CAPTION}", PAIR_COLUMNS, rows)
+
+
+def captioned_table(
+    caption: str, columns: Sequence[str], rows: Sequence[Sequence[str]]
+) -> list[str]:
+    """A markdown table of text cells under a caption; nothing without rows."""
+    if not rows:
         return []
     return [
-        f"Paired comparisons. {PAIRS_CAPTION}",
+        caption,
         "",
-        "| " + " | ".join(PAIR_COLUMNS) + " |",
-        "|---" * len(PAIR_COLUMNS) + "|",
-        *("| " + " | ".join(pair.cells) + " |" for pair in pairs),
+        "| " + " | ".join(columns) + " |",
+        "|---" * len(columns) + "|",
+        *("| " + " | ".join(row) + " |" for row in rows),
     ]
