@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from actionreasoning.agents.answer_errors import Caught, CorruptionKind
 from actionreasoning.agents.verification import Verification
 from actionreasoning.report.collect import Group
-from actionreasoning.report.pairs import captioned_table
+from actionreasoning.runs.markdown import captioned_table
 from actionreasoning.runs.statistics import McNemar, mcnemar_exact, wilson
 from actionreasoning.trial.results import AnswerErrorCounts, TrialResult
 from actionreasoning.trial.rules import Method, rung_of

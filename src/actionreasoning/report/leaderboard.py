@@ -8,6 +8,7 @@ from collections.abc import Sequence
 
 from actionreasoning.report.collect import Group
 from actionreasoning.runs.leaderboard import LEADERBOARD_COLUMNS, by_agent_text, leaderboard_cells
+from actionreasoning.runs.markdown import table_lines
 from actionreasoning.runs.summary import success_text
 
 BOARD_COLUMNS = ("Method", "Pattern", "Success", *LEADERBOARD_COLUMNS, "First answers by agent")
@@ -36,10 +37,4 @@ def board_rows(groups: Sequence[Group]) -> list[list[str]]:
 
 def board_lines(rows: Sequence[Sequence[str]]) -> list[str]:
     """The leaderboard as markdown: what it counts, then a table (BOARD_COLUMNS)."""
-    return [
-        f"Leaderboard. {BOARD_CAPTION}",
-        "",
-        "| " + " | ".join(BOARD_COLUMNS) + " |",
-        "|---" * len(BOARD_COLUMNS) + "|",
-        *("| " + " | ".join(row) + " |" for row in rows),
-    ]
+    return [f"Leaderboard. {BOARD_CAPTION}", "", *table_lines(BOARD_COLUMNS, rows)]

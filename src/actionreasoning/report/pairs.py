@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from itertools import combinations
 
 from actionreasoning.report.collect import Group, labels, patterns
+from actionreasoning.runs.markdown import captioned_table
 from actionreasoning.runs.statistics import McNemar, mcnemar_exact
 
 #: run.json values two rows must share to be paired (a name and every name under it).
@@ -144,18 +145,3 @@ def pair_lines(pairs: Sequence[Pair]) -> list[str]:
     """The paired comparisons as markdown: what they are, then a table (PAIR_COLUMNS)."""
     rows = [pair.cells for pair in pairs]
     return captioned_table(f"Paired comparisons. {PAIRS_CAPTION}", PAIR_COLUMNS, rows)
-
-
-def captioned_table(
-    caption: str, columns: Sequence[str], rows: Sequence[Sequence[str]]
-) -> list[str]:
-    """A markdown table of text cells under a caption; nothing without rows."""
-    if not rows:
-        return []
-    return [
-        caption,
-        "",
-        "| " + " | ".join(columns) + " |",
-        "|---" * len(columns) + "|",
-        *("| " + " | ".join(row) + " |" for row in rows),
-    ]

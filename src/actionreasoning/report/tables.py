@@ -27,6 +27,7 @@ from actionreasoning.report.ladder import LadderRow, ladder_lines, ladders
 from actionreasoning.report.leaderboard import board_lines, board_rows
 from actionreasoning.report.pairs import Pair, pair_lines, paired_comparisons
 from actionreasoning.runs.courses import CourseMetrics
+from actionreasoning.runs.markdown import captioned_table, table_lines
 from actionreasoning.runs.statistics import BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED, Interval, wilson
 from actionreasoning.runs.summary import (
     CAUGHT_TITLES,
@@ -381,14 +382,8 @@ def to_markdown(table: Table) -> str:
         lines.append("| " + " | ".join(cells) + " |")
     lines += ["", MEANS_NOTE, ""]
     if table.all_trials:
-        lines += [
-            ALL_TRIALS_NOTE,
-            "",
-            "| " + " | ".join(ALL_TRIALS_COLUMNS) + " |",
-            "|---" * len(ALL_TRIALS_COLUMNS) + "|",
-            *("| " + " | ".join(r.cells) + " |" for r in table.all_trials),
-            "",
-        ]
+        rows = [r.cells for r in table.all_trials]
+        lines += [*captioned_table(ALL_TRIALS_NOTE, ALL_TRIALS_COLUMNS, rows), ""]
     lines += [
         "| Method | "
         + " | ".join(f"{p if p != AVERAGE else 'all'}: success" for p in groups)
@@ -465,9 +460,7 @@ def _pace_and_course_lines(table: Table) -> list[str]:
         "trial), and the cycle time: simulated seconds per placed brick, and the bricks an "
         "hour that makes:",
         "",
-        "| " + " | ".join(PACE_COLUMNS) + " |",
-        "|---" * len(PACE_COLUMNS) + "|",
-        *("| " + " | ".join(row.cells) + " |" for row in table.pace),
+        *table_lines(PACE_COLUMNS, [row.cells for row in table.pace]),
     ]
     for (row, pattern), courses in table.courses.items():
         lines += [

@@ -26,6 +26,7 @@ from actionreasoning.runs.leaderboard import (
     leaderboard,
     leaderboard_cells,
 )
+from actionreasoning.runs.markdown import table_lines
 from actionreasoning.runs.statistics import (
     BOOTSTRAP_RESAMPLES,
     BOOTSTRAP_SEED,
@@ -340,9 +341,7 @@ def _leaderboard_lines(summary: RunSummary) -> list[str]:
         "came; refused and failed answers (repairs included) and prompt tokens per brick of "
         "the pattern, and tokens per brick placed:",
         "",
-        "| " + " | ".join(LEADERBOARD_COLUMNS) + " |",
-        "|---" * len(LEADERBOARD_COLUMNS) + "|",
-        "| " + " | ".join(leaderboard_cells(board)) + " |",
+        *table_lines(LEADERBOARD_COLUMNS, [leaderboard_cells(board)]),
         "",
     ]
     if len(board.first_attempts_by_agent) > 1:
