@@ -67,9 +67,7 @@ def grasp(trial: int, seed: int, across_m: float, along_m: float, yaw_deg: float
         tools = sim.tools(after)
         slip = SLIP(tools, BrickQuery(brick_id=brick.id))
         pads = FINGER_CONTACTS(tools, BrickQuery(brick_id=brick.id))
-        offset = Rotation.from_quat(after.robot.ee_pose.quat_xyzw).apply(
-            slip.offset_in_gripper_m
-        )
+        offset = Rotation.from_quat(after.robot.ee_pose.quat_xyzw).apply(slip.offset_in_gripper_m)
         held = after.brick(brick.id).pose
         turn = wrap_angle(2 * (quat_yaw(held.quat_xyzw) - quat_yaw(after.robot.ee_pose.quat_xyzw)))
         slid = math.dist(held.position_m[:2], brick.pose.position_m[:2])
