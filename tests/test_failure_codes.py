@@ -8,6 +8,9 @@ from conftest import doc_table
 from pydantic import ValidationError
 
 from actionreasoning.records import Failure, FailureCode
+from actionreasoning.trial.results import BrickResult
+from actionreasoning.trial.runner import misplaced
+from actionreasoning.world.success import SuccessRule
 
 
 def test_the_docs_table_is_the_enum_in_order() -> None:
@@ -40,3 +43,26 @@ def test_summaries_explain_each_code_from_the_enum() -> None:
     assert summary.failures == {FailureCode.MISPLACED: 2}
     row = f"| `misplaced` | {FailureCode.MISPLACED.meaning} | 2 | 1 |"
     assert row in summary_markdown(summary)
+
+
+def test_a_misplaced_build_names_the_brick_furthest_past_the_rule() -> None:
+    """Seen on a wall (seed 0, trial 3): brick 0 was further off (0.64 cm, 2.67 deg, inside
+    the rule), brick 4 turned 5.17 deg (outside); the detail must name brick 4."""
+    rule = SuccessRule()  # 2 cm, 5 deg
+
+    def brick(id_: int, offset_cm: float, rotation_deg: float) -> BrickResult:
+        return BrickResult(
+            id=id_, size=(0.2, 0.095, 0.06), target_position=(0.5, 0.0, 0.03),
+            target_orientation=(0, 0, 0, 1), final_position=(0.5, 0.0, 0.03),
+            final_orientation=(0, 0, 0, 1), center_offset_cm=offset_cm,
+            rotation_error_deg=rotation_deg, symmetric_rotation_error_deg=rotation_deg, iou=0.9,
+        )  # fmt: skip
+
+    bricks = [brick(0, 0.64, 2.67), brick(4, 0.62, 5.17), brick(7, 0.13, 0.16)]
+    failure = misplaced(bricks, rule)
+    assert failure.reason is FailureCode.MISPLACED
+    assert failure.detail == (
+        "1 of 3 bricks outside 2.0 cm / 5.0 deg; worst brick 4: 0.62 cm, 5.17 deg"
+    )
+    assert rule.excess(bricks[1]) == pytest.approx(5.17 / 5.0)
+    assert rule.excess(brick(1, 3.0, 1.0)) == pytest.approx(1.5)

@@ -43,6 +43,7 @@ from actionreasoning.world.geometry import QuatXYZW, Vec3
 from actionreasoning.world.models import READY_POSE, GoalPattern
 from actionreasoning.world.noise import vary_bricks
 from actionreasoning.world.stages import StageEvent
+from actionreasoning.world.success import SuccessRule
 from actionreasoning.world.supply import lay_out
 
 
@@ -301,13 +302,7 @@ def measure(
     within = [rule.is_placed(b) for b in bricks]
     moving = [b.id for b in bricks if not rule.is_at_rest(*scene.brick_velocity(b.id))]
     if failure is None and not all(within):
-        worst = max(bricks, key=lambda b: b.center_offset_cm)
-        failure = Failure(
-            reason=FailureCode.MISPLACED,
-            detail=f"{within.count(False)} of {len(bricks)} bricks outside "
-            f"{rule.max_center_offset_cm} cm / {rule.max_rotation_error_deg} deg; worst brick "
-            f"{worst.id}: {worst.center_offset_cm:.2f} cm, {worst.rotation_error_deg:.2f} deg",
-        )
+        failure = misplaced(bricks, rule)
     if failure is None and moving:
         failure = Failure(reason=FailureCode.NOT_AT_REST, detail=f"bricks still moving: {moving}")
     return TrialResult(
@@ -380,3 +375,16 @@ def first_attempts_of(transcript: Sequence[AgentCall]) -> dict[str, FirstAttempt
                 asked=1, accepted=int(accepted)
             )
     return counts
+
+
+def misplaced(bricks: Sequence[BrickResult], rule: SuccessRule) -> Failure:
+    """The failure of a finished build with bricks outside the success rule, naming the one
+    furthest past its limits (in units of the limits: offset and rotation alike)."""
+    outside = [b for b in bricks if not rule.is_placed(b)]
+    worst = max(bricks, key=rule.excess)
+    return Failure(
+        reason=FailureCode.MISPLACED,
+        detail=f"{len(outside)} of {len(bricks)} bricks outside "
+        f"{rule.max_center_offset_cm} cm / {rule.max_rotation_error_deg} deg; worst brick "
+        f"{worst.id}: {worst.center_offset_cm:.2f} cm, {worst.rotation_error_deg:.2f} deg",
+    )

@@ -41,6 +41,14 @@ class SuccessRule:
             and brick.rotation_error_deg <= self.max_rotation_error_deg
         )
 
+    def excess(self, brick: Placement) -> float:
+        """How far a brick is from its target in units of the rule's limits: the larger of
+        its offset and its rotation error, each over its limit (above 1: not placed)."""
+        return max(
+            brick.center_offset_cm / self.max_center_offset_cm,
+            brick.rotation_error_deg / self.max_rotation_error_deg,
+        )
+
     def is_at_rest(self, linear_mps: Vec3, angular_radps: Vec3) -> bool:
         """Whether a brick moving with these velocities counts as at rest."""
         return (
