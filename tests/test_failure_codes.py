@@ -7,15 +7,54 @@ import pytest
 from conftest import doc_table
 from pydantic import ValidationError
 
-from actionreasoning.records import Failure, FailureCode
+from actionreasoning.records import Failure, FailureClass, FailureCode
 from actionreasoning.trial.results import BrickResult
 from actionreasoning.trial.runner import misplaced
 from actionreasoning.world.success import SuccessRule
 
 
 def test_the_docs_table_is_the_enum_in_order() -> None:
-    rows = doc_table("robustness.md", "## Failure codes", "| code | meaning |")
-    assert rows == [(code.value, code.meaning) for code in FailureCode]
+    rows = doc_table("robustness.md", "## Failure codes", "| code | class | meaning |")
+    assert rows == [(code.value, code.failure_class, code.meaning) for code in FailureCode]
+
+
+#: What the world does to a brick after accepted answers (issue 37): every other code is
+#: the answers' (or the model server's, which owed them).
+PHYSICAL_EVENTS = {
+    "grasp_slip": "slip or roll in the hand past the re-grasps",
+    "no_brick_left": "every brick left toppled or fell on others",
+    "placement_misaligned": "a set-down the forecast accepted rolled off its slot",
+    "physics_blowup": "the simulation blew up or flung a brick",
+    "misplaced": "a brick moved off after its set-down was accepted",
+    "not_at_rest": "a brick still moving at the end",
+}
+
+
+@pytest.mark.parametrize("code", list(FailureCode))
+def test_every_failure_code_has_one_class_physics_exactly_for_physical_events(
+    code: FailureCode,
+) -> None:
+    expected = FailureClass.PHYSICS if code in PHYSICAL_EVENTS else FailureClass.REASONING
+    assert code.failure_class is expected
+
+
+def test_a_summary_counts_failures_by_class_every_class_present() -> None:
+    from test_run_dir import result
+
+    from actionreasoning.runs.summary import summarize, summary_markdown
+
+    reasons = [FailureCode.GRASP_SLIP, FailureCode.COLLISION, FailureCode.MISPLACED]
+    results = [result(0, success=True)] + [
+        result(trial, success=False).model_copy(
+            update={"failure": Failure(reason=reason, agent=None, detail="x")}
+        )
+        for trial, reason in enumerate(reasons, start=1)
+    ]
+    summary = summarize(results, wall_time_s=1.0)
+    assert summary.failure_classes == {FailureClass.REASONING: 1, FailureClass.PHYSICS: 2}
+    assert "Failures by class: reasoning 1, physics 2." in summary_markdown(summary)
+    clean = summarize([result(0, success=True)], wall_time_s=1.0)
+    assert clean.model_dump(mode="json")["failure_classes"] == {"reasoning": 0, "physics": 0}
 
 
 def test_a_failure_reads_and_writes_its_code_as_the_plain_string() -> None:
@@ -41,7 +80,7 @@ def test_summaries_explain_each_code_from_the_enum() -> None:
     results = [result(trial, success=trial == 0) for trial in range(3)]
     summary = summarize(results, wall_time_s=1.0)
     assert summary.failures == {FailureCode.MISPLACED: 2}
-    row = f"| `misplaced` | {FailureCode.MISPLACED.meaning} | 2 | 1 |"
+    row = f"| `misplaced` | physics | {FailureCode.MISPLACED.meaning} | 2 | 1 |"
     assert row in summary_markdown(summary)
 
 

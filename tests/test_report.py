@@ -321,9 +321,12 @@ def test_llm_cost_and_the_failure_taxonomy_are_reported(tmp_path: Path) -> None:
     assert f"| agents (openai:gemma, tools check), precise | {success} | {success} |" in table
     meaning = FailureCode.MISPLACED.meaning
     row = (
-        f"| agents (openai:gemma, tools check), precise | pyramid | `misplaced` | {meaning} | 2 "
-        "| trial 1: "
+        f"| agents (openai:gemma, tools check), precise | pyramid | `misplaced` | physics | "
+        f"{meaning} | 2 | trial 1: "
     )
     assert row + "brick 3 |" in table
+    assert "| agents (openai:gemma, tools check), precise | pyramid | 0 | 2 |" in table
     html = (tmp_path / "report" / "report.html").read_text()
-    assert f"<code>misplaced</code></td><td>{meaning}</td><td>2</td><td>trial 1: brick 3" in html
+    cells = f"<code>misplaced</code></td><td>physics</td><td>{meaning}</td><td>2</td>"
+    assert cells + "<td>trial 1: brick 3" in html
+    assert "<td>pyramid</td><td>0</td><td>2</td></tr>" in html

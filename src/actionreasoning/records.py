@@ -24,8 +24,23 @@ class Described(StrEnum):
         return member
 
 
+class FailureClass(Described):
+    """What ended a failed trial: the reasoning, or the physics after the answers."""
+
+    REASONING = (
+        "reasoning",
+        "the answers ended it: refused until the budget ran out, a wrong choice, an invalid "
+        "or missing output, a move the controller or the safety envelope refused",
+    )
+    PHYSICS = (
+        "physics",
+        "the world ended it after answers the checks accepted: a brick slipped, rolled, "
+        "toppled, was knocked, or did not come to rest",
+    )
+
+
 class FailureCode(Described):
-    """Why a trial failed."""
+    """Why a trial failed; :attr:`failure_class` says whether reasoning or physics ended it."""
 
     INVALID_OUTPUT = "invalid_output", "the model gave no valid answer within its repairs"
     INVALID_CHOICE = "invalid_choice", "an answer named a brick or target that cannot be used now"
@@ -72,6 +87,32 @@ class FailureCode(Described):
     )
     MISPLACED = "misplaced", "the build finished but a brick is outside the success limits"
     NOT_AT_REST = "not_at_rest", "the build finished but a brick was still moving"
+
+    @property
+    def failure_class(self) -> FailureClass:
+        """Physics for the codes of something the world did to a brick after accepted
+        answers (a slip or roll that used up the re-grasps, a toppled brick, a set-down that
+        moved off its checked slot, a brick knocked or still moving at the end, a blow-up);
+        reasoning for every other: the answers, or the model that owed them, ended it."""
+        return FailureClass.PHYSICS if self in PHYSICS_FAILURES else FailureClass.REASONING
+
+
+#: The failure codes of physics (:attr:`FailureCode.failure_class`). ``placement_misaligned``
+#: is one: every set-down it counts passed the placement plan's forecast against the success
+#: rule before it moved, so what sigma_5 measured off is the brick's doing (a roll in the hand
+#: on the way down), not the answer's. ``misplaced`` is one: the build ran to its end, every
+#: set-down accepted, and a brick was off at the final settle (under a rung that leaves
+#: sigma_5 unenforced it may be the answer's: the transcript's unenforced verdicts say so).
+PHYSICS_FAILURES = frozenset(
+    {
+        FailureCode.GRASP_SLIP,
+        FailureCode.NO_BRICK_LEFT,
+        FailureCode.PLACEMENT_MISALIGNED,
+        FailureCode.PHYSICS_BLOWUP,
+        FailureCode.MISPLACED,
+        FailureCode.NOT_AT_REST,
+    }
+)
 
 
 class Failure(BaseModel):

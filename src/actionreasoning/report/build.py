@@ -18,6 +18,7 @@ from typing import Any
 from jinja2 import Environment, PackageLoader, select_autoescape
 
 from actionreasoning.recording.names import VIDEO_FPS
+from actionreasoning.records import FailureClass
 from actionreasoning.report.collect import Group, load_groups, patterns
 from actionreasoning.report.ladder import LADDER_CAPTION, LADDER_COLUMNS
 from actionreasoning.report.leaderboard import BOARD_CAPTION, BOARD_COLUMNS
@@ -43,6 +44,7 @@ from actionreasoning.report.tables import (
     SUCCESS_NOTE,
     Table,
     comparison_table,
+    failure_classes_of,
     to_csv,
     to_latex,
     to_markdown,
@@ -213,6 +215,8 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
         pair_columns=PAIR_COLUMNS,
         pairs=[pair.cells for pair in table.pairs],
         failures=table.failures,
+        failure_classes=failure_classes_of(table.failures),
+        failure_class_names=list(FailureClass),
         answer_errors=table.answer_errors,
         caught_titles=list(CAUGHT_TITLES.values()),
         premove_refusals=[

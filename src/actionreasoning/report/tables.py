@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from actionreasoning.agents.answer_errors import Caught
-from actionreasoning.records import FailureCode
+from actionreasoning.records import FailureClass, FailureCode
 from actionreasoning.report.collect import Group, condition_notes, labels, patterns
 from actionreasoning.report.ladder import LadderRow, ladder_lines, ladders
 from actionreasoning.report.leaderboard import board_lines, board_rows
@@ -35,6 +35,7 @@ from actionreasoning.runs.summary import (
     MetricStats,
     category_table,
     course_table,
+    failure_classes,
     stats_text,
     success_text,
 )
@@ -365,6 +366,16 @@ def _failures(groups: Sequence[Group]) -> list[FailureRow]:
     return rows
 
 
+def failure_classes_of(
+    rows: Sequence[FailureRow],
+) -> dict[tuple[str, str], dict[FailureClass, int]]:
+    """Per (method row, pattern): its failed trials counted by class."""
+    counts: dict[tuple[str, str], Counter[FailureCode]] = {}
+    for row in rows:
+        counts.setdefault((row.label, row.pattern), Counter())[row.reason] += row.count
+    return {key: failure_classes(reasons) for key, reasons in counts.items()}
+
+
 def to_markdown(table: Table) -> str:
     """Table I as a markdown table (best of each column in bold), then success per pattern."""
     groups = [*table.patterns, AVERAGE]
@@ -399,11 +410,21 @@ def to_markdown(table: Table) -> str:
         lines += [*pair_lines(table.pairs), ""]
     if table.failures:
         lines += [
-            "| Method | Pattern | Failure reason | Meaning | Trials | Example |",
-            "|---|---|---|---|---|---|",
+            "Failed trials by what ended them: reasoning (the answers) or physics (the world, "
+            "after answers the checks accepted):",
+            "",
+            "| Method | Pattern | " + " | ".join(FailureClass) + " |",
+            "|---" * (2 + len(FailureClass)) + "|",
             *(
-                f"| {f.label} | {f.pattern} | `{f.reason}` | {f.reason.meaning} | {f.count} | "
-                f"trial {f.trial}: {f.detail.replace('|', '/')} |"
+                f"| {label} | {pattern} | " + " | ".join(map(str, counts.values())) + " |"
+                for (label, pattern), counts in failure_classes_of(table.failures).items()
+            ),
+            "",
+            "| Method | Pattern | Failure reason | Class | Meaning | Trials | Example |",
+            "|---|---|---|---|---|---|---|",
+            *(
+                f"| {f.label} | {f.pattern} | `{f.reason}` | {f.reason.failure_class} | "
+                f"{f.reason.meaning} | {f.count} | trial {f.trial}: {f.detail.replace('|', '/')} |"
                 for f in table.failures
             ),
         ]

@@ -11,7 +11,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.agents.answer_errors import AnswerErrors, Caught, CorruptionKind
 from actionreasoning.agents.error_kinds import ErrorCategory
-from actionreasoning.records import FailureCode
+from actionreasoning.records import FailureClass, FailureCode
 from actionreasoning.runs.courses import (
     CourseMetrics,
     CycleTime,
@@ -101,6 +101,9 @@ class RunSummary(Provenance):
     all_trials: dict[str, MetricStats]
     failures: dict[FailureCode, int]
     failure_examples: dict[FailureCode, int]
+    #: The failures by what ended them (every class, zeros included); empty in summaries
+    #: written before classes were counted.
+    failure_classes: dict[FailureClass, int] = Field(default_factory=dict)
     llm_usage: LLMUsage
     llm_usage_by_agent: dict[str, LLMUsage] = Field(default_factory=dict)
     llm_mode: str | None = None
@@ -124,6 +127,19 @@ class RunSummary(Provenance):
     cycle_time: CycleTime | None = None
     #: None in summaries written before it was computed.
     leaderboard: Leaderboard | None = None
+
+
+def failure_classes(failures: Mapping[FailureCode, int]) -> dict[FailureClass, int]:
+    """The failures counted by class, every class present (a class none fell in: 0)."""
+    counts = dict.fromkeys(FailureClass, 0)
+    for reason, count in failures.items():
+        counts[reason.failure_class] += count
+    return counts
+
+
+def classes_text(counts: Mapping[FailureClass, int]) -> str:
+    """``reasoning 1, physics 2``: the counts of :func:`failure_classes` in words."""
+    return ", ".join(f"{kind} {count}" for kind, count in counts.items())
 
 
 def describe_rule(rule: SuccessRule) -> str:
@@ -191,6 +207,7 @@ def summarize(
         all_trials={m: _stats(results, m) for m in METRICS},
         failures=dict(sorted(failures.items())),
         failure_examples=examples,
+        failure_classes=failure_classes(failures),
         llm_usage=sum((r.llm_usage for r in results), LLMUsage()),
         llm_usage_by_agent={
             agent: sum((r.llm_usage_by_agent.get(agent, LLMUsage()) for r in results), LLMUsage())
@@ -294,9 +311,15 @@ def summary_markdown(summary: RunSummary) -> str:
         *_course_lines(summary),
     ]
     if summary.failures:
-        lines += ["| Failure reason | Meaning | Trials | Example trial |", "|---|---|---|---|"]
         lines += [
-            f"| `{reason}` | {reason.meaning} | {count} | {summary.failure_examples[reason]} |"
+            f"Failures by class: {classes_text(summary.failure_classes)}.",
+            "",
+            "| Failure reason | Class | Meaning | Trials | Example trial |",
+            "|---|---|---|---|---|",
+        ]
+        lines += [
+            f"| `{reason}` | {reason.failure_class} | {reason.meaning} | {count} | "
+            f"{summary.failure_examples[reason]} |"
             for reason, count in summary.failures.items()
         ]
     else:
