@@ -132,6 +132,8 @@ class FakeWorld:
         self.pads: dict[int, tuple[float, float]] = {}
         self.stage: str | None = None
         self.moves: list[Move] = []
+        #: State time: each move takes its duration_s (a move without one, a second).
+        self.clock_s = 0.0
         self._script: list[_Scripted] = []
 
     # --- the World protocol -------------------------------------------------------------
@@ -140,7 +142,7 @@ class FakeWorld:
         self.stage = progress.step
         held_forces = self.pads[self.held] if self.held is not None else (0.0, 0.0)
         return WorldState(
-            time_s=float(len(self.moves)),
+            time_s=self.clock_s,
             robot=RobotState(
                 ee_pose=self.tool,
                 joint_positions_rad=self.joints,
@@ -180,6 +182,7 @@ class FakeWorld:
         else:
             done = deviation.apply(self, waypoint, stop_on_contact)
         self.moves.append(Move(self.stage, waypoint, stop_on_contact, done))
+        self.clock_s += waypoint.duration_s or 1.0
         return done
 
     def grip(self, opening_m: float | None) -> None:
@@ -502,6 +505,20 @@ def rolls(degrees: float) -> Deviation:
     return Deviation("move", apply, only=lambda world, *_: world.held is not None)
 
 
+def creeps(rate_deg_s: float) -> Deviation:
+    """With a brick in the hand, every move rolls it about the pads' axis at ``rate_deg_s``
+    for as long as the move takes (its duration_s, else a second): the creep of a brick
+    hanging from the pads. Scripted with ``times=math.inf``, it rides every such move."""
+
+    def apply(world: FakeWorld, waypoint: WaypointProposal, stop: int | None) -> Motion:
+        world.turn_in_hand(
+            Rotation.from_euler("y", rate_deg_s * (waypoint.duration_s or 1.0), degrees=True)
+        )
+        return world.ideal_move(waypoint, stop)
+
+    return Deviation("move", apply, only=lambda world, *_: world.held is not None)
+
+
 def lands_off(shift_m: Vec3, turn_deg: float = 0.0, tilt_deg: float = 0.0) -> Deviation:
     """On a set-down, the brick touches down and slides ``shift_m`` (world frame) in the
     hand, turning ``turn_deg`` about the vertical through its centre and tipping
@@ -530,6 +547,20 @@ def closes_off(shift_m: tuple[float, float], turn_deg: float = 0.0) -> Deviation
         world.hold(world.held, world.pads[world.held])
 
     return Deviation("close", apply)
+
+
+def lets_go_off(shift_m: tuple[float, float]) -> Deviation:
+    """Opening, the pads let the brick go and it ends ``shift_m`` (world x, y) off where it
+    was set (a brick the release dragged along)."""
+
+    def apply(world: FakeWorld, opening_m: float | None) -> None:
+        released = world.held
+        world.ideal_grip(opening_m)
+        if released is not None and world.held is None:
+            brick = world.bricks[released]
+            brick.pose = _moved(brick.pose, (*shift_m, 0.0), 0.0)
+
+    return Deviation("open", apply)
 
 
 def _moved(pose: Pose, shift_m: Vec3, turn_deg: float, tilt_deg: float = 0.0) -> Pose:

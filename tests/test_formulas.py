@@ -61,3 +61,47 @@ def test_each_worked_example_is_what_its_formula_computes() -> None:
     assert f"Take a = {round(best, 2):g}:" in grasp
     for name in knowledge.FORMULAS:
         assert "Example:" in knowledge.formula_text(name), name
+    # The roll rate's example: 0.75 deg over 0.25 s, a 1 s set-down touching down 2 s later.
+    assert "ω = 3 deg/s; duration_s 1: Δ = 6 deg" in knowledge.formula_text("roll_rate")
+
+
+LEVEL_IN_HAND = Rotation.from_euler("x", 180.0, degrees=True)  # held level: a half turn
+
+
+@pytest.mark.parametrize("roll_deg", [0.0, 10.0, -25.0, 61.0])
+def test_the_roll_in_the_hand_is_the_turn_about_the_pads_axis_either_way_up(
+    roll_deg: float,
+) -> None:
+    rolled = Rotation.from_euler("y", roll_deg, degrees=True)
+    assert formulas.roll_in_hand_deg(tuple((rolled * LEVEL_IN_HAND).as_quat())) == pytest.approx(
+        roll_deg
+    )
+    assert formulas.roll_in_hand_deg(tuple(rolled.as_quat())) == pytest.approx(roll_deg)
+
+
+def test_the_roll_rate_slot_against_a_hand_computation() -> None:
+    """Held 1 cm below the tool centre point, rolled 10 deg; watched at 100.00 s and 100.25 s
+    at 9.25 and 10 deg: 3 deg/s. A set-down of duration 1 s touches down 2 s later, rolled
+    6 deg further, 16 deg: o' = R_y(6)(0, 0, 0.01) = (0.0010453, 0, 0.0099452). On a level
+    target at (0.6, 0.1, 0.03), q_s = q_h'* = R_x(180) R_y(-16), and
+    p_s = p* - R(q_s) o' = p* - R_x(180) R_y(-10)(0, 0, 0.01)
+        = p* - R_x(180)(-0.0017365, 0, 0.0098481) = (0.6017365, 0.1, 0.0398481):
+    the tool tilted 16 deg, 1.7 mm on along x."""
+    offset = (0.0, 0.0, 0.01)
+    quat = tuple((Rotation.from_euler("y", 10.0, degrees=True) * LEVEL_IN_HAND).as_quat())
+    rate = formulas.roll_rate_deg_s(9.25, 100.0, 10.0, 100.25)
+    assert rate == pytest.approx(3.0)
+    turn = rate * formulas.touch_down_s(1.0)
+    assert turn == pytest.approx(6.0)
+    rolled_offset, rolled_quat = formulas.rolled_in_hand(offset, quat, turn)
+    assert rolled_offset == pytest.approx((0.0010453, 0.0, 0.0099452), abs=1e-7)
+    assert formulas.roll_in_hand_deg(rolled_quat) == pytest.approx(16.0)
+    target = Pose(position_m=(0.6, 0.1, 0.03))
+    slot = formulas.slot_pose(target, rolled_offset, rolled_quat)
+    assert slot.position_m == pytest.approx((0.6017365, 0.1, 0.0398481), abs=1e-7)
+    expected = LEVEL_IN_HAND * Rotation.from_euler("y", -16.0, degrees=True)
+    assert (Rotation.from_quat(slot.quat_xyzw).inv() * expected).magnitude() < 1e-9
+    # The brick as it will sit at touch-down lands exactly on the target, level.
+    landing = formulas.carried(slot, rolled_offset, rolled_quat)
+    assert landing.position_m == pytest.approx(target.position_m, abs=1e-12)
+    assert Rotation.from_quat(landing.quat_xyzw).magnitude() < 1e-9

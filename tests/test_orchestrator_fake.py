@@ -13,7 +13,9 @@ from fake_world import (
     Deviation,
     FakeWorld,
     closes_off,
+    creeps,
     lands_off,
+    lets_go_off,
     one_pad_misses,
     out_of_reach,
     presses,
@@ -25,7 +27,7 @@ from fake_world import (
 from scipy.spatial.transform import Rotation
 
 from actionreasoning.agents.calls import BuildResult
-from actionreasoning.agents.orchestrator import SETTLE_S, Budgets, Orchestrator
+from actionreasoning.agents.orchestrator import ROLL_WATCH_S, SETTLE_S, Budgets, Orchestrator
 from actionreasoning.agents.outputs import (
     AgentAnswer,
     DescentAnswer,
@@ -41,8 +43,8 @@ from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.reasoners.builtin import BuiltinReasoner
+from actionreasoning.tools import formulas
 from actionreasoning.tools.geometry import alignment_of
-from actionreasoning.tools.placement import carried_pose
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import quat_yaw, tilt_deg, top_down_quat, wrap_angle, yaw_quat
 from actionreasoning.world.layout import sample_pick_poses
@@ -234,7 +236,7 @@ def test_the_wall_is_built_with_every_gate_passed(kinematics, wall) -> None:
         ["lift_plan", "sigma4_lift"],
         ["placement_plan"],  # the carry over the slot: checked before it moves, no gate after
         ["placement_plan", "sigma5_placement"],
-        ["release_plan", "sigma6_return"],
+        ["release_plan", "sigma6_return", "sigma6_at_rest"],  # the brick judged at rest
     ]
     assert all(
         c.outcome == "accepted" and all(g.passed for g in c.gates) for c in result.transcript
@@ -733,6 +735,63 @@ def test_a_brick_rolled_in_the_hand_is_set_down_level_by_tilting_the_tool(world)
     assert tilt_deg(set_down.waypoint.quat_xyzw) == pytest.approx(30.0)  # the tool tilted by it
 
 
+@pytest.mark.parametrize("tier", list(ToolTier))
+def test_a_brick_creeping_in_the_hand_is_set_down_for_its_roll_at_touch_down(
+    world, tier: ToolTier
+) -> None:
+    """The brick rolls 3 deg/s about the pads' axis whenever the arm moves it: over the slot
+    it is watched for ROLL_WATCH_S (memory.roll_watch: 0.75 deg more), and the set-down
+    tilts the tool for the roll it will have at touch-down, 2 x duration_s later, which
+    seats it exactly (sigma_5 measures nothing off)."""
+    world.script("placement", creeps(3.0), times=math.inf)
+    reasoner = Scripted()
+    result = build(world, reasoner, tier=tier)
+    assert_built(world, result)
+    carry, set_down = reasoner.asked("placement")
+    assert carry.memory.roll_watch is None
+    watch = set_down.memory.roll_watch
+    assert watch is not None
+    assert watch.now_s - watch.before_s == pytest.approx(ROLL_WATCH_S)
+    assert watch.now_deg - watch.before_deg == pytest.approx(3.0 * ROLL_WATCH_S, abs=0.01)
+    assert "roll_watch" in set_down.prompt
+    (down,) = [m for m in world.moves if m.stop_on_contact is not None]
+    at_touch_down = watch.now_deg + 3.0 * 2 * down.waypoint.duration_s
+    assert tilt_deg(down.waypoint.quat_xyzw) == pytest.approx(abs(at_touch_down), abs=0.02)
+    (placed,) = [c for c in calls(result, "placement") if c.outcome == "accepted"][-1:]
+    seat = checked(placed, "sigma5_placement")
+    assert seat["e_xy_m"] < 1e-4 and seat["tilt_deg"] < 0.05
+
+
+def test_a_brick_dragged_off_its_target_at_release_is_withdrawn_and_set_right(world) -> None:
+    """The release leaves the brick 3 cm off its target (outside the success rule's 2 cm):
+    sigma_6 judges it at rest after the return, withdraws it, and the next cycle picks that
+    brick first and sets it right."""
+    world.script("release", lets_go_off((0.03, 0.0)))
+    reasoner = Scripted()
+    result = build(world, reasoner)
+    assert_built(world, result)
+    first, again = calls(result, "release")
+    at_rest = checked(first, "sigma6_at_rest")
+    assert at_rest["offset_m"] == pytest.approx(0.03)
+    assert ("sigma6_at_rest", False) in gates_of(first)
+    assert checked(again, "sigma6_at_rest")["offset_m"] < 1e-6
+    dragged = result.placements[0]
+    picks = [c.answer["brick_id"] for c in calls(result, "pre_grasp")]
+    assert picks == [dragged, dragged]  # the withdrawn brick picked first
+    (note,) = [r for r in reasoner.asked("pre_grasp")[1].memory.refusals]
+    assert note.gate == "sigma6_at_rest" and "repair 1 of 2" in note.note
+
+
+def test_a_brick_off_its_target_is_left_once_the_repairs_are_spent(world) -> None:
+    world.script("release", lets_go_off((0.03, 0.0)), times=math.inf)
+    result = build(world, budgets=Budgets(repairs=1))
+    assert result.failure is None  # built, the brick left off: the success rule judges it
+    assert [("sigma6_at_rest", False) in gates_of(c) for c in calls(result, "release")] == [
+        True,
+        True,
+    ]
+
+
 def test_the_check_tiers_grasp_checks_leave_the_brick_out_as_sigma1_does(world, one_brick) -> None:
     """Agent 1's checks in the check tier measure what grasp_options and sigma_1 measure:
     the brick to be grasped is no obstacle to the approach or to the way down."""
@@ -831,7 +890,8 @@ def test_a_set_down_that_lands_off_is_corrected_by_the_feedback(world, one_brick
     slot = corrected.answer["waypoint"]
     tool = Pose(position_m=tuple(slot["position_m"]), quat_xyzw=tuple(slot["quat_xyzw"]))
     target = one_brick.targets[0]
-    predicted = alignment_of(carried_pose(asked.state, 0, tool), one_brick.brick_size_m, target)
+    held = formulas.in_hand(asked.state.robot.ee_pose, asked.state.brick(0).pose)
+    predicted = alignment_of(formulas.carried(tool, *held), one_brick.brick_size_m, target)
     assert predicted.e_xy_m == pytest.approx((-miss.e_x_m, -miss.e_y_m), abs=1e-9)
     assert predicted.e_theta_deg == pytest.approx(-miss.e_theta_deg, abs=1e-9)
     assert checked(corrected, "sigma5_placement")["e_xy_m"] < 1e-9
@@ -966,7 +1026,11 @@ def test_a_bad_release_is_refused_before_the_gripper_opens(world, case: str) -> 
     assert gates_of(refused) == verdicts
     assert check in failed_checks(refused)
     assert f"failed: {check} = " in refused.feedback
-    assert gates_of(accepted) == [("release_plan", True), ("sigma6_return", True)]
+    assert gates_of(accepted) == [
+        ("release_plan", True),
+        ("sigma6_return", True),
+        ("sigma6_at_rest", True),
+    ]
     assert [m.stage for m in world.moves].count("release") == 2  # the accepted one's
 
 
@@ -993,7 +1057,11 @@ def test_a_release_opened_into_a_neighbour_is_refused_by_sigma6_and_asked_again(
     assert failed_checks(refused)["retreat_clearance_m"] < 0.0
     assert "closest: gripper_finger_left vs brick 3" in refused.feedback
     assert "return_clearance_m" not in refused.feedback
-    assert gates_of(accepted) == [("release_plan", True), ("sigma6_return", True)]
+    assert gates_of(accepted) == [
+        ("release_plan", True),
+        ("sigma6_return", True),
+        ("sigma6_at_rest", True),
+    ]
 
 
 def test_a_return_refused_every_time_keeps_the_brick_in_the_hand(crowded) -> None:

@@ -95,6 +95,7 @@ CHECK_CATEGORIES: Final[Mapping[str, ErrorCategory]] = MappingProxyType(
         "opening_m": _C.PREMATURE_ACTION,
         "close": _C.PREMATURE_ACTION,
         "speed_mps": _C.DYNAMICS,
+        "angular_speed_radps": _C.DYNAMICS,
         "relative_speed_mps": _C.DYNAMICS,
         "hold_margin_s": _C.DYNAMICS,
         "normal_force_n": _C.GRASP,

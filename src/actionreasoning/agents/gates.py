@@ -17,6 +17,7 @@ from actionreasoning.tools.contact import ContactForces, SlipEstimate
 from actionreasoning.tools.geometry import AlignmentErrors
 from actionreasoning.tools.placement import PlacementPose
 from actionreasoning.world.motion import MAX_MOVE_S
+from actionreasoning.world.success import SuccessRule
 from actionreasoning.world.tolerances import NOISE_SIGMAS, Tolerances
 
 
@@ -243,6 +244,28 @@ def sigma5_placement(alignment: AlignmentErrors, tol: Tolerances) -> GateVerdict
         "sigma5_placement",
         (
             *_seat_checks(alignment, tol),
+            Check("offset_m", alignment.offset_m, tol.max_offset_m, at_most=True),
+            Check("rotation_deg", alignment.rotation_deg, tol.max_rotation_deg, at_most=True),
+        ),
+        measured=misalignment(alignment),
+    )
+
+
+def sigma6_at_rest(
+    alignment: AlignmentErrors,
+    speed_mps: float,
+    angular_speed_radps: float,
+    tol: Tolerances,
+    rule: SuccessRule = SuccessRule(),
+) -> GateVerdict:
+    """The released brick once the arm has left it, as the success rule will judge it after
+    the whole build: at rest (the rule's speeds) and within max_offset_m and
+    max_rotation_deg of its target."""
+    return GateVerdict(
+        "sigma6_at_rest",
+        (
+            Check("speed_mps", speed_mps, rule.max_speed_mps, at_most=True),
+            Check("angular_speed_radps", angular_speed_radps, rule.max_angular_speed_radps, True),
             Check("offset_m", alignment.offset_m, tol.max_offset_m, at_most=True),
             Check("rotation_deg", alignment.rotation_deg, tol.max_rotation_deg, at_most=True),
         ),

@@ -45,10 +45,13 @@ BRICK = Pose(position_m=(0.45, -0.3, 0.03), quat_xyzw=yaw_quat(math.radians(130.
 BRICK_SIZE_M = (0.2, 0.095, 0.06)
 TARGET = Pose(position_m=(0.55, 0.1, 0.09), quat_xyzw=yaw_quat(math.radians(100.0)))
 #: A brick held 2 mm off centre and 4 mm deep, level under the tool (a half turn about its
-#: x axis: the tool points down, the brick up) and then rolled 8 deg about that axis.
+#: x axis: the tool points down, the brick up) and then rolled 8 deg about the pads' axis
+#: (the tool's y axis).
 TOOL = Pose(position_m=(0.5, 0.1, 0.35), quat_xyzw=top_down_quat(math.radians(20.0)))
 OFFSET_IN_HAND_M = (0.002, -0.001, 0.004)
-ROLL_IN_HAND = Rotation.from_euler("x", 188.0, degrees=True)
+ROLL_IN_HAND = Rotation.from_euler("y", 8.0, degrees=True) * Rotation.from_euler(
+    "x", 180.0, degrees=True
+)
 
 
 def _quaternions() -> dict[str, str]:
@@ -107,6 +110,30 @@ def _in_hand() -> dict[str, str]:
     }
 
 
+#: Two measurements of the example brick's roll, a quarter of a second apart, and the
+#: duration of its set-down.
+ROLL_WATCH = {"before_s": 100.0, "before_deg": 7.25, "now_s": 100.25, "now_deg": 8.0}
+SET_DOWN_S = 1.0
+
+
+def _roll_rate() -> dict[str, str]:
+    offset, quat = f.in_hand(TOOL, held_example())
+    w = ROLL_WATCH
+    rate = f.roll_rate_deg_s(w["before_deg"], w["before_s"], w["now_deg"], w["now_s"])
+    turn = rate * f.touch_down_s(SET_DOWN_S)
+    rolled_offset, rolled_quat = f.rolled_in_hand(offset, quat, turn)
+    return {
+        "roll": _deg(f.roll_in_hand_deg(quat)),
+        "before": f"{w['before_deg']:g} deg at {w['before_s']:g} s",
+        "now": f"{w['now_deg']:g} deg at {w['now_s']:g} s",
+        "rate": _deg(rate),
+        "duration": f"{SET_DOWN_S:g}",
+        "turn": _deg(turn),
+        "offset": _show(rolled_offset),
+        "quat": _show(rolled_quat),
+    }
+
+
 def _slot_pose() -> dict[str, str]:
     slot = f.slot_pose(TARGET, *f.in_hand(TOOL, held_example()))
     return {
@@ -132,6 +159,7 @@ _EXAMPLES: dict[str, Callable[[], dict[str, str]]] = {
     "quaternions": _quaternions,
     "grasp_yaws": _grasp_yaws,
     "in_hand": _in_hand,
+    "roll_rate": _roll_rate,
     "slot_pose": _slot_pose,
     "duration": _duration,
 }

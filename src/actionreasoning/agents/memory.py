@@ -49,6 +49,19 @@ class StepDecision(BaseModel):
     )
 
 
+class RollWatch(BaseModel):
+    """Two consecutive measurements of the held brick's roll in the hand (Formulas: roll
+    rate), taken over the slot before each set-down: the roll keeps growing as it is carried
+    and set down, so the set-down aims for the roll at touch-down."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    before_s: float = Field(description="State time of the first measurement (s).")
+    before_deg: float = Field(description="Roll in the hand then (deg).")
+    now_s: float = Field(description="State time of the second: the state shown (s).")
+    now_deg: float = Field(description="Roll in the hand now (deg).")
+
+
 class TaskMemory(BaseModel):
     """The orchestrator's memory, shown to every agent."""
 
@@ -68,6 +81,9 @@ class TaskMemory(BaseModel):
     )
     regrasps: int = Field(
         0, description="Times the current target's brick was put down to be grasped again."
+    )
+    roll_watch: RollWatch | None = Field(
+        None, description="The held brick's roll, measured twice over the slot (set-down)."
     )
     this_brick: tuple[StepDecision, ...] = Field(
         (),

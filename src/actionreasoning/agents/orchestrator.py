@@ -43,7 +43,13 @@ from actionreasoning.agents.calls import (
 from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.feedback import Measured, Refusal
 from actionreasoning.agents.gates import Check, GateVerdict
-from actionreasoning.agents.memory import PlacedBrick, PlacementPhase, StepDecision, TaskMemory
+from actionreasoning.agents.memory import (
+    PlacedBrick,
+    PlacementPhase,
+    RollWatch,
+    StepDecision,
+    TaskMemory,
+)
 from actionreasoning.agents.outputs import (
     AgentAnswer,
     DescentDecision,
@@ -71,15 +77,11 @@ from actionreasoning.agents.view import target_supports
 from actionreasoning.agents.world import World
 from actionreasoning.errors import UnreachableError
 from actionreasoning.records import FailureCode
+from actionreasoning.tools import formulas
 from actionreasoning.tools.collision import COLLISION, CollisionQuery, CollisionReport
 from actionreasoning.tools.contact import FINGER_CONTACTS, SLIP
 from actionreasoning.tools.geometry import ALIGNMENT, AlignmentQuery, BrickQuery, alignment_of
-from actionreasoning.tools.placement import (
-    PLACEMENT_POSE,
-    SEAT_CLEARANCE_M,
-    PlacementQuery,
-    carried_pose,
-)
+from actionreasoning.tools.placement import PLACEMENT_POSE, SEAT_CLEARANCE_M, PlacementQuery
 from actionreasoning.world.geometry import Vec3, rotation_deg, round_floats
 from actionreasoning.world.models import (
     BrickStatus,
@@ -102,6 +104,13 @@ MEMORY_DIGITS = 3
 #: How long a brick still moving in the hand after the lift is held still before sigma_4
 #: judges it: a swing of a brick hanging from a pad dies out within about half a second.
 SETTLE_S = 0.5
+#: How long the held brick is watched over the slot before each set-down, between the two
+#: measurements of its roll that give its roll rate (Formulas: roll rate). The set-down
+#: touches down about 2 s after its answer, and sigma_5 seats a brick tilted at most
+#: eps_tilt_deg (2.5 deg), so the rate must be known to about 1 deg/s: 0.25 deg of roll over
+#: the watch, far above what the roll is measured to (quaternions shown to 1e-5, perception
+#: noise on yaw only). A longer watch costs cycle time and lets the brick roll further.
+ROLL_WATCH_S = 0.25
 
 
 @dataclass(frozen=True)
@@ -111,6 +120,9 @@ class Budgets:
     attempts_per_agent: int = 3
     regrasps: int = 4
     placement_attempts: int = 4
+    #: Released bricks sigma_6 found off their targets at rest and set right again, per
+    #: trial: each costs a brick's cycle (about 31 s of the trial's simulated time).
+    repairs: int = 2
 
 
 class _Refused(Exception):
@@ -188,6 +200,8 @@ class Orchestrator:
         #: When the held brick, creeping in the hand faster than v_th, would leave it (state
         #: time, s); None when it creeps no faster.
         self._held_until_s: float | None = None
+        #: Released bricks withdrawn so far (sigma_6 at rest; Budgets.repairs).
+        self._repairs = 0
 
     # --- the pipeline -------------------------------------------------------------------
     def build(self, goal: GoalPattern) -> BuildResult:
@@ -204,7 +218,13 @@ class Orchestrator:
     def _place_one(self, supports: Mapping[int, tuple[int, ...]]) -> None:
         for regrasps in range(self.budgets.regrasps + 1):
             self.memory = self.memory.model_copy(
-                update={"retries": {}, "regrasps": regrasps, "this_brick": (), "phase": None}
+                update={
+                    "retries": {},
+                    "regrasps": regrasps,
+                    "this_brick": (),
+                    "phase": None,
+                    "roll_watch": None,
+                }
             )
             self._check_bricks_left(supports)
             brick, target = self._stage(
@@ -223,6 +243,8 @@ class Orchestrator:
         else:
             raise TrialStopped(FailureCode.GRASP_SLIP, self.memory.step, "re-grasp budget spent")
         self._stage(Stage.RELEASE, ReleaseDecision.of, partial(self._release, brick=brick))
+        if self._withdrawn(brick, target):
+            return
         placed = (*self.memory.placed, PlacedBrick(brick_id=brick, target_index=target))
         self.memory = self.memory.model_copy(
             update={
@@ -234,6 +256,48 @@ class Orchestrator:
             }
         )
         self.result.placements[target] = brick
+
+    def _withdrawn(self, brick: int, target: int) -> bool:
+        """sigma_6 at rest: the released brick, once the arm has left it, as the success
+        rule will judge it. One found off its target (or still moving) that lies free on the
+        ground is withdrawn, within the trial's repair budget: its target is built again,
+        this brick picked first (the refusal names it in the way). Returns whether it was;
+        a brick that cannot be picked stays placed, for the success rule to judge."""
+        others = tuple(p.brick_id for p in self.memory.placed)
+        state = self.world.observe(Progress(placed_ids=others, step=Stage.RELEASE))
+        errors = self.calls.measure(
+            state, ALIGNMENT, AlignmentQuery(brick_id=brick, target_index=target)
+        )
+        released = state.brick(brick)
+        verdict = gates.sigma6_at_rest(
+            errors,
+            math.hypot(*released.linear_velocity_mps),
+            math.hypot(*released.angular_velocity_radps),
+            self.tol,
+        )
+        if not self._refuses(verdict) or not released.pickable:
+            return False
+        if self._repairs == self.budgets.repairs:
+            return False
+        self._repairs += 1
+        refusal = verdict.refusal(Stage.RELEASE)
+        note = (
+            f"brick {brick} lies off target {target} after its release: it is picked again "
+            f"to set it right (repair {self._repairs} of {self.budgets.repairs})"
+        )
+        in_the_way = f"target {target} vs brick {brick}"
+        self.memory = self.memory.model_copy(
+            update={"current_brick": None, "current_target": None, "last_feedback": ""}
+        )
+        self._note(
+            refusal.model_copy(
+                update={
+                    "measured": refusal.measured.model_copy(update={"closest": in_the_way}),
+                    "note": note,
+                }
+            )
+        )
+        return True
 
     def _check_bricks_left(self, supports: Mapping[int, tuple[int, ...]]) -> None:
         """Stop the trial if no unused brick can be picked (each toppled or fell on others),
@@ -617,6 +681,7 @@ class Orchestrator:
         set_down = partial(self._set_down, brick=brick, target=target, back=back)
         failed = ""  # the last sigma_5 verdict's failed checks: the failure's detail
         for _ in range(self.budgets.placement_attempts):
+            self._watch_roll(brick)
             slot, motion = self._stage(Stage.PLACEMENT, placement_decision, set_down)
             state = self.world.observe(Progress(current_brick=brick, step=Stage.PLACEMENT))
             errors = self.calls.measure(
@@ -643,7 +708,35 @@ class Orchestrator:
 
     def _placement_phase(self, phase: PlacementPhase | None) -> None:
         """Tell Ag5 which of its calls comes next (None: it is done with this brick)."""
-        self.memory = self.memory.model_copy(update={"phase": phase})
+        update = {"phase": phase} if phase is not None else {"phase": None, "roll_watch": None}
+        self.memory = self.memory.model_copy(update=update)
+
+    def _watch_roll(self, brick: int) -> None:
+        """Measure the held brick's roll in the hand twice, ROLL_WATCH_S apart, with the tool
+        held still where it is; memory keeps both measurements for the set-down (none if the
+        brick is not in the hand)."""
+        observe = self._observer(brick)
+        before = observe()
+        if before.brick(brick).status != BrickStatus.GRASPED:
+            self.memory = self.memory.model_copy(update={"roll_watch": None})
+            return
+        tool = before.robot.ee_pose
+        hold = WaypointProposal(
+            position_m=tool.position_m,
+            quat_xyzw=tool.quat_xyzw,
+            path="linear",
+            duration_s=ROLL_WATCH_S,
+        )
+        self.world.move(hold)
+        now = observe()
+        # Times to the millisecond, rolls to a hundredth of a degree, as the prompt shows them.
+        watch = RollWatch(
+            before_s=round(before.time_s, 3),
+            before_deg=round(_roll(before, brick), 2),
+            now_s=round(now.time_s, 3),
+            now_deg=round(_roll(now, brick), 2),
+        )
+        self.memory = self.memory.model_copy(update={"roll_watch": watch})
 
     def _carry_over_slot(
         self,
@@ -712,12 +805,22 @@ class Orchestrator:
         transfer: CollisionReport,
         moves: int = 1,
     ) -> None:
-        """Refuse a slot that would not set the brick, as it sits in the hand now, within the
-        success rule, or whose way over it (``transfer``) or down collides. The way down
-        ends in contact by design: it is checked to just above the seat."""
+        """Refuse a slot that would not set the brick, as it will sit in the hand at touch-down
+        (a set-down, ``moves`` 2: rolled on at memory.roll_watch's rate), within the success
+        rule, or whose way over it (``transfer``) or down collides. The way down ends in
+        contact by design: it is checked to just above the seat."""
         goal = state.goal.targets[target]
         held = state.brick(brick)
-        predicted = alignment_of(carried_pose(state, brick, _as_pose(slot)), held.size_m, goal)
+        watch = self.memory.roll_watch
+        turn = 0.0
+        if moves == 2 and watch is not None:
+            rate = formulas.roll_rate_deg_s(
+                watch.before_deg, watch.before_s, watch.now_deg, watch.now_s
+            )
+            turn = rate * formulas.touch_down_s(slot.duration_s or 0.0)
+        grip = formulas.rolled_in_hand(*formulas.in_hand(state.robot.ee_pose, held.pose), turn)
+        landing = formulas.carried(_as_pose(slot), *grip)
+        predicted = alignment_of(landing, held.size_m, goal)
         # The moves this slot asks for (over it; for a set-down, down too) must end while a
         # creeping brick is still held.
         hold = (
@@ -734,7 +837,7 @@ class Orchestrator:
         )
         x, y, z = slot.position_m
         near = WaypointProposal(position_m=(x, y, z + SEAT_CLEARANCE_M), quat_xyzw=slot.quat_xyzw)
-        descent = self._clearance(state, near, start=above)
+        descent = self._clearance(state, near, start=above, roll_turn_deg=turn)
         worst = min((transfer, descent), key=lambda r: r.clearance_m if r.reachable else -1e9)
         verdict = GateVerdict(
             f"{Stage.PLACEMENT}_plan",
@@ -768,16 +871,19 @@ class Orchestrator:
         opening: float | None = None,
         ignore: int | None = None,
         joint: bool = False,
+        roll_turn_deg: float = 0.0,
     ) -> CollisionReport:
         """Clearance on the way to ``to``: straight from ``start`` if given (a joint move from
         it if ``joint``), else a joint move from where the arm is; at ``opening`` (default: the
-        gripper's now), the held brick carried, brick ``ignore`` left out."""
+        gripper's now), the held brick carried (turned ``roll_turn_deg`` further in the
+        hand), brick ``ignore`` left out."""
         query = CollisionQuery(
             pose=_as_pose(to),
             start_pose=None if start is None else _as_pose(start),
             path="joint" if joint or start is None else "linear",
             gripper_opening_m=state.robot.gripper_width_m if opening is None else opening,
             ignore_brick_id=ignore,
+            held_roll_turn_deg=roll_turn_deg,
         )
         return self.calls.measure(state, COLLISION, query)
 
@@ -812,6 +918,12 @@ class Orchestrator:
         self.world.grip(answer.gripper_opening_m)
         self.world.move(retreat)
         self.world.move(ready)
+
+
+def _roll(state: WorldState, brick: int) -> float:
+    """Brick ``brick``'s roll in the hand (deg) in ``state``."""
+    quat = formulas.in_hand(state.robot.ee_pose, state.brick(brick).pose)[1]
+    return formulas.roll_in_hand_deg(quat)
 
 
 def _failed(gate: str, check: str, note: str) -> GateVerdict:

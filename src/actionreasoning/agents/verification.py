@@ -15,7 +15,9 @@ from enum import StrEnum
 
 #: The gates judged on what a move did, after it ran; every other verdict is judged before
 #: the arm moves.
-AFTER_MOVE_GATES = frozenset({"sigma2_descent", "sigma3_grasp", "sigma4_lift", "sigma5_placement"})
+AFTER_MOVE_GATES = frozenset(
+    {"sigma2_descent", "sigma3_grasp", "sigma4_lift", "sigma5_placement", "sigma6_at_rest"}
+)
 
 
 class CheckKind(StrEnum):

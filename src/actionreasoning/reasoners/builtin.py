@@ -375,6 +375,10 @@ def _slot_plan(briefing: Briefing, approach: Literal["joint", "linear"]) -> _Slo
             brick_id=_current(memory), target_index=memory.current_target or 0, approach=approach
         )
         report = briefing.use(PLACEMENT_POSE, query)
+        turn = _roll_turn_deg(briefing, report.slot_pose)
+        if turn:
+            query = query.model_copy(update={"roll_turn_deg": turn})
+            report = briefing.use(PLACEMENT_POSE, query)
         clear = tol.clear(report.way_clearance_m, report.reachable)
         return _SlotPlan(report.slot_pose, report.tilt_in_hand_deg, clear, report.closest)
     slot, tilt = _slot_by_formula(briefing)
@@ -390,12 +394,27 @@ def _slot_plan(briefing: Briefing, approach: Literal["joint", "linear"]) -> _Slo
 
 
 def _slot_by_formula(briefing: Briefing) -> tuple[Pose, float]:
-    """The slot pose that sets the held brick, as it sits in the hand, on its target (the
-    knowledge base's formulas), and its roll in the hand (deg)."""
+    """The slot pose that sets the held brick, as it will sit in the hand at touch-down, on
+    its target (the knowledge base's formulas), and its roll in the hand now (deg)."""
     view, memory = briefing.view, briefing.memory
     brick, tool = view.brick(_current(memory)), view.robot.tool_pose
-    slot = formulas.slot_pose(_target(briefing).pose, *formulas.in_hand(tool, brick.pose))
+    target, grip = _target(briefing).pose, formulas.in_hand(tool, brick.pose)
+    slot = formulas.slot_pose(target, *grip)
+    turn = _roll_turn_deg(briefing, slot)
+    if turn:
+        slot = formulas.slot_pose(target, *formulas.rolled_in_hand(*grip, turn))
     return slot, axis_angle_deg(brick.pose.quat_xyzw, tool.quat_xyzw)
+
+
+def _roll_turn_deg(briefing: Briefing, slot: Pose) -> float:
+    """How much further the held brick rolls in the hand before a set-down to ``slot``
+    touches down (deg): memory.roll_watch's roll rate times the touch-down time of the
+    set-down's duration (Formulas: roll rate); 0 without a watch (the carry)."""
+    watch = briefing.memory.roll_watch
+    if watch is None:
+        return 0.0
+    rate = formulas.roll_rate_deg_s(watch.before_deg, watch.before_s, watch.now_deg, watch.now_s)
+    return rate * formulas.touch_down_s(_carry_s(briefing, slot))
 
 
 def _misses(briefing: Briefing) -> tuple[float, float, float, int]:
@@ -433,9 +452,13 @@ def _corrected(briefing: Briefing, slot: Pose, dx: float, dy: float, turn: float
 
 def _slot(briefing: Briefing, slot: Pose) -> WaypointProposal:
     """The slot pose as a waypoint, carried at CARRY_SPEED_MPS."""
+    return _proposal(slot, duration_s=_carry_s(briefing, slot) or None)  # 0: already there
+
+
+def _carry_s(briefing: Briefing, slot: Pose) -> float:
+    """How long the move to ``slot`` takes at CARRY_SPEED_MPS (Formulas: duration)."""
     tool = briefing.view.robot.tool_pose
-    carry = min(math.dist(slot.position_m, tool.position_m) / CARRY_SPEED_MPS, MAX_MOVE_S)
-    return _proposal(slot, duration_s=carry or None)  # already there: no move to time
+    return min(math.dist(slot.position_m, tool.position_m) / CARRY_SPEED_MPS, MAX_MOVE_S)
 
 
 def _release(briefing: Briefing) -> ReleaseDecision:

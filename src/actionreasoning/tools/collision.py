@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from actionreasoning.errors import UnreachableError
 from actionreasoning.tools.base import ToolContext, ToolModel, tool
+from actionreasoning.tools.formulas import carried, in_hand, rolled_in_hand
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.clearance import (
     JOINT_STEP_RAD,
@@ -39,6 +40,13 @@ class CollisionQuery(ToolModel):
     gripper_opening_m: float = Field(GRIPPER_GAP_M[1], ge=GRIPPER_GAP_M[0], le=GRIPPER_GAP_M[1])
     ignore_brick_id: int | None = Field(
         None, ge=0, description="A brick left out (the one being grasped or released)."
+    )
+    held_roll_turn_deg: float = Field(
+        0.0,
+        ge=-90.0,
+        le=90.0,
+        description="The held brick checked turned this much further in the hand (deg, about "
+        "the pads' axis): as it will sit at the end of the move (Formulas: roll rate).",
     )
 
 
@@ -81,14 +89,12 @@ def _path(query: CollisionQuery) -> list[Pose]:
     ]
 
 
-def _held_box(state: WorldState, held: BrickState, tool_pose: Pose) -> Box:
-    """The held brick carried rigidly from its measured grip to ``tool_pose``."""
-    grip = Rotation.from_quat(state.robot.ee_pose.quat_xyzw)
-    offset = grip.inv().apply(np.subtract(held.pose.position_m, state.robot.ee_pose.position_m))
-    turn = grip.inv() * Rotation.from_quat(held.pose.quat_xyzw)
-    tool = Rotation.from_quat(tool_pose.quat_xyzw)
-    position = tuple(np.asarray(tool_pose.position_m) + tool.apply(offset))
-    return Box(position, tuple((tool * turn).as_quat()), held.size_m, id=held.id)
+def _held_box(state: WorldState, held: BrickState, tool_pose: Pose, roll_turn_deg: float) -> Box:
+    """The held brick carried rigidly from its measured grip, turned ``roll_turn_deg``
+    further about the pads' axis, to ``tool_pose``."""
+    grip = rolled_in_hand(*in_hand(state.robot.ee_pose, held.pose), roll_turn_deg)
+    pose = carried(tool_pose, *grip)
+    return Box(pose.position_m, pose.quat_xyzw, held.size_m, id=held.id)
 
 
 def collision_check(context: ToolContext, query: CollisionQuery) -> CollisionReport:
@@ -107,11 +113,12 @@ def collision_check(context: ToolContext, query: CollisionQuery) -> CollisionRep
         )
     opening = query.gripper_opening_m / 2.0
     for joints in configurations:
-        carried = None
+        held_box = None
         if held is not None:
             position, quat = context.arm.forward(joints)
-            carried = _held_box(context.state, held, Pose(position_m=position, quat_xyzw=quat))
-        found = context.collisions.clearance(joints, opening, obstacles, carried)
+            at = Pose(position_m=position, quat_xyzw=quat)
+            held_box = _held_box(context.state, held, at, query.held_roll_turn_deg)
+        found = context.collisions.clearance(joints, opening, obstacles, held_box)
         worst = found if found.distance_m < worst.distance_m else worst
     return CollisionReport(
         reachable=True,

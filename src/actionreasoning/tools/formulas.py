@@ -103,6 +103,40 @@ def slot_pose(target: Pose, offset_m: Vec3, quat_in_hand: QuatXYZW) -> Pose:
     return Pose(position_m=_vec(position), quat_xyzw=_quat(turn))
 
 
+def roll_in_hand_deg(quat_in_hand: QuatXYZW) -> float:
+    """The brick's roll in the hand (deg): its turn about the tool's y axis, the axis through
+    both pads. With u = R(q_h)·(0, 0, 1), the brick's up axis in the tool frame, taken with
+    u_z <= 0 (a brick is the same upside down): roll = atan2(-u_x, -u_z); 0 when level."""
+    up = Rotation.from_quat(quat_in_hand).apply((0.0, 0.0, 1.0))
+    if up[2] > 0.0:
+        up = -up
+    return math.degrees(math.atan2(-up[0], -up[2]))
+
+
+def roll_rate_deg_s(before_deg: float, before_s: float, now_deg: float, now_s: float) -> float:
+    """The roll rate in the hand (deg/s) from two consecutive measurements of the roll:
+    (roll_now - roll_before) / (t_now - t_before)."""
+    return (now_deg - before_deg) / (now_s - before_s)
+
+
+def rolled_in_hand(
+    offset_m: Vec3, quat_in_hand: QuatXYZW, turn_deg: float
+) -> tuple[Vec3, QuatXYZW]:
+    """A held brick's pose in the tool frame once it has rolled ``turn_deg`` further about
+    the pads' axis (the tool's y axis through the tool centre point):
+    o' = R_y(turn)·o, q_h' = R_y(turn) ⊗ q_h."""
+    if turn_deg == 0.0:
+        return offset_m, quat_in_hand
+    turn = Rotation.from_euler("y", turn_deg, degrees=True)
+    return _vec(turn.apply(offset_m)), _quat(turn * Rotation.from_quat(quat_in_hand))
+
+
+def touch_down_s(duration_s: float) -> float:
+    """When a set-down touches down after it is answered (s): it moves over the slot and then
+    down onto it, each move taking the answer's duration_s."""
+    return 2.0 * duration_s
+
+
 def carried(tool: Pose, offset_m: Vec3, quat_in_hand: QuatXYZW) -> Pose:
     """Where a brick held at (``offset_m``, ``quat_in_hand``) is with the tool at ``tool``."""
     grip = Rotation.from_quat(tool.quat_xyzw)

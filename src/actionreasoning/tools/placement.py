@@ -17,7 +17,7 @@ from pydantic import Field
 
 from actionreasoning.tools.base import ToolContext, ToolModel, tool
 from actionreasoning.tools.collision import CollisionQuery, collision_check
-from actionreasoning.tools.formulas import carried, in_hand, slot_pose
+from actionreasoning.tools.formulas import carried, in_hand, rolled_in_hand, slot_pose
 from actionreasoning.tools.geometry import (
     AlignmentErrors,
     BrickQuery,
@@ -26,7 +26,7 @@ from actionreasoning.tools.geometry import (
     target_of,
 )
 from actionreasoning.world.geometry import axis_angle_deg
-from actionreasoning.world.models import BrickStatus, Pose, WorldState
+from actionreasoning.world.models import BrickStatus, Pose
 
 #: The way down is checked to this far above the seat: the set-down ends in contact.
 SEAT_CLEARANCE_M = 0.003
@@ -50,6 +50,13 @@ class PlacementQuery(ToolModel):
     target_index: int = Field(ge=0)
     approach: Literal["joint", "linear"] = Field(
         "joint", description="The move over the slot: joint to carry, linear once over it."
+    )
+    roll_turn_deg: float = Field(
+        0.0,
+        ge=-90.0,
+        le=90.0,
+        description="How much further the brick rolls in the hand by touch-down (deg; "
+        "Formulas: roll rate): the slot is for the brick so turned.",
     )
 
 
@@ -82,7 +89,8 @@ def placement_pose(context: ToolContext, query: PlacementQuery) -> PlacementPose
     state = context.state
     brick = brick_state(state, query.brick_id)
     tool_pose = state.robot.ee_pose
-    slot = slot_pose(target_of(state, query.target_index).pose, *in_hand(tool_pose, brick.pose))
+    grip = rolled_in_hand(*in_hand(tool_pose, brick.pose), query.roll_turn_deg)
+    slot = slot_pose(target_of(state, query.target_index).pose, *grip)
     quat = slot.quat_xyzw
     x, y, z = slot.position_m
     above = Pose(position_m=(x, y, max(z, tool_pose.position_m[2])), quat_xyzw=quat)
@@ -93,7 +101,13 @@ def placement_pose(context: ToolContext, query: PlacementQuery) -> PlacementPose
         if query.approach == "joint"
         else CollisionQuery(pose=above, start_pose=tool_pose, gripper_opening_m=opening)
     )
-    down = CollisionQuery(pose=seat, start_pose=above, gripper_opening_m=opening)
+    # The way down with the brick as it will sit at touch-down.
+    down = CollisionQuery(
+        pose=seat,
+        start_pose=above,
+        gripper_opening_m=opening,
+        held_roll_turn_deg=query.roll_turn_deg,
+    )
     reports = [collision_check(context, q) for q in (over, down)]
     worst = min(reports, key=lambda r: r.clearance_m if r.reachable else -np.inf)
     return PlacementPose(
@@ -111,21 +125,22 @@ class PlacementCheckQuery(ToolModel):
     brick_id: int = Field(ge=0)
     target_index: int = Field(ge=0)
     pose: Pose = Field(description="The tool pose proposed for the set-down.")
+    roll_turn_deg: float = Field(
+        0.0,
+        ge=-90.0,
+        le=90.0,
+        description="How much further the brick rolls in the hand by touch-down (deg).",
+    )
 
 
 def placement_check(context: ToolContext, query: PlacementCheckQuery) -> AlignmentErrors:
-    """The alignment errors of the held brick against its target were it set down, as it
-    sits in the hand now, with the tool at ``pose``."""
+    """The alignment errors of the held brick against its target were it set down with the
+    tool at ``pose``, as it sits in the hand now turned ``roll_turn_deg`` further."""
     state = context.state
     brick = brick_state(state, query.brick_id)
     goal = target_of(state, query.target_index)
-    return alignment_of(carried_pose(state, brick.id, query.pose), brick.size_m, goal)
-
-
-def carried_pose(state: WorldState, brick_id: int, tool: Pose) -> Pose:
-    """Where brick ``brick_id`` would be with the tool at ``tool`` and the brick as it sits
-    in the hand now (measured)."""
-    return carried(tool, *in_hand(state.robot.ee_pose, state.brick(brick_id).pose))
+    grip = rolled_in_hand(*in_hand(state.robot.ee_pose, brick.pose), query.roll_turn_deg)
+    return alignment_of(carried(query.pose, *grip), brick.size_m, goal)
 
 
 HELD_POSE = tool("held_pose", held_pose)
