@@ -792,6 +792,40 @@ def test_a_brick_off_its_target_is_left_once_the_repairs_are_spent(world) -> Non
     ]
 
 
+def test_a_placed_brick_knocked_off_is_found_by_sigma1_and_set_right(kinematics, wall) -> None:
+    """Lifting the second brick knocks the first 3 cm off target 0: the third brick's
+    sigma_1 re-measures the placed bricks, refuses Ag1's answer naming the knocked brick,
+    which is picked again and set right before the top brick is built on it."""
+    world = FakeWorld(wall, BRICKS, *kinematics)
+    target = wall.targets[0].pose.position_m
+
+    def on_target(world: FakeWorld) -> int | None:
+        near = [
+            i for i, b in enumerate(world.bricks) if math.dist(b.pose.position_m, target) < 1e-3
+        ]
+        return next((i for i in near if i != world.held), None)
+
+    def knocks(world: FakeWorld, waypoint: WaypointProposal, stop: int | None) -> Motion:
+        knocked = on_target(world)
+        assert knocked is not None
+        world.push(knocked, (0.03, 0.0, 0.0))
+        return world.ideal_move(waypoint, stop)
+
+    world.script("lift", Deviation("move", knocks, only=lambda w, *_: on_target(w) is not None))
+    reasoner = Scripted()
+    result = build(world, reasoner)
+    assert_built(world, result)
+    refused = [c for c in calls(result, "pre_grasp") if c.outcome == "refused"]
+    assert len(refused) == 1
+    assert checked(refused[0], "sigma1_placed")["offset_m"] == pytest.approx(0.03)
+    assert "repair 1 of 2" in refused[0].feedback
+    picks = [(c.answer["brick_id"], c.answer["target_index"]) for c in calls(result, "pre_grasp")]
+    knocked = picks[0][0]  # the brick built first, on target 0
+    # The third answer (target 2, on top) refused; then the knocked brick back on target 0.
+    assert [target for _, target in picks] == [0, 1, 2, 0, 2]
+    assert picks[3] == (knocked, 0)
+
+
 def test_the_check_tiers_grasp_checks_leave_the_brick_out_as_sigma1_does(world, one_brick) -> None:
     """Agent 1's checks in the check tier measure what grasp_options and sigma_1 measure:
     the brick to be grasped is no obstacle to the approach or to the way down."""

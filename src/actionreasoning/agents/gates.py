@@ -251,6 +251,19 @@ def sigma5_placement(alignment: AlignmentErrors, tol: Tolerances) -> GateVerdict
     )
 
 
+def sigma1_placed(alignment: AlignmentErrors, tol: Tolerances) -> GateVerdict:
+    """A brick already placed, re-measured before the next is picked: still within
+    max_offset_m and max_rotation_deg of its target (the success rule's limits)."""
+    return GateVerdict(
+        "sigma1_placed",
+        (
+            Check("offset_m", alignment.offset_m, tol.max_offset_m, at_most=True),
+            Check("rotation_deg", alignment.rotation_deg, tol.max_rotation_deg, at_most=True),
+        ),
+        measured=misalignment(alignment),
+    )
+
+
 def sigma6_at_rest(
     alignment: AlignmentErrors,
     speed_mps: float,

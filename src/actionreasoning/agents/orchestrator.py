@@ -80,7 +80,13 @@ from actionreasoning.records import FailureCode
 from actionreasoning.tools import formulas
 from actionreasoning.tools.collision import COLLISION, CollisionQuery, CollisionReport
 from actionreasoning.tools.contact import FINGER_CONTACTS, SLIP
-from actionreasoning.tools.geometry import ALIGNMENT, AlignmentQuery, BrickQuery, alignment_of
+from actionreasoning.tools.geometry import (
+    ALIGNMENT,
+    AlignmentErrors,
+    AlignmentQuery,
+    BrickQuery,
+    alignment_of,
+)
 from actionreasoning.tools.placement import PLACEMENT_POSE, SEAT_CLEARANCE_M, PlacementQuery
 from actionreasoning.world.geometry import Vec3, rotation_deg, round_floats
 from actionreasoning.world.models import (
@@ -259,10 +265,8 @@ class Orchestrator:
 
     def _withdrawn(self, brick: int, target: int) -> bool:
         """sigma_6 at rest: the released brick, once the arm has left it, as the success
-        rule will judge it. One found off its target (or still moving) that lies free on the
-        ground is withdrawn, within the trial's repair budget: its target is built again,
-        this brick picked first (the refusal names it in the way). Returns whether it was;
-        a brick that cannot be picked stays placed, for the success rule to judge."""
+        rule will judge it. One found off its target (or still moving) is repaired where it
+        can be (:meth:`_repair`); returns whether it was withdrawn for that."""
         others = tuple(p.brick_id for p in self.memory.placed)
         state = self.world.observe(Progress(placed_ids=others, step=Stage.RELEASE))
         errors = self.calls.measure(
@@ -275,29 +279,71 @@ class Orchestrator:
             math.hypot(*released.angular_velocity_radps),
             self.tol,
         )
-        if not self._refuses(verdict) or not released.pickable:
+        if not self._refuses(verdict):
             return False
-        if self._repairs == self.budgets.repairs:
+        refusal = self._repair(brick, target, verdict.refusal(Stage.RELEASE), "after its release")
+        if refusal is None:
             return False
-        self._repairs += 1
-        refusal = verdict.refusal(Stage.RELEASE)
-        note = (
-            f"brick {brick} lies off target {target} after its release: it is picked again "
-            f"to set it right (repair {self._repairs} of {self.budgets.repairs})"
-        )
-        in_the_way = f"target {target} vs brick {brick}"
         self.memory = self.memory.model_copy(
             update={"current_brick": None, "current_target": None, "last_feedback": ""}
         )
-        self._note(
-            refusal.model_copy(
-                update={
-                    "measured": refusal.measured.model_copy(update={"closest": in_the_way}),
-                    "note": note,
-                }
-            )
-        )
+        self._note(refusal)
         return True
+
+    def _check_placed(self, state: WorldState, supports: Mapping[int, tuple[int, ...]]) -> None:
+        """sigma_1 re-measures the bricks already placed (in ``state``, Ag1's) before a new
+        brick is picked: the one furthest off its target, against the success rule's offset
+        and rotation. One found off that carries no placed brick is repaired where it can be
+        (:meth:`_repair`), and Ag1's answer refused with the refusal naming it."""
+        if not self.memory.placed:
+            return
+
+        def errors(placed: PlacedBrick) -> AlignmentErrors:
+            query = AlignmentQuery(brick_id=placed.brick_id, target_index=placed.target_index)
+            return self.calls.measure(state, ALIGNMENT, query)
+
+        measured = [(placed, errors(placed)) for placed in self.memory.placed]
+        placed, worst = max(
+            measured,
+            key=lambda pair: max(
+                pair[1].offset_m / self.tol.max_offset_m,
+                pair[1].rotation_deg / self.tol.max_rotation_deg,
+            ),
+        )
+        verdict = gates.sigma1_placed(worst, self.tol).noted(
+            f"brick {placed.brick_id} on target {placed.target_index}, the furthest off of the "
+            "bricks placed"
+        )
+        carries = any(placed.target_index in supports[p.target_index] for p in self.memory.placed)
+        if not self._refuses(verdict) or carries:
+            return
+        refusal = self._repair(
+            placed.brick_id, placed.target_index, verdict.refusal(Stage.PRE_GRASP), "since"
+        )
+        if refusal is not None:
+            raise _Refused(refusal, FailureCode.INVALID_CHOICE, ErrorCategory.WRONG_CHOICE)
+
+    def _repair(self, brick: int, target: int, refusal: Refusal, when: str) -> Refusal | None:
+        """Withdraw brick ``brick`` from target ``target`` to set it right, if it lies free on
+        the ground (as measured without it placed) and the trial's repair budget is not
+        spent: its target is built again, and the returned refusal names the brick in the
+        way, so that it is picked first. None: it stays placed, for the success rule."""
+        others = tuple(p.brick_id for p in self.memory.placed if p.brick_id != brick)
+        state = self.world.observe(Progress(placed_ids=others, step=self.memory.step))
+        if not state.brick(brick).pickable or self._repairs == self.budgets.repairs:
+            return None
+        self._repairs += 1
+        self.memory = self.memory.model_copy(
+            update={"placed": tuple(p for p in self.memory.placed if p.brick_id != brick)}
+        )
+        self.result.placements.pop(target, None)
+        note = (
+            f"brick {brick} lies off target {target} {when}: it is picked again to set it "
+            f"right (repair {self._repairs} of {self.budgets.repairs})"
+        )
+        in_the_way = f"target {target} vs brick {brick}"
+        measured = refusal.measured.model_copy(update={"closest": in_the_way})
+        return refusal.model_copy(update={"measured": measured, "note": note})
 
     def _check_bricks_left(self, supports: Mapping[int, tuple[int, ...]]) -> None:
         """Stop the trial if no unused brick can be picked (each toppled or fell on others),
@@ -476,6 +522,7 @@ class Orchestrator:
         self, answer: PreGraspDecision, state: WorldState, supports: Mapping[int, tuple[int, ...]]
     ) -> tuple[int, int]:
         key = Stage.PRE_GRASP
+        self._check_placed(state, supports)
         self._gate(
             self._choice(answer.brick_id, answer.target_index, state, supports),
             key,
