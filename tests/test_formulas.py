@@ -105,3 +105,11 @@ def test_the_roll_rate_slot_against_a_hand_computation() -> None:
     landing = formulas.carried(slot, rolled_offset, rolled_quat)
     assert landing.position_m == pytest.approx(target.position_m, abs=1e-12)
     assert Rotation.from_quat(landing.quat_xyzw).magnitude() < 1e-9
+
+
+def test_a_roll_rate_is_taken_within_a_half_turn_and_a_swing_is_not_extrapolated() -> None:
+    # A brick rolled past 90 deg reads -89: the change is 2 deg, not -178 deg.
+    assert formulas.roll_rate_deg_s(89.0, 10.0, -89.0, 10.25) == pytest.approx(8.0)
+    assert formulas.touch_down_turn_deg(8.0, 1.0) == 0.0  # faster than any creep: a swing
+    assert formulas.touch_down_turn_deg(-3.0, 1.0) == pytest.approx(-6.0)
+    assert formulas.touch_down_turn_deg(5.0, 30.0) == 90.0  # no further than onto its side

@@ -826,6 +826,40 @@ def test_a_placed_brick_knocked_off_is_found_by_sigma1_and_set_right(kinematics,
     assert picks[3] == (knocked, 0)
 
 
+def test_a_brick_fallen_flat_onto_the_build_is_picked_off_it_and_built(kinematics, wall) -> None:
+    """When the second brick is let go, the last loose brick falls flat onto the first
+    course, 3 cm off the top target: it is free (dropped, lying flat), so the next cycle
+    picks it off the build and sets it on that target."""
+    world = FakeWorld(wall, BRICKS, *kinematics)
+    top = wall.targets[2].pose
+
+    def loose(world: FakeWorld) -> int:
+        """The brick furthest from every target."""
+        return max(
+            range(len(world.bricks)),
+            key=lambda i: min(
+                math.dist(world.bricks[i].pose.position_m, t.pose.position_m) for t in wall.targets
+            ),
+        )
+
+    def falls_onto_the_build(world: FakeWorld, opening_m: float | None) -> None:
+        world.ideal_grip(opening_m)
+        x, y, z = top.position_m
+        world.bricks[loose(world)].pose = Pose(position_m=(x + 0.03, y, z), quat_xyzw=top.quat_xyzw)
+
+    released = []
+
+    def second_release(world: FakeWorld, *_: object) -> bool:
+        released.append(world.held)
+        return len(released) == 2
+
+    world.script("release", Deviation("open", falls_onto_the_build, only=second_release))
+    result = build(world)
+    assert_built(world, result)
+    fallen = result.placements[2]
+    assert calls(result, "pre_grasp")[-1].answer["brick_id"] == fallen
+
+
 def test_the_check_tiers_grasp_checks_leave_the_brick_out_as_sigma1_does(world, one_brick) -> None:
     """Agent 1's checks in the check tier measure what grasp_options and sigma_1 measure:
     the brick to be grasped is no obstacle to the approach or to the way down."""

@@ -120,10 +120,11 @@ def _roll_rate() -> dict[str, str]:
     offset, quat = f.in_hand(TOOL, held_example())
     w = ROLL_WATCH
     rate = f.roll_rate_deg_s(w["before_deg"], w["before_s"], w["now_deg"], w["now_s"])
-    turn = rate * f.touch_down_s(SET_DOWN_S)
+    turn = f.touch_down_turn_deg(rate, SET_DOWN_S)
     rolled_offset, rolled_quat = f.rolled_in_hand(offset, quat, turn)
     return {
         "roll": _deg(f.roll_in_hand_deg(quat)),
+        "creep_max": f"{f.CREEP_MAX_DEG_S:g}",
         "before": f"{w['before_deg']:g} deg at {w['before_s']:g} s",
         "now": f"{w['now_deg']:g} deg at {w['now_s']:g} s",
         "rate": _deg(rate),

@@ -73,8 +73,8 @@ class BrickView(_View):
 
     @property
     def pickable(self) -> bool:
-        """Free to be picked: in the pick area, or dropped but lying on the ground."""
-        return is_pickable(self.status, self.pose.position_m, self.size_m)
+        """Free to be picked: in the pick area, or dropped and lying flat (:func:`is_pickable`)."""
+        return is_pickable(self.status)
 
     @property
     def top_m(self) -> float:

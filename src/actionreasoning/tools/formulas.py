@@ -113,10 +113,27 @@ def roll_in_hand_deg(quat_in_hand: QuatXYZW) -> float:
     return math.degrees(math.atan2(-up[0], -up[2]))
 
 
+#: The fastest roll in the hand that is a creep (deg/s): twice the fastest creep measured,
+#: a half brick's 3.1 deg/s (``bench/hand_creep.py``). A faster one is a swing, which does
+#: not go on at its rate: it is not extrapolated.
+CREEP_MAX_DEG_S = 6.0
+
+
 def roll_rate_deg_s(before_deg: float, before_s: float, now_deg: float, now_s: float) -> float:
-    """The roll rate in the hand (deg/s) from two consecutive measurements of the roll:
-    (roll_now - roll_before) / (t_now - t_before)."""
-    return (now_deg - before_deg) / (now_s - before_s)
+    """The roll rate in the hand (deg/s) from two consecutive measurements of the roll: the
+    change, taken within a half turn either way (a roll is defined to a half turn), over
+    the time between them."""
+    change = (now_deg - before_deg + 90.0) % 180.0 - 90.0
+    return change / (now_s - before_s)
+
+
+def touch_down_turn_deg(rate_deg_s: float, duration_s: float) -> float:
+    """How much further the brick rolls in the hand by touch-down (deg): the rate times the
+    touch-down time (:func:`touch_down_s`) for a creep, at most 90 either way (a brick rolls
+    no further than onto its side); 0 for a rate above CREEP_MAX_DEG_S (a swing)."""
+    if abs(rate_deg_s) > CREEP_MAX_DEG_S:
+        return 0.0
+    return max(-90.0, min(90.0, rate_deg_s * touch_down_s(duration_s)))
 
 
 def rolled_in_hand(

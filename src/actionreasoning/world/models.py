@@ -52,10 +52,10 @@ class Pose(_Model):
 READY_POSE = Pose(position_m=(0.45, -0.25, 0.40), quat_xyzw=top_down_quat(0.0))
 
 
-def is_pickable(status: BrickStatus, position_m: Vec3, size_m: Vec3) -> bool:
-    """Free to be picked: in the pick area, or dropped but lying on the ground."""
-    on_ground = position_m[2] < size_m[2]
-    return status == BrickStatus.IN_PICK_AREA or (status == BrickStatus.DROPPED and on_ground)
+def is_pickable(status: BrickStatus) -> bool:
+    """Free to be picked: in the pick area, or dropped and lying flat, on the ground or
+    fallen onto other bricks (picked off the build, it is cleared from it)."""
+    return status in (BrickStatus.IN_PICK_AREA, BrickStatus.DROPPED)
 
 
 class PadContact(_Model):
@@ -115,8 +115,8 @@ class BrickState(_Model):
 
     @property
     def pickable(self) -> bool:
-        """Free to be picked: in the pick area, or dropped but lying on the ground."""
-        return is_pickable(self.status, self.pose.position_m, self.size_m)
+        """Free to be picked: in the pick area, or dropped and lying flat (:func:`is_pickable`)."""
+        return is_pickable(self.status)
 
 
 class TargetBrick(_Model):
