@@ -860,6 +860,24 @@ def test_a_brick_fallen_flat_onto_the_build_is_picked_off_it_and_built(kinematic
     assert calls(result, "pre_grasp")[-1].answer["brick_id"] == fallen
 
 
+def test_a_brick_slid_so_far_its_slot_is_underground_is_grasped_again(world) -> None:
+    """On the carry the brick slides 12 cm up the pads: the slot that would set it on its
+    target puts the tool below the ground, so Ag5 asks for a re-grasp rather than
+    answering a pose outside the workspace; grasped again, it is built."""
+
+    def slides_up(world: FakeWorld, waypoint: WaypointProposal, stop: int | None) -> Motion:
+        done = world.ideal_move(waypoint, stop)
+        world.turn_in_hand(Rotation.identity(), (0.0, 0.0, -0.12))
+        return done
+
+    world.script("placement", Deviation("move", slides_up, only=lambda w, *_: w.held is not None))
+    result = build(world)
+    assert_built(world, result)
+    asked = [c for c in calls(result, "placement") if c.outcome == "regrasp"]
+    assert len(asked) == 1 and "outside the workspace" in asked[0].answer["rationale"]
+    assert not [c for c in result.transcript if c.outcome == "refused"]
+
+
 def test_the_check_tiers_grasp_checks_leave_the_brick_out_as_sigma1_does(world, one_brick) -> None:
     """Agent 1's checks in the check tier measure what grasp_options and sigma_1 measure:
     the brick to be grasped is no obstacle to the approach or to the way down."""

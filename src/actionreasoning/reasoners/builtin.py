@@ -48,7 +48,7 @@ from actionreasoning.tools.reach import REACHABILITY, ReachQuery
 from actionreasoning.world.geometry import axis_angle_deg, quat_yaw, top_down_quat, wrap_angle
 from actionreasoning.world.models import Pose
 from actionreasoning.world.motion import CARRY_SPEED_MPS, MAX_MOVE_S
-from actionreasoning.world.scene_spec import GRIPPER_GAP_M
+from actionreasoning.world.scene_spec import GRIPPER_GAP_M, WORKSPACE
 from actionreasoning.world.stages import Stage
 
 LIFT_CLEARANCE_M = 0.12
@@ -323,6 +323,14 @@ def _placement(briefing: Briefing) -> PlacementDecision | RegraspRequest:
     if phase is None:
         raise ValueError("memory shows no placement phase")
     plan = _slot_plan(briefing, "linear" if phase == PlacementPhase.SET_DOWN else "joint")
+    if not WORKSPACE.contains(plan.pose.position_m):
+        x, y, z = plan.pose.position_m
+        return RegraspRequest(
+            regrasp=True,
+            rationale=f"the brick sits so far along the pads (rolled {plan.tilt_deg:.1f} deg) "
+            f"that its slot pose, ({x:.3f}, {y:.3f}, {z:.3f}) m, is outside the workspace: "
+            "grasp it again",
+        )
     if not plan.clear:
         return RegraspRequest(
             regrasp=True,
