@@ -70,7 +70,7 @@ GATES = {
     "grasp": ["sigma3_grasp"],
     "lift": ["lift_plan", "sigma4_lift"],
     "placement": ["placement_plan"],  # carried over the slot: its way is checked, not gated
-    "release": ["release_plan", "sigma6_return"],
+    "release": ["release_plan", "sigma6_return", "sigma6_at_rest"],
 }
 
 
@@ -90,6 +90,8 @@ def check_transcript(path: Path, method: Method) -> None:
         else:
             assert [c.agent for c in mine] == stages
         expected = [*list(GATES.values())[:5], ["placement_plan", "sigma5_placement"]]
+        if brick:  # sigma_1 re-measures the bricks placed before Ag1 picks another
+            expected[0] = ["sigma1_placed", *expected[0]]
         expected.append(GATES["release"])
         assert [[g.gate for g in c.gates] for c in mine] == expected
         for gate in (g for c in mine for g in c.gates):

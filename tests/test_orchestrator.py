@@ -406,4 +406,5 @@ def test_a_dragging_lift_and_a_return_into_the_ground_are_refused_before_they_mo
     assert [(g.gate, g.passed) for g in accepted.gates] == [
         ("release_plan", True),
         ("sigma6_return", True),
+        ("sigma6_at_rest", True),
     ]

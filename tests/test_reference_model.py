@@ -105,11 +105,12 @@ def wall_run(tmp_path_factory: pytest.TempPathFactory) -> Both:
     return build_wall(tmp_path_factory, ToolTier.SOLVE)
 
 
-#: The tool calls of one brick in each tier: the solve tier's tools answer Ag1 and Ag5;
+#: The tool calls of one brick in each tier: the solve tier's tools answer Ag1 and Ag5 (at
+#: the set-down twice: the slot, then the slot for the brick's further roll by touch-down);
 #: in the check tier Ag1 checks its grasp (Ag5 composes the slot, the gate checks its way);
 #: without tools, none.
 TOOL_CALLS = {
-    ToolTier.SOLVE: ["grasp_options", "placement_pose", "placement_pose"],
+    ToolTier.SOLVE: ["grasp_options", "placement_pose", "placement_pose", "placement_pose"],
     ToolTier.CHECK: ["collision_check", "collision_check", "reachability"],
     ToolTier.NONE: [],
 }
@@ -220,7 +221,7 @@ def test_over_http_it_builds_a_brick_with_tool_calls_and_usage(
         AgentCall.model_validate_json(text)
         for text in (out / "transcripts" / "trial_000.jsonl").read_text().splitlines()
     ]
-    turns = {ToolTier.SOLVE: [1, 0, 0, 0, 1, 1, 0], ToolTier.CHECK: [1, 0, 0, 0, 0, 0, 0]}
+    turns = {ToolTier.SOLVE: [1, 0, 0, 0, 1, 2, 0], ToolTier.CHECK: [1, 0, 0, 0, 0, 0, 0]}
     assert [c.tool_turns for c in calls] == turns.get(tier, [0] * 7)
     assert [t.name for c in calls for t in c.tool_calls] == TOOL_CALLS[tier]
     assert all(c.usage.prompt_tokens > 0 and not c.fallback for c in calls)

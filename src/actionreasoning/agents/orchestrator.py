@@ -126,8 +126,9 @@ class Budgets:
     attempts_per_agent: int = 3
     regrasps: int = 4
     placement_attempts: int = 4
-    #: Released bricks sigma_6 found off their targets at rest and set right again, per
-    #: trial: each costs a brick's cycle (about 31 s of the trial's simulated time).
+    #: Bricks found off their targets (sigma_6 at rest, sigma_1 re-measuring the placed ones)
+    #: withdrawn and built again, per trial: each costs a brick's cycle (about 31 s of the
+    #: trial's simulated time), so two keep a six-brick trial within 1.4 times its length.
     repairs: int = 2
 
 
@@ -206,7 +207,7 @@ class Orchestrator:
         #: When the held brick, creeping in the hand faster than v_th, would leave it (state
         #: time, s); None when it creeps no faster.
         self._held_until_s: float | None = None
-        #: Released bricks withdrawn so far (sigma_6 at rest; Budgets.repairs).
+        #: Bricks withdrawn to be built again so far (Budgets.repairs).
         self._repairs = 0
 
     # --- the pipeline -------------------------------------------------------------------
