@@ -9,6 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from actionreasoning.agents.feedback import Refusal
 from actionreasoning.agents.outputs import WaypointProposal
+from actionreasoning.tools.formulas import roll_rate_deg_s, touch_down_turn_deg
 from actionreasoning.world.stages import Stage
 
 
@@ -60,6 +61,12 @@ class RollWatch(BaseModel):
     before_deg: float = Field(description="Roll in the hand then (deg).")
     now_s: float = Field(description="State time of the second: the state shown (s).")
     now_deg: float = Field(description="Roll in the hand now (deg).")
+
+    def turn_by_touch_down_deg(self, duration_s: float) -> float:
+        """How much further the brick rolls by the touch-down of a set-down taking
+        ``duration_s`` a move (Formulas: roll rate)."""
+        rate = roll_rate_deg_s(self.before_deg, self.before_s, self.now_deg, self.now_s)
+        return touch_down_turn_deg(rate, duration_s)
 
 
 class TaskMemory(BaseModel):

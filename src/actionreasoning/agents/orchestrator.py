@@ -862,10 +862,7 @@ class Orchestrator:
         watch = self.memory.roll_watch
         turn = 0.0
         if moves == 2 and watch is not None:
-            rate = formulas.roll_rate_deg_s(
-                watch.before_deg, watch.before_s, watch.now_deg, watch.now_s
-            )
-            turn = formulas.touch_down_turn_deg(rate, slot.duration_s or 0.0)
+            turn = watch.turn_by_touch_down_deg(slot.duration_s or 0.0)
         grip = formulas.rolled_in_hand(*formulas.in_hand(state.robot.ee_pose, held.pose), turn)
         landing = formulas.carried(_as_pose(slot), *grip)
         predicted = alignment_of(landing, held.size_m, goal)

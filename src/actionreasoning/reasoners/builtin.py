@@ -421,8 +421,7 @@ def _roll_turn_deg(briefing: Briefing, slot: Pose) -> float:
     watch = briefing.memory.roll_watch
     if watch is None:
         return 0.0
-    rate = formulas.roll_rate_deg_s(watch.before_deg, watch.before_s, watch.now_deg, watch.now_s)
-    return formulas.touch_down_turn_deg(rate, _carry_s(briefing, slot))
+    return watch.turn_by_touch_down_deg(_carry_s(briefing, slot))
 
 
 def _misses(briefing: Briefing) -> tuple[float, float, float, int]:
