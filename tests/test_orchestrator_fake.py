@@ -27,7 +27,13 @@ from fake_world import (
 from scipy.spatial.transform import Rotation
 
 from actionreasoning.agents.calls import BuildResult
-from actionreasoning.agents.orchestrator import ROLL_WATCH_S, SETTLE_S, Budgets, Orchestrator
+from actionreasoning.agents.orchestrator import (
+    HOVER_STEP_M,
+    ROLL_WATCH_S,
+    SETTLE_S,
+    Budgets,
+    Orchestrator,
+)
 from actionreasoning.agents.outputs import (
     AgentAnswer,
     DescentAnswer,
@@ -48,7 +54,7 @@ from actionreasoning.tools.geometry import alignment_of
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import quat_yaw, tilt_deg, top_down_quat, wrap_angle, yaw_quat
 from actionreasoning.world.layout import sample_pick_poses
-from actionreasoning.world.models import READY_POSE, BrickState, GoalPattern, Pose
+from actionreasoning.world.models import READY_POSE, BrickState, GoalPattern, Pose, Progress
 from actionreasoning.world.motion import Motion
 from actionreasoning.world.physics import GRAVITY_MPS2
 from actionreasoning.world.scene_spec import (
@@ -1219,3 +1225,53 @@ def test_an_incomplete_answer_is_refused_before_it_acts_and_asked_again(
     assert [(m.stage, m.waypoint) for m in world.moves] == [
         (m.stage, m.waypoint) for m in clean.moves
     ]
+
+
+def test_a_brick_rolled_past_its_end_is_set_aside_level_by_tilting_the_tool(
+    world, one_brick
+) -> None:
+    """Rolled 76 deg, past atan(length / height) = 73 deg, a full brick pressed down would tip
+    onto its end: it is laid level instead, the tool tilted by its roll, down until it
+    touches, and grasped again from where it lies flat."""
+    world.script("placement", rolls(76.0))  # on the carry over the slot
+    result = build(world, Scripted(), tier=ToolTier.SOLVE)
+    assert_built(world, result)
+    assert [c.outcome for c in calls(result, "placement")][:2] == ["accepted", "regrasp"]
+    guarded = [m for m in world.moves if m.stage == "placement" and m.stop_on_contact == 0]
+    laid, set_down = guarded  # the set-aside, then the set-down of the brick grasped again
+    assert tilt_deg(set_down.waypoint.quat_xyzw) < 0.1
+    assert tilt_deg(laid.waypoint.quat_xyzw) == pytest.approx(76.0, abs=0.5)
+    assert laid.motion.stopped_on_contact
+    again = calls(result, "pre_grasp")[1].answer["waypoint"]["position_m"]
+    assert math.dist(again[:2], laid.waypoint.position_m[:2]) < SET_ASIDE_SLACK_M
+
+
+#: A tool tilted 36 deg for a rolled brick over the far end of a four-course wall's top
+#: course: the arm reaches it up to z = 0.34 m there, not at the carry height of 0.36 m.
+FAR_TILTED = (0.8702481588564857, -0.37245897211367085, 0.24242924210386194, 0.2125335706938361)
+#: The same tool tilted 21 deg, as it was carried there (reached at 0.36 m).
+CARRIED_TILTED = (
+    -0.8941737038487976,
+    0.4078285492445622,
+    -0.14082004539942924,
+    -0.1195783282208835,
+)
+
+
+def test_a_set_down_hover_out_of_reach_at_the_carry_height_steps_down_to_where_it_reaches(
+    world,
+) -> None:
+    """The tool carried at 0.36 m over a slot it can only reach tilted lower down: the set-down
+    starts HOVER_STEP_M steps lower, at the highest height the arm reaches."""
+    world.go(Pose(position_m=(0.2025, 0.659, 0.36), quat_xyzw=CARRIED_TILTED))
+    orchestrator = Orchestrator(world, Scripted())
+    state = world.observe(Progress(current_brick=0, step="placement"))
+    slot = WaypointProposal(position_m=(0.2014, 0.6642, 0.2374), quat_xyzw=FAR_TILTED)
+    above, way = orchestrator._hover(state, slot, path="linear")
+    x, y, z = above.position_m
+    assert way.reachable and (x, y) == (0.2014, 0.6642)
+    assert 0.2374 < z < 0.36 and z == pytest.approx(
+        0.36 - HOVER_STEP_M * round((0.36 - z) / HOVER_STEP_M)
+    )
+    higher = above.model_copy(update={"position_m": (x, y, z + HOVER_STEP_M)})
+    assert not orchestrator._clearance(state, higher, start=state.robot.ee_pose).reachable

@@ -3,11 +3,14 @@ is pressed flat, not let go on a corner."""
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pybullet as p
 import pytest
+from conftest import SMALL_PATTERN
 from scipy.spatial.transform import Rotation
 
 from actionreasoning.agents.calls import AgentCaller, BuildResult
@@ -23,15 +26,28 @@ from actionreasoning.world.geometry import quat_yaw, tilt_deg, top_down_quat
 from actionreasoning.world.models import Pose, Progress
 from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.physics import PRECISE
-from actionreasoning.world.scene_spec import SceneSpec
+from actionreasoning.world.scene_spec import BRICK_CATALOGUE, SceneSpec
 from actionreasoning.world.tolerances import Tolerances
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("roll_deg", [-35.0, 50.0])
-def test_a_brick_rolled_in_the_hand_is_pressed_flat_onto_its_spot(small_pattern, roll_deg) -> None:
-    small = load_pattern(small_pattern, SceneSpec())
-    goal = small.model_copy(update={"targets": small.targets[:1]})
+@pytest.mark.parametrize(
+    ("size", "roll_deg"),
+    [
+        ("full", -35.0),
+        ("full", 50.0),
+        # Past atan(length / height), 58 deg: pressed down it would tip onto its end, so it
+        # is laid level with the tool tilted by its roll.
+        ("half", 68.0),
+    ],
+)
+def test_a_brick_rolled_in_the_hand_is_pressed_flat_onto_its_spot(
+    tmp_path: Path, size: str, roll_deg: float
+) -> None:
+    path = tmp_path / "small.json"
+    one = {"brick_size": BRICK_CATALOGUE[size], "bricks": SMALL_PATTERN["bricks"][:1]}
+    path.write_text(json.dumps(SMALL_PATTERN | one))
+    goal = load_pattern(path, SceneSpec())
     spec = TrialSpec(
         method=Method.AGENTS, pattern_name="one", goal=goal, run_seed=2, trial=0,
         config=TrialConfig(physics=PRECISE),

@@ -13,7 +13,8 @@ import pybullet as p
 import pytest
 from conftest import SMALL_PATTERN, layout_scene
 
-from actionreasoning.control.waypoint import Waypoint, WaypointController
+from actionreasoning.control.safety import SafetyLimits
+from actionreasoning.control.waypoint import MIN_JERK_PEAK, Waypoint, WaypointController
 from actionreasoning.errors import TrialAborted
 from actionreasoning.sim.kinematics import KinematicArm
 from actionreasoning.sim.scene import Scene
@@ -70,6 +71,28 @@ def test_a_move_faster_than_the_tool_speed_limit_is_refused(
 ) -> None:
     fast = Waypoint(pose=at(0.45, -0.25, 0.10), path="linear", ticks=20)  # 0.3 m in 42 ms
     refused(WaypointController(scene, arm), fast, "above the 2.5 m/s limit")
+
+
+def test_a_free_move_with_no_duration_keeps_the_tool_speed_limit(
+    scene: Scene, arm: KinematicArm
+) -> None:
+    """Its least duration keeps the tool within the envelope, not only the joints' speed: a
+    sweep far from the base, whose joints turn slowly, is slowed instead of refused."""
+    safety = SafetyLimits(max_tcp_speed_mps=0.5)
+    controller = WaypointController(scene, arm, safety=safety)
+    controller.execute(Waypoint(pose=at(0.6, -0.3, 0.20)))
+    sweep = Waypoint(pose=at(0.6, 0.3, 0.20))
+    knots = controller.plan(sweep)
+    joint_ticks = scene.ticks_for(
+        MIN_JERK_PEAK * float(np.max(np.abs(knots[-1] - knots[0]))) / 2.5
+    )  # the joints' own limit alone
+    start, end = (arm.forward(q)[0] for q in knots)
+    with pytest.raises(TrialAborted, match=r"above the 0\.5 m/s limit"):
+        controller.execute(sweep.model_copy(update={"ticks": joint_ticks}))
+    motion = controller.execute(sweep)
+    assert motion.converged and motion.position_error_m < 2e-3
+    seconds = motion.ticks * scene.physics.time_step_s
+    assert MIN_JERK_PEAK * math.dist(start, end) / seconds <= 0.5
 
 
 def test_a_free_move_low_across_a_brick_is_refused_in_transit(

@@ -96,7 +96,8 @@ def test_stack_bond_lays_every_course_alike() -> None:
 
 
 @pytest.mark.parametrize(
-    ("length_m", "full"), [(0.83, 4), (0.80, 4), (0.9, 4), (0.72, 3), (0.41, 2), (1.04, 5)]
+    ("length_m", "full"),
+    [(0.83, 4), (0.80, 4), (0.9, 4), (0.72, 3), (0.41, 2), (1.04, 5), (0.305, 2), (0.515, 3)],
 )
 def test_a_course_takes_the_full_bricks_nearest_the_length(length_m: float, full: int) -> None:
     assert full_bricks_per_course(length_m) == full
@@ -133,7 +134,10 @@ def test_a_running_bond_staggers_the_joints_by_half_a_brick() -> None:
         (float("inf"), 3, Bond.RUNNING, "length: inf m is not a positive length"),
         (0.25, 3, Bond.RUNNING, "fits 1 full brick a course; a running bond needs 2"),
         (0.05, 3, Bond.STACK, "fits 0 full bricks a course; a stack bond needs 1"),
-        (1e6, 3, Bond.RUNNING, "at most 10000 are generated"),
+        (1e3, 3, Bond.RUNNING, "at most 10000 are generated"),
+        (1e300, 3, Bond.RUNNING, "length: 1e+300 m is longer than the longest wall generated"),
+        (1.7e308, 3, Bond.RUNNING, "1.7e+308 m is longer than the longest wall generated"),
+        (0.304, 3, Bond.RUNNING, "(a length of at least 0.305 m)"),
     ],
 )
 def test_a_wall_that_cannot_be_laid_is_refused(

@@ -117,6 +117,11 @@ SETTLE_S = 0.5
 #: the watch, far above what the roll is measured to (quaternions shown to 1e-5, perception
 #: noise on yaw only). A longer watch costs cycle time and lets the brick roll further.
 ROLL_WATCH_S = 0.25
+#: How far a set-down's hover steps down where the arm cannot reach it at the carry height
+#: (a brick rolled far in the hand needs the tool tilted far, which the arm's reach allows
+#: only lower down): the reach changes smoothly with height, and a centimetre more descent
+#: is 0.03 s at the carry speed, so a finer step buys nothing.
+HOVER_STEP_M = 0.01
 
 
 @dataclass(frozen=True)
@@ -794,11 +799,12 @@ class Orchestrator:
         target: int,
         back: Callable[[], None],
     ) -> None:
-        """Carry the brick over the proposed slot, at the height it was carried at, once the
-        slot would set it within the success rule and the way there and down is clear."""
+        """Carry the brick over the proposed slot, at the height it was carried at (lower where
+        the arm cannot reach that), once the slot would set it within the success rule and the
+        way there and down is clear."""
         slot = self._slot(answer, state, brick, back)
-        above = _above(slot, state)
-        self._check_slot(state, brick, target, slot, above, transfer=self._clearance(state, above))
+        above, transfer = self._hover(state, slot, path="joint")
+        self._check_slot(state, brick, target, slot, above, transfer=transfer)
         self.world.move(above)
 
     def _set_down(
@@ -812,14 +818,30 @@ class Orchestrator:
         """Set the brick down on the (re-measured) slot: over it, then straight down onto it.
         Returns the slot and what the way down did."""
         slot = self._slot(answer, state, brick, back)
-        above = _above(slot, state, path="linear")
-        shift = self._clearance(state, above, start=state.robot.ee_pose)
+        above, shift = self._hover(state, slot, path="linear")
         self._check_slot(state, brick, target, slot, above, transfer=shift, moves=2)
         self.world.move(above)
         # Onto the slot itself, pressed flat by the position controller; the guard stops the
         # move early if the brick meets its support above the slot.
         down = self.world.move(slot.model_copy(update={"path": "linear"}), stop_on_contact=brick)
         return slot, down
+
+    def _hover(
+        self, state: WorldState, slot: WaypointProposal, path: str
+    ) -> tuple[WaypointProposal, CollisionReport]:
+        """The tool over ``slot`` and the way there (a ``path`` move from where it is): at the
+        carry height, or, where the arm cannot reach that, as high as it can, HOVER_STEP_M at
+        a time down to the seat's clearance."""
+        start = None if path == "joint" else state.robot.ee_pose
+        above = _above(slot, state, path=path)
+        way = self._clearance(state, above, start=start)
+        x, y, z = above.position_m
+        lowest = slot.position_m[2] + SEAT_CLEARANCE_M
+        while not way.reachable and z > lowest:
+            z = max(lowest, z - HOVER_STEP_M)
+            above = above.model_copy(update={"position_m": (x, y, z)})
+            way = self._clearance(state, above, start=start)
+        return above, way
 
     def _slot(
         self,

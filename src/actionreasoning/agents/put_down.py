@@ -21,7 +21,9 @@ from actionreasoning.agents.calls import AgentCaller
 from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.agents.world import World
 from actionreasoning.tools.collision import COLLISION, CollisionQuery
+from actionreasoning.tools.formulas import in_hand, roll_in_hand_deg, slot_pose
 from actionreasoning.tools.grasp_plan import GRASP_OPTIONS, GraspOptionsQuery
+from actionreasoning.tools.placement import SEAT_CLEARANCE_M
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import Vec3, quat_yaw, top_down_quat, yaw_quat
 from actionreasoning.world.ground import free_spots
@@ -78,7 +80,7 @@ class PutDown:
             ),
             height - z,
         )
-        if not held:
+        if not held or (_tips_onto_its_end(state, brick) and self._lay_level(observe, brick, spot)):
             return
         press = _pressing_point(state, brick, spot)
         for _ in range(PRESS_CHECKS):
@@ -99,6 +101,43 @@ class PutDown:
         # Just past the brick's width: pads swung wide drag a loose brick over.
         self.world.grip(min(width + PUT_DOWN_SLACK_M, GRIPPER_GAP_M[1]))
         self.world.move(down.model_copy(update={"position_m": (*press[:2], height)}))
+
+    def _lay_level(self, observe: Callable[[], WorldState], brick: int, spot: Pose) -> bool:
+        """Lay the held brick level on ``spot`` by tilting the tool by its roll in the hand:
+        over the spot (measured again there: the brick swings on the way), straight down
+        until it touches the ground, open, and up again. False, with nothing moved, where the
+        way down is out of reach or not clear."""
+        state = observe()
+        height = state.robot.ee_pose.position_m[2]
+        for _ in range(PRESS_CHECKS):
+            tool = _levelling_pose(state, brick, spot)
+            x, y, z = tool.position_m
+            over = WaypointProposal(position_m=(x, y, height), quat_xyzw=tool.quat_xyzw)
+            seat = Pose(position_m=(x, y, z + SEAT_CLEARANCE_M), quat_xyzw=tool.quat_xyzw)
+            query = CollisionQuery(
+                pose=seat,
+                start_pose=_as_pose(over),
+                gripper_opening_m=state.robot.gripper_width_m,
+            )
+            way = self.calls.measure(state, COLLISION, query)
+            if not (way.reachable and way.collision_free):
+                return False
+            here = state.robot.ee_pose.position_m
+            self._gently(over, math.dist(here, over.position_m))
+            state = observe()
+            if state.brick(brick).status != BrickStatus.GRASPED:
+                self.world.grip(GRIPPER_GAP_M[1])
+                return True
+            moved = math.dist(_levelling_pose(state, brick, spot).position_m, tool.position_m)
+            if moved <= PRESS_TOLERANCE_M:
+                break
+        down = WaypointProposal(position_m=tool.position_m, quat_xyzw=tool.quat_xyzw, path="linear")
+        seconds = max((height - z) / PUT_BACK_SPEED_MPS, MIN_MOVE_S)
+        self.world.move(down.model_copy(update={"duration_s": seconds}), stop_on_contact=brick)
+        width = state.brick(brick).size_m[1]
+        self.world.grip(min(width + PUT_DOWN_SLACK_M, GRIPPER_GAP_M[1]))
+        self._gently(over.model_copy(update={"path": "linear"}), height - z)
+        return True
 
     def free_spot(
         self, state: WorldState, brick: int, target: int, built: set[int], height: float
@@ -181,6 +220,37 @@ class PutDown:
     def _gently(self, move: WaypointProposal, length_m: float) -> None:
         seconds = max(length_m / PUT_BACK_SPEED_MPS, MIN_MOVE_S)
         self.world.move(move.model_copy(update={"duration_s": seconds}))
+
+
+def _tips_onto_its_end(state: WorldState, brick: int) -> bool:
+    """Whether the held brick has rolled so far in the hand that pressing it down would tip
+    it onto its end rather than flat: its lowest edge is under its centre once the roll
+    passes atan(length / height) (59 deg for a half brick, 74 for a full one), less the swing
+    the press checks leave (PRESS_TOLERANCE_M at the brick's end)."""
+    state_brick = state.brick(brick)
+    length, _, height = state_brick.size_m
+    _, turn = in_hand(state.robot.ee_pose, state_brick.pose)
+    roll = abs(roll_in_hand_deg(turn))
+    swing = math.degrees(PRESS_TOLERANCE_M / (length / 2.0))
+    return roll > math.degrees(math.atan2(length, height)) - swing
+
+
+def _levelling_pose(state: WorldState, brick: int, spot: Pose) -> Pose:
+    """The tool pose that lays the held brick, as it sits in the hand, level with its centre
+    on ``spot``: the tool turned by the least rotation that levels the brick (on either broad
+    face), the brick's centre carried with it."""
+    tool, held = state.robot.ee_pose, state.brick(brick).pose
+    face = Rotation.from_quat(held.quat_xyzw).apply((0.0, 0.0, 1.0))
+    level, _ = Rotation.align_vectors([(0.0, 0.0, 1.0)], [face if face[2] >= 0.0 else -face])
+    target = Pose(
+        position_m=spot.position_m,
+        quat_xyzw=tuple(float(q) for q in (level * Rotation.from_quat(held.quat_xyzw)).as_quat()),
+    )
+    return slot_pose(target, *in_hand(tool, held))
+
+
+def _as_pose(waypoint: WaypointProposal) -> Pose:
+    return Pose(position_m=waypoint.position_m, quat_xyzw=waypoint.quat_xyzw)
 
 
 def _pressing_point(state: WorldState, brick: int, spot: Pose) -> Vec3:

@@ -158,18 +158,33 @@ class WaypointController:
             distance = float(np.linalg.norm(np.subtract(waypoint.pose.position_m, start)))
             total = self.scene.ticks_for(MIN_JERK_PEAK * distance / lim.max_linear_speed_mps)
         else:
+            # A joint move far out sweeps the tool faster than its joints turn: the least time
+            # keeps both the joints' speed and the tool's safety envelope.
             angle = float(np.max(np.abs(knots[-1] - knots[0])))
-            total = self.scene.ticks_for(MIN_JERK_PEAK * angle / lim.max_joint_speed_radps)
+            length = _length(self._tool_path(knots, waypoint))
+            total = max(
+                self.scene.ticks_for(MIN_JERK_PEAK * angle / lim.max_joint_speed_radps),
+                math.ceil(
+                    MIN_JERK_PEAK
+                    * length
+                    / self.safety.max_tcp_speed_mps
+                    / self.scene.physics.time_step_s
+                ),
+            )
         least = max(self.scene.ticks_for(lim.min_duration_s), waypoint.min_ticks or 1)
         return max(total, least, len(knots) - 1)
 
-    def _check_safety(self, knots: list[np.ndarray], waypoint: Waypoint, ticks: int) -> None:
-        """The tool path the move will follow, against the safety limits."""
+    def _tool_path(self, knots: list[np.ndarray], waypoint: Waypoint) -> list[Vec3]:
+        """The tool centre points the move passes through (a joint move sampled 17 times)."""
         if waypoint.path == "joint":
             samples = [knots[0] + s * (knots[-1] - knots[0]) for s in np.linspace(0, 1, 17)]
         else:
             samples = knots
-        path = [self.arm.forward(q)[0] for q in samples]
+        return [self.arm.forward(q)[0] for q in samples]
+
+    def _check_safety(self, knots: list[np.ndarray], waypoint: Waypoint, ticks: int) -> None:
+        """The tool path the move will follow, against the safety limits."""
+        path = self._tool_path(knots, waypoint)
         obstacles = self._obstacles(path[0]) if waypoint.path == "joint" else []
         duration_s = ticks * self.scene.physics.time_step_s
         workspace = self.scene.spec.workspace
@@ -236,3 +251,8 @@ class WaypointController:
 def _min_jerk(s: float) -> float:
     """Minimum-jerk time scaling: 0 -> 0, 1 -> 1, zero velocity and acceleration at both ends."""
     return s**3 * (10.0 - 15.0 * s + 6.0 * s**2)
+
+
+def _length(path: list[Vec3]) -> float:
+    """The length of a polyline of tool positions."""
+    return float(np.sum(np.linalg.norm(np.diff(np.asarray(path), axis=0), axis=1)))

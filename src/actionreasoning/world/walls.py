@@ -35,9 +35,10 @@ class Bond(StrEnum):
 
 def full_bricks_per_course(length_m: float, joint_m: float = JOINT_M) -> int:
     """The full bricks a course of about ``length_m`` takes: the nearest whole n to
-    n * L + (n - 1) * joint = length_m (halves rounded up)."""
+    n * L + (n - 1) * joint = length_m (halves rounded up; the quotient is taken to a
+    billionth, so that a length meant as a half, 0.305 m, is not read as just under one)."""
     length = BRICK_CATALOGUE["full"][0]
-    return math.floor((length_m + joint_m) / (length + joint_m) + 0.5)
+    return math.floor(round((length_m + joint_m) / (length + joint_m), 9) + 0.5)
 
 
 def wall_length_m(full_bricks: int, joint_m: float = JOINT_M) -> float:
@@ -66,6 +67,12 @@ def wall_pattern(
         raise PatternError(f"{source}: courses: {courses}; a wall has at least 1 course")
     if not math.isfinite(length_m) or length_m <= 0.0:
         raise PatternError(f"{source}: length: {length_m:g} m is not a positive length")
+    longest = wall_length_m(MAX_BRICKS, joint_m)
+    if length_m > longest:
+        raise PatternError(
+            f"{source}: length: {length_m:g} m is longer than the longest wall generated "
+            f"({longest:g} m, {MAX_BRICKS} full bricks a course)"
+        )
     full = full_bricks_per_course(length_m, joint_m)
     least = 2 if bond is Bond.RUNNING else 1
     if full < least:
