@@ -291,3 +291,26 @@ def test_a_run_resumes_with_its_pattern_file_spelled_another_way(
     again = cli(*common, "--trials", "2", "--pattern", f"./{small_pattern.name}", cwd=tmp_path)
     assert again.returncode == 0, again.stderr
     assert "resuming: 1 of 2" in again.stdout
+
+
+def test_tools_are_refused_with_the_classical_script(tmp_path: Path) -> None:
+    """It asks no agent, so a tier would only split identical report rows and block resumes."""
+    result = cli("eval", "--method", "classical", "--tools", "none", "--out", str(tmp_path / "o"))
+    assert_clean_error(result, "--method classical gives no agent tools; drop --tools")
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.slow  # one classical trial
+def test_answer_errors_minus_zero_is_the_run_without_them(tmp_path: Path) -> None:
+    """-0 is stored as 0: the same configuration, so a resume without the flag is the run."""
+    pattern = tmp_path / "small.json"
+    pattern.write_text(json.dumps(SMALL_PATTERN))
+    out = tmp_path / "o"
+    args = ("eval", "--method", "classical", "--pattern", str(pattern), "--trials", "1")
+    first = cli(*args, "--answer-errors", "-0", "--out", str(out))
+    assert first.returncode == 0, first.stderr
+    run = json.loads((out / "run.json").read_text())
+    assert json.dumps(run["config"]["answer_errors"]["rate"]) == "0.0"
+    again = cli(*args, "--out", str(out))
+    assert again.returncode == 0, again.stderr
+    assert len((out / "results.jsonl").read_text().splitlines()) == 1

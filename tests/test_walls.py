@@ -189,6 +189,9 @@ def test_a_generated_wall_from_a_feeder_round_trips(tmp_path: Path, suffix: str)
         (["--wall", "1.5"], ["w.json: brick 0 at world", "out of the arm's reach"]),
         (["--wall", "0.41", "--courses", "9"], ["w.json: brick 20", "0.510)", "arm's reach"]),
         (["--out", "w.txt"], ["w.txt: unknown extension '.txt'"]),
+        (["--wall", "1e308"], ["1e+308 m is longer than the longest wall generated"]),
+        (["--out", ""], ["--out '' names no file: give the pattern file to write"]),
+        (["--out", "."], ["--out '.' names no file"]),
     ],
 )
 def test_the_generator_refuses_in_one_line_and_writes_nothing(
@@ -225,3 +228,17 @@ def test_an_unknown_bond_is_refused_by_name(tmp_path: Path) -> None:
     assert refused.returncode == 2
     assert "'--bond'" in refused.stderr and "'flemish' is not one of" in refused.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_existing_file_is_overwritten_only_with_force(tmp_path: Path) -> None:
+    """A run's run.json, say, is not replaced by a wall unless asked for."""
+    kept = tmp_path / "run.json"
+    kept.write_text('{"method": "agents"}')
+    refused = cli("pattern", "--wall", "0.83", "--out", str(kept))
+    assert_clean_error(refused, f"--out '{kept}' exists: give --force to overwrite it")
+    assert kept.read_text() == '{"method": "agents"}'
+    written = cli("pattern", "--wall", "0.83", "--out", str(kept), "--force")
+    assert written.returncode == 0, written.stderr
+    assert load_pattern(kept, SPEC).name == "run"
+    refused = cli("pattern", "pyramid", "--force")
+    assert_clean_error(refused, "--force go with --wall")

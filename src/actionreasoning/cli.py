@@ -387,12 +387,15 @@ def eval_command(
             answer_error_persistence,
             answer_error_kinds,
         )
+        if method is Method.CLASSICAL and tools != DEFAULT_TIER:
+            raise ConfigError("--method classical gives no agent tools; drop --tools")
         check_rung(method, verify)
         budget = TrialBudget(max_steps=max_steps, max_wall_s=max_trial_s)
         errors = AnswerErrors(
-            rate=answer_errors,
+            # -0 is 0: one condition, one configuration hash.
+            rate=answer_errors + 0.0,
             kinds=parse_kinds(answer_error_kinds),
-            persistence=answer_error_persistence,
+            persistence=answer_error_persistence + 0.0,
         )
         conditions = Conditions.load(
             pattern,
@@ -710,9 +713,14 @@ def pattern_command(
         typer.Option(help="Where the wall's bricks wait to be picked (default: pallet)."),
     ] = None,
     out: Annotated[
-        Path | None,
-        typer.Option(help="The wall's pattern file to write (.json, .yaml or .yml)."),
+        str | None,
+        typer.Option(
+            metavar="FILE", help="The wall's pattern file to write (.json, .yaml or .yml)."
+        ),
     ] = None,
+    force: Annotated[
+        bool, typer.Option("--force", help="Overwrite --out if the file exists.")
+    ] = False,
 ) -> None:
     """Validate a goal pattern and print its target poses in the world frame; or, with
     --wall, generate a wall, write it to --out if it is valid, and print it."""
@@ -723,6 +731,7 @@ def pattern_command(
                 ("--bond", bond),
                 ("--supply", supply),
                 ("--out", out),
+                ("--force", force or None),
             )
             given = [name for name, value in options if value is not None]
             if pattern is None:
@@ -733,16 +742,15 @@ def pattern_command(
         else:
             if pattern is not None:
                 raise ConfigError(f"give a PATTERN ('{pattern}') or --wall, not both")
-            if out is None:
-                raise ConfigError("--wall needs --out FILE, the pattern file to write")
+            path = _new_file(out, force)
             generated = wall_pattern(
                 wall,
                 3 if courses is None else courses,
                 bond or Bond.RUNNING,
                 supply=supply or Supply.PALLET,
-                name=out.stem,
+                name=path.stem,
             )
-            goal = save_pattern(generated, out, SceneSpec())
+            goal = save_pattern(generated, path, SceneSpec())
     except ActionReasoningError as error:
         _fail(error)
     table = Table(title=escape(f"pattern {goal.name}: {len(goal.targets)} bricks, valid"))
@@ -757,6 +765,19 @@ def pattern_command(
     console.print(table)
     if out is not None:
         console.print(f"wrote {escape(str(out))}", highlight=False, soft_wrap=True)
+
+
+def _new_file(out: str | None, force: bool) -> Path:
+    """The pattern file --out names, refused in one line if it is not given, names no file,
+    or exists (unless ``force``)."""
+    if out is None:
+        raise ConfigError("--wall needs --out FILE, the pattern file to write")
+    path = Path(out)
+    if not out.strip() or path.is_dir() or not path.stem:
+        raise ConfigError(f"--out {out!r} names no file: give the pattern file to write")
+    if path.exists() and not force:
+        raise ConfigError(f"--out {out!r} exists: give --force to overwrite it")
+    return path
 
 
 @app.command("tolerances")
