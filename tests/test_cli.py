@@ -314,3 +314,37 @@ def test_answer_errors_minus_zero_is_the_run_without_them(tmp_path: Path) -> Non
     again = cli(*args, "--out", str(out))
     assert again.returncode == 0, again.stderr
     assert len((out / "results.jsonl").read_text().splitlines()) == 1
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ("pattern", "{p}"),
+        ("tolerances", "--pattern", "{p}"),
+        ("eval", "--pattern", "{p}", "--trials", "1", "--out", "{o}"),
+        ("eval", "--method", "single-agent", "--pattern", "{p}", "--trials", "1", "--out", "{o}"),
+    ],
+    ids=["pattern", "tolerances", "eval", "single-agent"],
+)
+def test_a_pattern_too_tight_for_the_gates_is_refused_before_any_trial(
+    tmp_path: Path, args: tuple[str, ...]
+) -> None:
+    """Not called valid, and no trial run against a tolerance no measurement can meet."""
+    from test_gates import TIGHT
+
+    pattern, out = tmp_path / "tight.json", tmp_path / "o"
+    pattern.write_text(json.dumps(TIGHT))
+    result = cli(*(a.format(p=pattern, o=out) for a in args))
+    assert_clean_error(result, "the joint between targets 0 and 1 is 0.0 mm", "wider than 4.1 mm")
+    assert not out.exists()
+
+
+def test_a_tight_pattern_still_runs_the_classical_script(tmp_path: Path) -> None:
+    """It asks no gate: only the agents need the joint."""
+    from test_gates import TIGHT
+
+    pattern = tmp_path / "tight.json"
+    pattern.write_text(json.dumps(TIGHT))
+    args = ("eval", "--method", "classical", "--pattern", str(pattern), "--trials", "1")
+    result = cli(*args, "--out", str(tmp_path / "o"))
+    assert result.returncode == 0, result.stderr

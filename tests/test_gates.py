@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 
 import pytest
@@ -19,6 +20,7 @@ from actionreasoning.agents.gates import (
     sigma6_return,
 )
 from actionreasoning.agents.plans import lift_plan
+from actionreasoning.errors import PatternError
 from actionreasoning.tools.collision import CollisionReport
 from actionreasoning.tools.contact import ContactForces, SlipEstimate
 from actionreasoning.tools.geometry import AlignmentErrors
@@ -558,3 +560,29 @@ def test_a_brick_creeping_faster_than_v_th_is_carried_only_if_it_lasts_the_carry
     assert sigma4_lift(
         slip(TOL.v_th_mps), pads(40, 40, 10), set_down(), 0.02, TOL, carry_s=MAX_MOVE_S
     ).passed
+
+
+#: Two full bricks end to end with no joint: a brick turned eps_theta would reach into its
+#: neighbour, so no planar tolerance is left (eps_xy would come out -2.07 mm).
+TIGHT = {
+    "name": "tight",
+    "brick_size": [0.2, 0.095, 0.06],
+    "bricks": [
+        {"position": [-0.1, 0.0, 0.03], "yaw_deg": 0},
+        {"position": [0.1, 0.0, 0.03], "yaw_deg": 0},
+    ],
+}
+
+
+def test_a_joint_too_tight_for_the_gates_is_refused_where_it_is_derived(tmp_path) -> None:
+    path = tmp_path / "tight.json"
+    path.write_text(json.dumps(TIGHT))
+    goal = load_pattern(path, SceneSpec())
+    with pytest.raises(PatternError) as refused:
+        TOL.for_goal(goal)
+    least = 0.095 * math.sin(math.radians(TOL.eps_theta_deg))  # 4.1 mm: joint / 2 > that / 2
+    assert str(refused.value) == (
+        "pattern 'tight': the joint between targets 0 and 1 is 0.0 mm; the agents' gates need "
+        f"joints wider than {least * 1000:.1f} mm (a brick turned 2.5 deg must stay out of its "
+        "joint's far half)"
+    )

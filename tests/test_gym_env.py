@@ -242,3 +242,14 @@ def test_a_refused_reset_leaves_the_env_as_it_was(env: BrickStackEnv) -> None:
 def test_a_path_no_file_can_have_is_refused(kwargs: dict[str, str], message: str) -> None:
     with pytest.raises(ActionReasoningError, match=re.escape(message)):
         gymnasium.make("actionreasoning/BrickStack-v0", **kwargs)
+
+
+def test_a_pattern_too_tight_for_the_gates_is_refused_when_the_env_is_made(
+    tmp_path: Path,
+) -> None:
+    from test_gates import TIGHT
+
+    pattern = tmp_path / "tight.json"
+    pattern.write_text(json.dumps(TIGHT))
+    with pytest.raises(ActionReasoningError, match=r"wider than 4\.1 mm"):
+        gymnasium.make(actionreasoning.gym_env.ENV_ID, pattern=str(pattern))

@@ -237,6 +237,11 @@ NAN_WAYPOINT = '{"brick_id": 0, "target_index": 0, "waypoint": {"position_m": [N
 
 
 def test_hostile_calls_get_typed_refusals_and_nothing_moves(tmp_path: Path) -> None:
+    from test_gates import TIGHT
+
+    tight = tmp_path / "tight.json"
+    tight.write_text(json.dumps(TIGHT))
+
     async def scenario(client: ClientSession) -> None:
         for tool in ("read_state", "submit_answer", "grasp_options", "finish_trial"):
             arguments = {"answer": {}} if tool == "submit_answer" else {}
@@ -255,6 +260,7 @@ def test_hostile_calls_get_typed_refusals_and_nothing_moves(tmp_path: Path) -> N
             ({"pattern": "a\0b.json"}, "pattern: contains a NUL byte"),
             ({"physics": "a\0b.json"}, "physics: contains a NUL byte"),
             ({"noise": "n" * 300 + ".yaml"}, "noise: file name too long"),
+            ({"pattern": str(tight)}, "the joint between targets 0 and 1 is 0.0 mm"),
         ):
             data, refused = await call(client, "start_trial", **arguments)
             assert refused and data["refusal"]["code"] == "invalid_action", arguments

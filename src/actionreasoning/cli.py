@@ -33,6 +33,7 @@ from actionreasoning.world.models import Supply
 from actionreasoning.world.patterns import load_pattern, save_pattern
 from actionreasoning.world.scenarios import NOISE, PATTERNS, PHYSICS, load_noise
 from actionreasoning.world.scene_spec import SceneSpec
+from actionreasoning.world.tolerances import Tolerances
 from actionreasoning.world.walls import Bond, wall_pattern
 
 if TYPE_CHECKING:
@@ -408,6 +409,8 @@ def eval_command(
             # The method's own rung is recorded as none given: one run, however it is spelled.
             verify=None if verify == rung_of(method, None) else verify,
         )
+        if method is not Method.CLASSICAL:
+            Tolerances.derive().for_goal(conditions.goal)  # joints the gates can work with
     except ActionReasoningError as error:
         _fail(error)
     _evaluate(
@@ -751,6 +754,7 @@ def pattern_command(
                 name=path.stem,
             )
             goal = save_pattern(generated, path, SceneSpec())
+        Tolerances.derive().for_goal(goal)  # joints the agents' gates can work with
     except ActionReasoningError as error:
         _fail(error)
     table = Table(title=escape(f"pattern {goal.name}: {len(goal.targets)} bricks, valid"))
@@ -787,14 +791,14 @@ def tolerances_command(
 ) -> None:
     """Print every gate threshold as a Markdown table: its design value, its value when the
     pattern is built under the noise level, what it protects and how it is derived."""
-    from actionreasoning.world.tolerances import Tolerances, derivation_table
+    from actionreasoning.world.tolerances import derivation_table
 
     try:
         level = load_noise(noise)
         goal = load_pattern(pattern, SceneSpec())
+        run = Tolerances.derive().for_goal(goal).under(level.sensing())
     except ActionReasoningError as error:
         _fail(error)
-    run = Tolerances.derive().for_goal(goal).under(level.sensing())
     print(derivation_table(run, f"{goal.name}, noise {level.name}"), end="")
 
 

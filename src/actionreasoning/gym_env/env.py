@@ -42,6 +42,7 @@ from actionreasoning.trial.session import (
 )
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.models import WorldState
+from actionreasoning.world.tolerances import Tolerances
 
 #: Trial ends that are budgets outside the task (Gymnasium's truncation), not its outcome.
 TRUNCATIONS = frozenset({FailureCode.STEP_BUDGET, FailureCode.TIME_BUDGET})
@@ -67,6 +68,7 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
         self.conditions = Conditions.load(
             pattern, physics, noise, TrialBudget(max_wall_s=max_trial_s), tools
         )
+        Tolerances.derive().for_goal(self.conditions.goal)  # joints the gates work with
         self.observation_space = observation_space(len(self.conditions.goal.targets))
         self.action_space = action_space()
         self.session: TrialSession | None = None

@@ -37,6 +37,7 @@ from actionreasoning.trial.session import (
 )
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.scenarios import NOISE, PATTERNS, PHYSICS
+from actionreasoning.world.tolerances import Tolerances
 
 #: The tools of the six agents' knowledge bases together, in pipeline order, in any tier
 #: (an agent is served only those of its own knowledge base in the trial's tier).
@@ -184,6 +185,7 @@ class Door:
             conditions = Conditions.load(
                 start.pattern, start.physics, start.noise, budget, start.tools
             )
+            Tolerances.derive().for_goal(conditions.goal)  # joints the gates work with
             spec = conditions.spec(start.seed, start.trial)
         except ActionReasoningError as error:
             return Reply.refusal(RefusalCode.INVALID_ACTION, f"start_trial: {error}")

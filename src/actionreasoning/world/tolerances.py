@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pydantic import BaseModel, ConfigDict, Field
 from shapely.geometry import Polygon
 
+from actionreasoning.errors import PatternError
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.clearance import JOINT_STEP_RAD
 from actionreasoning.world.models import GoalPattern, Sensing
@@ -76,15 +77,24 @@ def joint_share_m(joint_m: float, width_m: float, eps_theta_deg: float) -> float
 def smallest_joint_m(goal: GoalPattern) -> float | None:
     """The narrowest gap between two bricks of one course of ``goal`` (None: no course holds
     two bricks)."""
-    courses: dict[int, list[Polygon]] = {}
+    joint = narrowest_joint(goal)
+    return None if joint is None else joint[0]
+
+
+def narrowest_joint(goal: GoalPattern) -> tuple[float, int, int] | None:
+    """The narrowest gap between two bricks of one course of ``goal`` and the two targets'
+    indices (None: no course holds two bricks)."""
+    courses: dict[int, list[tuple[int, Polygon]]] = {}
     for target in goal.targets:
         footprint = Box(target.pose.position_m, target.pose.quat_xyzw, target.size_m).footprint
-        courses.setdefault(round(target.pose.position_m[2] * 1000), []).append(footprint)
+        courses.setdefault(round(target.pose.position_m[2] * 1000), []).append(
+            (target.index, footprint)
+        )
     gaps = [
-        a.distance(b)
+        (a.distance(b), i, j)
         for course in courses.values()
-        for i, a in enumerate(course)
-        for b in course[i + 1 :]
+        for k, (i, a) in enumerate(course)
+        for j, b in course[k + 1 :]
     ]
     return min(gaps, default=None)
 
@@ -486,10 +496,19 @@ class Tolerances(BaseModel):
     def for_goal(self, goal: GoalPattern) -> Tolerances:
         """These thresholds for building ``goal``: the planar offset also keeps each brick out
         of the far half of the narrowest joint between two bricks of a course."""
-        joint = smallest_joint_m(goal)
-        if joint is None:
+        narrowest = narrowest_joint(goal)
+        if narrowest is None:
             return self
+        joint, a, b = narrowest
         width = goal.brick_size_m[1]
-        return self.model_copy(
-            update={"eps_xy_m": min(self.eps_xy_m, joint_share_m(joint, width, self.eps_theta_deg))}
-        )
+        share = joint_share_m(joint, width, self.eps_theta_deg)
+        if share <= 0.0:
+            # joint / 2 > width / 2 * sin(eps_theta): the least joint the gates work with.
+            least = width * math.sin(math.radians(self.eps_theta_deg))
+            raise PatternError(
+                f"pattern '{goal.name}': the joint between targets {a} and {b} is "
+                f"{joint * 1000:.1f} mm; the agents' gates need joints wider than "
+                f"{least * 1000:.1f} mm (a brick turned {self.eps_theta_deg:g} deg must stay out "
+                "of its joint's far half)"
+            )
+        return self.model_copy(update={"eps_xy_m": min(self.eps_xy_m, share)})
