@@ -59,7 +59,7 @@ def write_run(out: Path, trials: int) -> None:
     assert open_run(out, MANIFEST) == []
     with (out / "results.jsonl").open("ab", buffering=0) as sink:
         for trial in range(trials):
-            append_result(sink, result(trial))
+            append_result(sink, result(trial).model_copy(update={"physics": "paper"}))
 
 
 def test_a_partial_last_line_is_cut_off_and_whole_lines_kept(tmp_path: Path) -> None:
@@ -100,7 +100,10 @@ def test_a_different_run_is_refused_naming_what_differs(tmp_path: Path) -> None:
         (None, r"line 2 repeats trial 0"),
         (result(0).model_copy(update={"trial": -1}), r"line 2: trial -1 of seed 0 is not a trial"),
         (result(1).model_copy(update={"trial": 7}), r"line 2: trial 7 of seed 0 has trial_seed"),
-        (result(1).model_copy(update={"seed": 7, "trial_seed": trial_seed(7, 1)}), r"line 2 is of"),
+        (
+            result(1).model_copy(update={"seed": 7, "trial_seed": trial_seed(7, 1)}),
+            r"line 2 is a trial of seed 7",
+        ),
     ],
 )
 def test_damaged_results_are_refused_with_the_line(
@@ -146,13 +149,12 @@ def test_plain_lines_when_not_a_terminal(capsys: pytest.CaptureFixture[str]) -> 
 
 
 def test_a_resume_under_other_conditions_is_refused_naming_the_field(tmp_path: Path) -> None:
-    open_run(tmp_path, MANIFEST)
-    (tmp_path / "results.jsonl").write_text(result(0).model_dump_json() + "\n")
+    write_run(tmp_path, 1)
     with pytest.raises(ConfigError, match=r"physics\.name 'paper' there, 'precise' now"):
         open_run(tmp_path, manifest(physics=PRECISE))
     with pytest.raises(ConfigError, match=r"noise\.perception\.position_std_m 0\.0 there"):
         open_run(tmp_path, manifest(noise=NOISE["medium"]))
-    assert open_run(tmp_path, MANIFEST) == [result(0)]
+    assert open_run(tmp_path, MANIFEST) == [result(0).model_copy(update={"physics": "paper"})]
 
 
 def test_a_resume_at_another_rung_of_verification_is_refused(tmp_path: Path) -> None:
@@ -256,7 +258,6 @@ def test_a_run_whose_configuration_this_version_reads_no_more_is_reported_not_re
     resume is refused, and nothing is changed."""
     write_run(tmp_path, 2)
     stored = json.loads((tmp_path / "run.json").read_text())
-    stored["config"]["physics"] = PRECISE.model_dump(mode="json")  # as the lines say
     tolerances = stored["config"]["tolerances"]
     tolerances["grip_safety_factor"] = 2.0
     del tolerances["grip_load_factor"]
@@ -271,7 +272,7 @@ def test_a_run_whose_configuration_this_version_reads_no_more_is_reported_not_re
     assert [r.trial for r in run.results] == [0, 1]
     conditions = run.conditions()
     assert conditions["tolerances.grip_safety_factor"] == 2.0
-    assert conditions["physics.name"] == "precise"
+    assert conditions["physics.name"] == "paper"
     # Edited by hand, it is damaged, not an earlier version.
     stored["config"]["tolerances"]["c_min_m"] = 0.5
     (tmp_path / "run.json").write_text(json.dumps(stored))
@@ -311,3 +312,38 @@ def test_a_line_longer_than_any_result_is_refused_with_its_number(
     path.write_bytes(whole + b"x" * MAX_LINE_BYTES + b"\n")
     with pytest.raises(ConfigError, match=r"line 3 is not a trial result \(Invalid JSON"):
         read_results(path)
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("physics", "precise"),
+        ("noise", "high"),
+        ("tools", "none"),
+        ("llm", "builtin"),
+        ("verify", "full"),
+        ("answer_errors", {"corrupted": 1, "by_kind": {}, "caught_by": {}}),
+    ],
+)
+def test_a_line_of_another_condition_is_refused_by_a_resume_and_by_report(
+    tmp_path: Path, field: str, value: Any
+) -> None:
+    """Copied in or written by hand: a resume pooled it and exited 0 where `report` refused
+    it. Both now refuse it with the same line, naming the line and the field."""
+    from conftest import SMALL_PATTERN, cli
+
+    pattern = tmp_path / "small.json"
+    pattern.write_text(json.dumps(SMALL_PATTERN))
+    out = tmp_path / "o"
+    args = ("eval", "--method", "classical", "--pattern", str(pattern), "--seed", "0")
+    assert cli(*args, "--trials", "1", "--out", str(out)).returncode == 0
+    results = out / "results.jsonl"
+    line = json.loads(results.read_text()) | {field: value}
+    results.write_text(json.dumps(line) + "\n")
+    resumed = cli(*args, "--trials", "2", "--out", str(out))
+    name = "answer errors counted" if field == "answer_errors" else field
+    assert resumed.returncode == 2 and "Traceback" not in resumed.stderr
+    assert f"{results} line 1 is a trial of {name} " in " ".join(resumed.stderr.split())
+    assert len(results.read_text().splitlines()) == 1  # nothing ran, nothing was pooled
+    with pytest.raises(ConfigError, match=f"line 1 is a trial of {name} "):
+        read_run(out)

@@ -13,7 +13,12 @@ from typing import Any
 
 from actionreasoning.errors import ConfigError
 from actionreasoning.runs.layout import RunDir
-from actionreasoning.runs.run_dir import AnyManifest, read_any_manifest, read_results
+from actionreasoning.runs.run_dir import (
+    AnyManifest,
+    check_lines,
+    read_any_manifest,
+    read_results,
+)
 from actionreasoning.trial.results import TrialResult
 
 #: run.json fields that do not make trials incomparable: the seed (runs of other seeds are
@@ -65,21 +70,5 @@ def read_run(directory: Path) -> Run:
     results = read_results(path)
     if not results:
         raise ConfigError(f"{path} is empty: no trial has finished there yet")
-    expected = {
-        "method": manifest.method,
-        "pattern": manifest.pattern,
-        "seed": manifest.seed,
-        "llm": manifest.llm,
-        "physics": manifest.physics_name,
-        "noise": manifest.noise_name,
-        "tools": manifest.tier,
-    }
-    for number, result in enumerate(results, start=1):
-        for name, value in expected.items():
-            found = getattr(result, name)
-            if found != value:
-                raise ConfigError(
-                    f"{path} line {number} is a trial of {name} {found!r}, but {stored} says "
-                    f"{value!r}: lines of another run were written into this directory"
-                )
+    check_lines(results, manifest, path, stored)
     return Run(directory=directory, manifest=manifest, results=tuple(results))

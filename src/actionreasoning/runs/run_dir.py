@@ -27,7 +27,7 @@ from actionreasoning.errors import ConfigError, StorageError
 from actionreasoning.runs.layout import RunDir
 from actionreasoning.trial.config import TrialConfig
 from actionreasoning.trial.results import TrialResult
-from actionreasoning.trial.rules import trial_seed
+from actionreasoning.trial.rules import Method, rung_of, trial_seed
 from actionreasoning.world.config_files import one_line, open_user_file, read_user_file
 from actionreasoning.world.models import Supply
 
@@ -279,15 +279,44 @@ def open_run(out: Path, manifest: RunManifest) -> list[TrialResult]:
             "--out, or repeat that run's options, under the settings it ran with, to resume it"
         )
     finished = read_results(results, repair=True)
-    expected = (manifest.method, manifest.pattern, manifest.seed)
-    for number, result in enumerate(finished, start=1):
-        found = (result.method, result.pattern, result.seed)
-        if found != expected:
-            raise ConfigError(
-                f"{results} line {number} is of another run (method, pattern, seed: {found}, "
-                f"{stored} says {expected}): choose another --out"
-            )
+    check_lines(finished, manifest, results, stored)
     return finished
+
+
+def check_lines(
+    results: list[TrialResult], manifest: AnyManifest, path: Path, stored: Path
+) -> None:
+    """Refuse, in one line naming the line and the field, a results line (of ``path``) that
+    differs from run.json (``stored``) in anything run.json fixes: method, pattern, seed,
+    backend, physics, noise, tier, rung of verification and whether answers were corrupted.
+    `report` and a resume share it, so that no trial of another condition is pooled."""
+    expected: dict[str, Any] = {
+        "method": manifest.method,
+        "pattern": manifest.pattern,
+        "seed": manifest.seed,
+        "llm": manifest.llm,
+        "physics": manifest.physics_name,
+        "noise": manifest.noise_name,
+        "tools": manifest.tier,
+        "answer errors counted": manifest.answer_errors.rate > 0,
+    }
+    if isinstance(manifest, RunManifest):
+        rung = rung_of(Method(manifest.method), manifest.config.verify)
+        expected["verify"] = None if rung is None else str(rung)
+    for number, result in enumerate(results, start=1):
+        found_values = {name: getattr(result, name, None) for name in expected}
+        found_values["answer errors counted"] = result.answer_errors is not None
+        if result.verify is None and result.method == manifest.method != Method.CLASSICAL:
+            # Lines written before rungs existed ran under the method's own (a line of
+            # another method is refused for its method first).
+            found_values["verify"] = str(rung_of(Method(result.method), None))
+        for name, value in expected.items():
+            found = found_values[name]
+            if found != value:
+                raise ConfigError(
+                    f"{path} line {number} is a trial of {name} {found!r}, but {stored} says "
+                    f"{value!r}: lines of another run were written into this directory"
+                )
 
 
 def read_manifest(path: Path) -> RunManifest:
