@@ -21,6 +21,7 @@ import pytest
 from conftest import assert_clean_error, cli
 
 from actionreasoning.errors import ConfigError, LLMError
+from actionreasoning.reasoners import guarded_http
 from actionreasoning.reasoners.backend import ServerOptions
 from actionreasoning.reasoners.chat import ChatRequest, StructuredMode
 from actionreasoning.reasoners.llm import TOOL_RESULTS
@@ -316,3 +317,45 @@ def test_a_client_hanging_up_mid_request_is_one_line_not_a_traceback(
     lines = seen.splitlines()
     assert len(lines) == 2, seen
     assert all(DROPPED.fullmatch(line) for line in lines)
+
+
+def test_a_client_trickling_its_request_is_dropped_at_the_request_deadline(
+    guarded: ReferenceServer, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """One byte every 0.2 s keeps each read under the 0.5 s read timeout, so only a deadline
+    for the whole request stops it from holding a handler as long as it likes."""
+    monkeypatch.setattr(guarded_http, "REQUEST_DEADLINE_S", 1.0)
+    sock = _connect(guarded)
+    request = b"POST /v1/chat/completions HTTP/1.1\r\nContent-Length: 5000\r\n\r\n" + b" " * 5000
+    start = time.monotonic()
+    try:
+        for byte in request:
+            try:
+                sock.sendall(bytes([byte]))
+            except (BrokenPipeError, ConnectionResetError):
+                break
+            time.sleep(0.2)
+            if time.monotonic() - start > 15:
+                break
+        assert _closed_by_server(sock)
+    finally:
+        sock.close()
+    assert time.monotonic() - start < 10
+    (line,) = capsys.readouterr().err.splitlines()
+    assert DROPPED.fullmatch(line) and line.endswith(": the request took longer than 1 s")
+
+
+def test_headers_over_the_limit_drop_the_client(
+    server: ReferenceServer, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """40 headers of 2 KiB each: every line is legal, together they are over 64 KiB."""
+    sock = _connect(server)
+    header = b"X-Pad: " + b"a" * 2048 + b"\r\n"
+    try:
+        sock.sendall(b"GET /v1/models HTTP/1.1\r\n" + header * 40 + b"\r\n")
+        assert _closed_by_server(sock)
+    finally:
+        sock.close()
+    (line,) = capsys.readouterr().err.splitlines()
+    assert DROPPED.fullmatch(line), line
+    assert line.endswith(f": its headers are over {guarded_http.MAX_HEADER_BYTES} bytes")

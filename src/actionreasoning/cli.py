@@ -818,8 +818,9 @@ def serve_reference(
     the simulator: it is the benchmark's reference row, a perfect reader of the agents'
     prompts. Point a run at it with --llm openai:reference --base-url URL. Its token counts
     are estimates. The first line printed is the base URL; Ctrl-C or SIGTERM stops it. A
-    client silent for 10 s is closed, at most 32 requests are handled at once (503 over
-    that), and each dropped client is one line on stderr.
+    client silent for 10 s, or whose request takes over 30 s or 64 KiB of headers, is closed,
+    at most 32 requests are handled at once (503 over that), and each dropped client is one
+    line on stderr.
     """
     from actionreasoning.reasoners.reference_server import ReferenceServer
 

@@ -12,6 +12,7 @@ stderr, never a traceback.
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import selectors
@@ -29,6 +30,14 @@ from actionreasoning.errors import ConfigError
 #: pauses this long; the openai client (httpx) drops its idle keep-alive connections after 5 s
 #: itself, so the server never closes one it is about to reuse.
 READ_TIMEOUT_S = 10.0
+#: Seconds a request may take from the moment its handler starts reading it (a kept-alive
+#: connection's wait for it included) to its last body byte. Reads are each bounded by
+#: READ_TIMEOUT_S too, so this only stops clients that trickle bytes to stay alive: ours
+#: send a request whole at once on loopback, so 30 s (three silent reads) is ample.
+REQUEST_DEADLINE_S = 30.0
+#: The most bytes a request's line and headers may take (the body is bounded by its own
+#: Content-Length limit): an OpenAI-compatible request's headers are well under 4 KiB.
+MAX_HEADER_BYTES = 64 * 1024
 #: Requests handled at once (one thread each); a ready request over this gets 503 at once.
 MAX_HANDLERS = 32
 #: Connections held while waiting for their first bytes (a file descriptor each, no thread).
@@ -183,8 +192,52 @@ def _dropped(server: GuardedHTTPServer, client_address: Any, reason: str) -> Non
     sys.stderr.flush()
 
 
+class RequestOverrun(TimeoutError):
+    """A request that outlasted REQUEST_DEADLINE_S, or whose headers outgrew
+    MAX_HEADER_BYTES: its client is dropped with this reason."""
+
+
+class _RequestReads(io.RawIOBase):
+    """A connection's reads, each bounded by the server's ``read_timeout_s`` and by what is
+    left of the request's deadline; the bytes of a request's line and headers are counted
+    against MAX_HEADER_BYTES."""
+
+    def __init__(self, connection: socket.socket, read_timeout_s: float) -> None:
+        self.connection = connection
+        self.read_timeout_s = read_timeout_s
+        self.deadline = math.inf
+        self.head_bytes: int | None = None  # None once the headers are read
+
+    def readable(self) -> bool:
+        return True
+
+    def start(self) -> None:
+        """A new request: its deadline runs from now, its headers are counted."""
+        self.deadline = time.monotonic() + REQUEST_DEADLINE_S
+        self.head_bytes = 0
+
+    def readinto(self, buffer: Any) -> int:
+        overrun = RequestOverrun(f"the request took longer than {REQUEST_DEADLINE_S:g} s")
+        left = self.deadline - time.monotonic()
+        if left <= 0:
+            raise overrun
+        self.connection.settimeout(min(self.read_timeout_s, left))
+        try:
+            count = self.connection.recv_into(buffer)
+        except TimeoutError:
+            if left < self.read_timeout_s:  # it was the deadline that ran out
+                raise overrun from None
+            raise
+        if self.head_bytes is not None:
+            self.head_bytes += count
+            if self.head_bytes > MAX_HEADER_BYTES + len(buffer):  # a read may hold body too
+                raise RequestOverrun(f"its headers are over {MAX_HEADER_BYTES} bytes")
+        return count
+
+
 class GuardedHandler(BaseHTTPRequestHandler):
-    """A request handler whose reads time out after the server's ``read_timeout_s``; a
+    """A request handler whose reads time out after the server's ``read_timeout_s``, whose
+    requests have REQUEST_DEADLINE_S each and headers of at most MAX_HEADER_BYTES; a
     subclass calls :meth:`answered` once it has sent a response."""
 
     server: GuardedHTTPServer
@@ -194,16 +247,27 @@ class GuardedHandler(BaseHTTPRequestHandler):
 
     def setup(self) -> None:
         super().setup()
-        self.connection.settimeout(self.server.read_timeout_s)  # each read of the connection
+        self.rfile.close()  # the socket's own reader, replaced by one that keeps the deadline
+        self._reads = _RequestReads(self.connection, self.server.read_timeout_s)
+        self.rfile = io.BufferedReader(self._reads)
+
+    def handle_one_request(self) -> None:
+        self._reads.start()
+        super().handle_one_request()
 
     def parse_request(self) -> bool:
         self._idle = False
-        return super().parse_request()
+        parsed = super().parse_request()
+        self._reads.head_bytes = None  # the body is bounded by its Content-Length
+        return parsed
 
     def log_error(self, format: str, *args: Any) -> None:
         """The base class reports a read that timed out here: mid-request, that drops the
         client (one line); between requests, it closes a kept-alive connection (quiet)."""
-        if format.startswith("Request timed out") and not self._idle:
+        overrun = next((a for a in args if isinstance(a, RequestOverrun)), None)
+        if overrun is not None:
+            _dropped(self.server, self.client_address, str(overrun))
+        elif format.startswith("Request timed out") and not self._idle:
             _dropped(
                 self.server,
                 self.client_address,
