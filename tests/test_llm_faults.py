@@ -386,8 +386,10 @@ def test_llm_check_prints_markup_in_names_and_answers_as_text(fault_server: Faul
 def test_a_status_with_a_likely_cause_says_it(
     tmp_path: Path, fault_server: FaultServer, cause: str
 ) -> None:
+    """A 4xx is the server refusing the request, not failing: llm_bad_request, not the
+    llm_server_error of a 5xx."""
     result = run_eval(tmp_path, fault_server)
     assert result.returncode == 0, result.stderr
     line = json.loads((tmp_path / "out" / "results.jsonl").read_text())
-    assert line["failure"]["reason"] == "llm_server_error"
+    assert line["failure"]["reason"] == "llm_bad_request"
     assert f"HTTP {fault_server.fault}: {cause}" in line["failure"]["detail"]

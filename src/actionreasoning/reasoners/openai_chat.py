@@ -222,8 +222,10 @@ class OpenAIChat:
             return LLMError(
                 FailureCode.LLM_RATE_LIMITED, f"{self.where} kept answering 429 ({retries} retries)"
             )
+        # A 4xx is the server refusing the request (404: a wrong URL or model), not failing.
+        code = FailureCode.LLM_SERVER_ERROR if status >= 500 else FailureCode.LLM_BAD_REQUEST
         return LLMError(
-            FailureCode.LLM_SERVER_ERROR,
+            code,
             f"{self.where} answered HTTP {status}{_LIKELY_CAUSE.get(status, '')} "
             f"({retries} retries)",
         )
