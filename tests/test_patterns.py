@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +15,7 @@ import yaml
 from actionreasoning.errors import PatternError
 from actionreasoning.world.geometry import quat_yaw, wrap_angle
 from actionreasoning.world.models import GoalPattern
-from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.patterns import brick_size_limits, load_pattern
 from actionreasoning.world.scenarios import PATTERNS
 from actionreasoning.world.scene_spec import SceneSpec
 
@@ -245,3 +246,13 @@ def test_a_pattern_far_beyond_the_scene_is_refused_in_a_short_line(tmp_path: Pat
         f"{path}: brick 0 at world (1e+300, 0.000, 0.030) is out of the arm's reach "
         "(radius 0.42-0.76 m, height 0-0.45 m)"
     )
+
+
+def test_the_docs_state_the_brick_size_limits_the_code_applies() -> None:
+    """docs/patterns.md said widths of 0.07-0.12 m while the code took up to 0.143 m."""
+    text = " ".join((Path(__file__).parents[1] / "docs" / "patterns.md").read_text().split())
+    names = ("length", "width across the gripper", "height")
+    for name, (low, high) in zip(names, brick_size_limits(SceneSpec()), strict=True):
+        stated = re.search(rf"{name} (\S+)–(\S+) m", text)
+        assert stated is not None, name
+        assert stated.groups() == (f"{low:.3f}", f"{high:.3f}"), name
