@@ -216,7 +216,7 @@ def test_step_before_reset_and_after_the_end() -> None:
     env.close()
 
 
-@pytest.mark.parametrize("seconds", [math.nan, math.inf, 0.0, -1.0])
+@pytest.mark.parametrize("seconds", [math.nan, math.inf, 0.0, -1.0, True, "3"])
 def test_a_wall_time_budget_that_cannot_bound_a_trial_is_refused(seconds: float) -> None:
     with pytest.raises(ConfigError, match=r"max_trial_s .*: give a positive, finite number"):
         gymnasium.make("actionreasoning/BrickStack-v0", max_trial_s=seconds)
@@ -253,3 +253,20 @@ def test_a_pattern_too_tight_for_the_gates_is_refused_when_the_env_is_made(
     pattern.write_text(json.dumps(TIGHT))
     with pytest.raises(ActionReasoningError, match=r"wider than 4\.1 mm"):
         gymnasium.make(actionreasoning.gym_env.ENV_ID, pattern=str(pattern))
+
+
+def test_a_trial_out_of_time_before_its_first_question_is_one_line_and_needs_a_reset() -> None:
+    """1e-300 s is a positive, finite budget: the trial ends in its spawn settle. reset()
+    says so in one line (it dumped the whole result), and step() asks for a reset (it
+    raised a bare AssertionError)."""
+    env = gymnasium.make(actionreasoning.gym_env.ENV_ID, max_trial_s=1e-300)
+    try:
+        with pytest.raises(ActionReasoningError) as ended:
+            env.reset(seed=0)
+        message = str(ended.value)
+        assert message.startswith("trial 0 ended before an agent asked: time_budget (")
+        assert "\n" not in message and len(message) < 300
+        with pytest.raises(gymnasium.error.ResetNeeded):
+            env.step('{"brick_id": 0}')
+    finally:
+        env.close()

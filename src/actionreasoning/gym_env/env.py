@@ -65,6 +65,11 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ConfigError(f"render_mode {render_mode!r}: use 'rgb_array' or None")
         self.render_mode = render_mode
+        if isinstance(max_trial_s, bool) or not isinstance(max_trial_s, int | float):
+            raise ConfigError(
+                f"max_trial_s {max_trial_s!r}: give a positive, finite number of seconds, not "
+                f"a {type(max_trial_s).__name__}"
+            )
         self.conditions = Conditions.load(
             pattern, physics, noise, TrialBudget(max_wall_s=max_trial_s), tools
         )
@@ -101,9 +106,14 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
         self.session = TrialSession(
             spec, agent=AgentLabel.GYM, final_picture=self.render_mode == "rgb_array"
         )
-        request = self.session.request
+        request, result = self.session.request, self.session.result
         if request is None:
-            raise SessionError(f"trial {trial} ended before an agent asked: {self.session.result}")
+            # Ended (out of budget, say) before its first question: no trial to step.
+            self._close_session()
+            self.session, self._state = None, None
+            failure = None if result is None else result.failure
+            why = "" if failure is None else f": {failure.reason} ({failure.detail})"
+            raise SessionError(f"trial {trial} ended before an agent asked{why}")
         self._state = request.state
         return self._observation(), self._info()
 
