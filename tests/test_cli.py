@@ -4,6 +4,7 @@ process; one test through the real entry point)."""
 from __future__ import annotations
 
 import json
+import socket
 import subprocess
 from pathlib import Path
 
@@ -348,3 +349,17 @@ def test_a_tight_pattern_still_runs_the_classical_script(tmp_path: Path) -> None
     args = ("eval", "--method", "classical", "--pattern", str(pattern), "--trials", "1")
     result = cli(*args, "--out", str(tmp_path / "o"))
     assert result.returncode == 0, result.stderr
+
+
+def test_a_run_that_fails_to_start_leaves_no_out_directory(tmp_path: Path) -> None:
+    """Nothing listens on the port: the structured-output probe fails before any trial, and
+    the directory the run made for itself goes with it (it held only an empty run.lock)."""
+    out = tmp_path / "o"
+    with socket.socket() as free:  # a loopback port nobody listens on
+        free.bind(("127.0.0.1", 0))
+        port = free.getsockname()[1]
+    dead = f"http://127.0.0.1:{port}/v1"
+    result = cli("eval", "--llm", "openai:m", "--base-url", dead, "--llm-retries", "0",
+                 "--trials", "1", "--out", str(out))  # fmt: skip
+    assert_clean_error(result, "llm_unreachable: cannot connect to")
+    assert not out.exists()

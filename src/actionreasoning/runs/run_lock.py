@@ -29,6 +29,7 @@ _held: set[tuple[int, int]] = set()
 def run_lock(out: Path) -> Iterator[None]:
     """Hold ``out``'s lock for the block, creating ``out`` if new; refuse if another process
     holds it. Nested holds of one directory in one process share the lock."""
+    created = not out.exists()
     key = _directory(out)
     if key in _held:  # held already, around this block (a demo around its run)
         yield
@@ -40,7 +41,21 @@ def run_lock(out: Path) -> Iterator[None]:
     finally:
         _held.discard(key)
         os.ftruncate(handle, 0)  # released: the file names nobody
+        if created:
+            _tidy(out)  # still locked: nobody else can be starting there
         os.close(handle)  # and the kernel drops the lock
+
+
+def _tidy(out: Path) -> None:
+    """Remove ``out``, made by this run, if nothing but its lock is left there: a run that
+    failed to start leaves no directory behind."""
+    lock = RunDir(out).lock
+    try:
+        if [entry.name for entry in out.iterdir()] == [lock.name]:
+            lock.unlink()
+            out.rmdir()
+    except OSError:
+        pass  # left as it is: a directory that cannot be tidied holds no result either
 
 
 def _directory(out: Path) -> tuple[int, int]:
