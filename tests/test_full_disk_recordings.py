@@ -84,3 +84,25 @@ def test_report_copies_no_video_that_is_not_whole(tmp_path: Path) -> None:
     assert report.returncode == 0, report.stderr
     assert not (tmp_path / "report" / "videos").exists()
     assert "<video" not in (tmp_path / "report" / "report.html").read_text()
+
+
+def test_a_run_json_that_does_not_fit_names_it_and_leaves_nothing(tmp_path: Path) -> None:
+    """Room for the lock's line, not for run.json: before, the error named the folder and a
+    half-written run.tmp was left beside an empty run.lock."""
+    pattern = tmp_path / "one.json"
+    pattern.write_text(json.dumps(ONE_BRICK))
+    out = tmp_path / "run"
+
+    def tiny() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (1000, 1000))
+
+    run = subprocess.run(
+        [sys.executable, "-m", "actionreasoning", "eval", "--method", "classical",
+         "--pattern", str(pattern), "--trials", "1", "--out", str(out)],
+        capture_output=True, text=True, preexec_fn=tiny, timeout=600,
+    )  # fmt: skip
+    assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+    assert f"cannot write {out / 'run.json'}: File too large" in run.stderr
+    assert "no trial has run yet" in run.stderr
+    assert not out.exists()

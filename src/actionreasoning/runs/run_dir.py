@@ -260,8 +260,12 @@ def open_run(out: Path, manifest: RunManifest) -> list[TrialResult]:
         read_user_file(results, "results file", limit=None)
     if not results.exists() or results.stat().st_size == 0:
         temporary = stored.with_suffix(".tmp")
-        temporary.write_text(manifest.model_dump_json(indent=2) + "\n")
-        os.replace(temporary, stored)
+        try:
+            temporary.write_text(manifest.model_dump_json(indent=2) + "\n")
+            os.replace(temporary, stored)
+        except OSError as error:  # a full disk: no half-written run.json is left
+            temporary.unlink(missing_ok=True)
+            raise write_error(stored, error, "no trial has run yet") from error
         return []
     if not stored.exists():
         raise ConfigError(
