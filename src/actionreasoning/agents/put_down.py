@@ -5,7 +5,9 @@ band, clear of the other bricks and the unbuilt targets), so that a loose brick 
 carried far; back on the spot it was grasped from if there is none. How: pressed
 onto the ground, still held, until it lies flat, then let go just past its width. A brick
 that rolled in the hand turns about the pads, which hold little torque: pressed down it
-turns back flat, where one let go on a corner falls, often onto its side.
+turns back flat, where one let go on a corner falls, often onto its side. Rolled so far
+that its lowest edge is under its centre, pressed down it would tip onto its end: it is
+laid level instead, the tool tilted by its roll, where the arm reaches that way down.
 """
 
 from __future__ import annotations
@@ -225,7 +227,7 @@ class PutDown:
 def _tips_onto_its_end(state: WorldState, brick: int) -> bool:
     """Whether the held brick has rolled so far in the hand that pressing it down would tip
     it onto its end rather than flat: its lowest edge is under its centre once the roll
-    passes atan(length / height) (59 deg for a half brick, 74 for a full one), less the swing
+    passes atan(length / height) (58 deg for a half brick, 73 for a full one), less the swing
     the press checks leave (PRESS_TOLERANCE_M at the brick's end)."""
     state_brick = state.brick(brick)
     length, _, height = state_brick.size_m
