@@ -278,7 +278,9 @@ def test_a_rung_of_verification_other_than_the_methods_own_is_a_row_of_its_own(
     runs = [
         write_run(tmp_path / "full", manifest(physics=PRECISE), lines([True] * 2, verify="full")),
         write_run(
-            tmp_path / "gates", manifest(physics=PRECISE), lines([False] * 2, verify="gates")
+            tmp_path / "gates",
+            manifest(physics=PRECISE, verify=Verification.GATES),
+            lines([False] * 2, verify="gates"),
         ),
     ]
     report = build_report(runs, tmp_path / "report")

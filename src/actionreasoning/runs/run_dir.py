@@ -291,9 +291,10 @@ def check_lines(
     results: list[TrialResult], manifest: AnyManifest, path: Path, stored: Path
 ) -> None:
     """Refuse, in one line naming the line and the field, a results line (of ``path``) that
-    differs from run.json (``stored``) in anything run.json fixes: method, pattern, seed,
-    backend, physics, noise, tier, rung of verification and whether answers were corrupted.
-    `report` and a resume share it, so that no trial of another condition is pooled."""
+    differs from run.json (``stored``) in anything run.json fixes that a line records:
+    method, pattern, seed, backend, physics, noise, tier and rung of verification. `report`
+    and a resume share it, so that no trial of another condition is pooled. (A line records
+    what answer errors did, not their rate, so it is not checked against the rate.)"""
     expected: dict[str, Any] = {
         "method": manifest.method,
         "pattern": manifest.pattern,
@@ -302,14 +303,12 @@ def check_lines(
         "physics": manifest.physics_name,
         "noise": manifest.noise_name,
         "tools": manifest.tier,
-        "answer errors counted": manifest.answer_errors.rate > 0,
     }
     if isinstance(manifest, RunManifest):
         rung = rung_of(Method(manifest.method), manifest.config.verify)
         expected["verify"] = None if rung is None else str(rung)
     for number, result in enumerate(results, start=1):
-        found_values = {name: getattr(result, name, None) for name in expected}
-        found_values["answer errors counted"] = result.answer_errors is not None
+        found_values = {name: getattr(result, name) for name in expected}
         if result.verify is None and result.method == manifest.method != Method.CLASSICAL:
             # Lines written before rungs existed ran under the method's own (a line of
             # another method is refused for its method first).
