@@ -109,6 +109,46 @@ def test_a_demo_out_name_too_long_is_refused_in_one_line(tmp_path: Path) -> None
     assert_clean_error(result, "--out: file name too long")
 
 
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["report", "LONG"], "RUN: file name too long (300 characters)"),
+        (["report", "o", "--out", "LONG"], "--out: file name too long (300 characters)"),
+        (["pattern", "--wall", "0.83", "--out", "LONG.json"], "--out: file name too long (305"),
+        (["eval", "--out", "o", "--llm", "replay:LONG"], "recording: file name too long (300"),
+    ],
+)
+def test_paths_too_long_are_named_by_their_length_not_printed_whole(
+    tmp_path: Path, args: list[str], needle: str
+) -> None:
+    """As eval does for its own options: 300 characters on one error line say nothing."""
+    result = cli(*(arg.replace("LONG", "l" * 300) for arg in args), cwd=tmp_path)
+    assert_clean_error(result, needle)
+    assert "l" * 100 not in result.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["eval", "--out", ""], "--out: empty"),
+        (["eval", "--out", "o", "--record", ""], "--record: empty"),
+        (["demo", "--out", ""], "--out: empty"),
+        (["report", ""], "RUN: empty"),
+        (["report", "o", "--out", ""], "--out: empty"),
+        (["eval", "--out", "o", "--llm", "replay:"], "needs a --record file after 'replay:'"),
+    ],
+)
+def test_an_empty_path_is_refused_not_taken_as_the_current_directory(
+    tmp_path: Path, args: list[str], needle: str
+) -> None:
+    """``--out ""`` used to run eval in the current directory, and errors named it '.'."""
+    result = cli(*args, cwd=tmp_path)
+    assert_clean_error(result, needle)
+    assert "'.'" not in result.stderr and " . " not in result.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_transcripts_of_the_classical_method_are_refused(tmp_path: Path) -> None:
     out = tmp_path / "o"
     # Through the real entry point, `python -m actionreasoning`: its exit code and streams.

@@ -30,7 +30,10 @@ def limited() -> None:
     resource.setrlimit(resource.RLIMIT_FSIZE, (FILE_LIMIT, FILE_LIMIT))
 
 
-def eval_full(tmp_path: Path, out: Path, *options: str) -> subprocess.CompletedProcess[str]:
+def eval_full(
+    tmp_path: Path, out: Path, *options: str, full: bool = True
+) -> subprocess.CompletedProcess[str]:
+    """Two classical trials of one brick into ``out``, on a full disk unless not ``full``."""
     pattern = tmp_path / "one.json"
     pattern.write_text(json.dumps(ONE_BRICK))
     args = ["eval", "--method", "classical", "--pattern", str(pattern), "--physics", "precise",
@@ -39,7 +42,7 @@ def eval_full(tmp_path: Path, out: Path, *options: str) -> subprocess.CompletedP
         [sys.executable, "-m", "actionreasoning", *args],
         capture_output=True,
         text=True,
-        preexec_fn=limited,
+        preexec_fn=limited if full else None,
         timeout=600,
     )
 
@@ -63,6 +66,24 @@ def test_a_recording_that_does_not_fit_ends_the_run_and_leaves_no_file(
     assert len((out / "results.jsonl").read_text().splitlines()) == 1
     folder = (out / final).parent
     assert not folder.exists() or list(folder.iterdir()) == []  # neither final nor partial
+
+
+@pytest.mark.slow  # three whole trials
+def test_the_same_command_again_says_which_video_is_missing_and_how_to_make_it(
+    tmp_path: Path,
+) -> None:
+    """Before, the command the error asks for ran the trial left and said nothing of the
+    video the resume does not make."""
+    out = tmp_path / "run"
+    eval_full(tmp_path, out, "--video")  # its trial 0 is in results.jsonl, its video not
+    again = eval_full(tmp_path, out, "--video", full=False)
+    assert again.returncode == 0, again.stderr
+    notes = [line for line in again.stdout.splitlines() if line.startswith("missing from")]
+    assert notes == [
+        f"missing from {out}: video of trial 0, not written when those trials ran; a resume "
+        "runs no finished trial again: to make them, run the same command with a new --out"
+    ]
+    assert [path.name for path in (out / "videos").iterdir()] == ["trial_001_ok.mp4"]
 
 
 @pytest.mark.slow  # a whole trial

@@ -20,6 +20,7 @@ from conftest import eval_lines
 from gymnasium.utils.env_checker import check_env
 
 import actionreasoning.gym_env
+from actionreasoning.agents.answer_errors import CorruptionKind
 from actionreasoning.errors import ActionReasoningError, ConfigError
 from actionreasoning.gym_env.env import BrickStackEnv
 from actionreasoning.reasoners.builtin import BuiltinReasoner
@@ -270,3 +271,22 @@ def test_a_trial_out_of_time_before_its_first_question_is_one_line_and_needs_a_r
             env.step('{"brick_id": 0}')
     finally:
         env.close()
+
+
+def test_answer_errors_corrupt_the_callers_answers_as_eval_does() -> None:
+    """The docs promise ``answer_errors`` over Gymnasium: at rate 1 the caller's answer is
+    corrupted before its gate sees it, and the call says how."""
+    made = gymnasium.make(actionreasoning.gym_env.ENV_ID, pattern="pyramid", answer_errors=1.0)
+    env = made.unwrapped
+    env.reset(seed=0)
+    given = BuiltinReasoner().decide(env.session.request).answer.model_dump(mode="json")
+    _, _, _, _, info = env.step(json.dumps({"answer": given}))
+    corruption = info["call"]["corruption"]
+    assert corruption["original"] == given and corruption["kind"] in set(CorruptionKind)
+    made.close()
+
+
+@pytest.mark.parametrize("rate", [-0.1, 1.5, math.nan, True, "0.2"])
+def test_an_answer_error_rate_outside_0_to_1_is_refused(rate: object) -> None:
+    with pytest.raises(ConfigError, match=r"answer_errors .*: give a rate from 0 to 1"):
+        gymnasium.make(actionreasoning.gym_env.ENV_ID, answer_errors=rate)

@@ -4,6 +4,10 @@
 from __future__ import annotations
 
 import itertools
+import resource
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -242,3 +246,32 @@ def test_an_existing_file_is_overwritten_only_with_force(tmp_path: Path) -> None
     assert load_pattern(kept, SPEC).name == "run"
     refused = cli("pattern", "pyramid", "--force")
     assert_clean_error(refused, "--force go with --wall")
+
+
+def test_a_file_name_of_255_bytes_is_written(tmp_path: Path) -> None:
+    """The longest name a file may have: the temporary name beside it is short."""
+    name = "w" * 250 + ".yaml"
+    written = cli("pattern", "--wall", "0.83", "--out", name, cwd=tmp_path)
+    assert written.returncode == 0, written.stderr
+    assert [path.name for path in tmp_path.iterdir()] == [name]
+    assert len(load_pattern(tmp_path / name, SPEC).targets) == 13
+
+
+def test_a_write_that_fails_leaves_no_file(tmp_path: Path) -> None:
+    """A file size limit fails the write as a full disk does: one line naming the file, and
+    no temporary file left beside it (there used to be a hidden empty one)."""
+
+    def limited() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (64, 64))
+
+    run = subprocess.run(
+        [sys.executable, "-m", "actionreasoning", "pattern", "--wall", "0.83", "--out", "w.json"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        preexec_fn=limited,
+        timeout=120,
+    )
+    assert_clean_error(run, "w.json: cannot write pattern file (File too large)")
+    assert list(tmp_path.iterdir()) == []

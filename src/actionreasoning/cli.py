@@ -26,8 +26,10 @@ from actionreasoning.reasoners.registry import backend_help
 from actionreasoning.reasoners.sampling import MAX_COMPLETION_TOKENS, Effort, Sampling
 from actionreasoning.recording.names import VIDEO_FPS
 from actionreasoning.runs.layout import RunDir
+from actionreasoning.runs.printable import printable
 from actionreasoning.trial.rules import Method, check_rung, rung_of
 from actionreasoning.world.budget import TrialBudget
+from actionreasoning.world.config_files import check_file_name
 from actionreasoning.world.geometry import quat_yaw
 from actionreasoning.world.models import Supply
 from actionreasoning.world.patterns import load_pattern, save_pattern
@@ -140,13 +142,24 @@ class Fallback(StrEnum):
     BUILTIN = "builtin"
 
 
+def _shown(text: str) -> str:
+    """``text`` (a name, a path, a message quoting them) for rich markup: its control
+    characters escaped (:func:`printable`), its [brackets] too."""
+    return escape(printable(text))
+
+
+def _say(line: str) -> None:
+    """Print ``line`` as it is, but for its control characters (:func:`printable`)."""
+    console.print(printable(line), highlight=False, markup=False, soft_wrap=True)
+
+
 def _fail(error: ActionReasoningError | OSError, where: Path | None = None) -> None:
     """End the command with one line naming the problem (for a file error: the file, else
     ``where``)."""
     text = str(error)
     if isinstance(error, OSError) and (error.filename or where) is not None:
         text = f"{error.filename or where}: {error.strerror}"
-    err_console.print(f"[bold red]error:[/] {escape(text)}", highlight=False, soft_wrap=True)
+    err_console.print(f"[bold red]error:[/] {_shown(text)}", highlight=False, soft_wrap=True)
     raise typer.Exit(code=2)
 
 
@@ -193,7 +206,7 @@ def _summary_table(summary: RunSummary) -> Table:
 
     s = summary.successful
     table = Table(
-        title=escape(f"{summary.method} on {summary.pattern}"),
+        title=_shown(f"{summary.method} on {summary.pattern}"),
         caption="means ± std over successful trials",
     )
     for column in ("Rot. Err (°)", "Ctr. Off. (cm)", "IoU (%)", "Success"):
@@ -215,17 +228,20 @@ def _summary_table(summary: RunSummary) -> Table:
 
 
 OutOption = Annotated[
-    Path,
+    str,
     typer.Option(
+        metavar="DIR",
         help="Output directory. Created if new; if it holds this run already, the trials "
-        "finished there are kept and only the missing ones run."
+        "finished there are kept and only the missing ones run.",
     ),
 ]
 MethodOption = Annotated[Method, typer.Option(help="Reasoning method.")]
 TrialsOption = Annotated[int, typer.Option(min=1, help="Number of trials.")]
 RecordOption = Annotated[
-    Path | None,
-    typer.Option(help="Append every exchange with the model to this file, for replay:FILE."),
+    str | None,
+    typer.Option(
+        metavar="FILE", help="Append every exchange with the model to this file, for replay:FILE."
+    ),
 ]
 FallbackOption = Annotated[
     Fallback, typer.Option(help="Who answers a step once the model's repair budget is spent.")
@@ -366,18 +382,16 @@ def eval_command(
     from actionreasoning.reasoners.backend import LLMConfig, ServerOptions
     from actionreasoning.reasoners.llm import LLMLimits
     from actionreasoning.trial.session import Conditions
-    from actionreasoning.world.config_files import check_file_name
 
     try:
-        for option, path in (("--out", out), ("--record", record)):
-            if path is not None:
-                check_file_name(path, option)
+        out_dir = _path(out, "--out")
+        record_file = None if record is None else _path(record, "--record")
         backend = LLMConfig(
             spec=llm,
             server=ServerOptions(base_url=base_url, timeout_s=llm_timeout, max_retries=llm_retries),
             limits=LLMLimits(tool_turns=tool_turns, repairs=repairs),
             fallback=fallback is Fallback.BUILTIN,
-            record=record,
+            record=record_file,
             sampling=Sampling(temperature, top_p, max_tokens, llm_seed, reasoning_effort),
         )
         _check_options(
@@ -418,7 +432,7 @@ def eval_command(
         conditions,
         trials,
         seed,
-        out,
+        out_dir,
         snapshots=snapshots,
         transcripts=transcripts,
         rerun=rerun,
@@ -431,8 +445,11 @@ def eval_command(
 @app.command()
 def demo(
     out: Annotated[
-        Path, typer.Option(help="Output directory: new, empty, or one an earlier demo wrote.")
-    ] = Path("demo"),
+        str,
+        typer.Option(
+            metavar="DIR", help="Output directory: new, empty, or one an earlier demo wrote."
+        ),
+    ] = "demo",
     pattern: PatternOption = "pyramid",
     seed: Annotated[int, typer.Option(min=0, help="Seed of the demo trial.")] = 0,
     physics: PhysicsOption = "paper",
@@ -450,13 +467,12 @@ def demo(
     from actionreasoning.trial.session import Conditions
 
     try:
-        with demo_directory(out):
+        out_dir = _path(out, "--out")
+        with demo_directory(out_dir):
             conditions = Conditions.load(pattern, physics, noise, tools=tools)
-            _evaluate(Method.AGENTS, conditions, 1, seed, out, snapshots=True, video=True)
-            pages = write_demo_pages(RunDir(out))
-            console.print(
-                f"report: {pages.markdown} and {pages.html}", highlight=False, markup=False
-            )
+            _evaluate(Method.AGENTS, conditions, 1, seed, out_dir, snapshots=True, video=True)
+            pages = write_demo_pages(RunDir(out_dir))
+            _say(f"report: {pages.markdown} and {pages.html}")
     except ActionReasoningError as error:
         _fail(error)
 
@@ -505,9 +521,7 @@ def _evaluate(
         err_console.print(f"interrupted: {RESUME_HINT}", highlight=False)
         raise typer.Exit(code=130) from None
     console.print(_summary_table(summary))
-    console.print(
-        f"wall time {summary.wall_time_s:.1f} s; results in {out}/", highlight=False, markup=False
-    )
+    _say(f"wall time {summary.wall_time_s:.1f} s; results in {out}/")
     return summary
 
 
@@ -539,7 +553,7 @@ def _comparison(table: ComparisonTable) -> Table:
     shown.add_column("Method")
     columns = [*table.patterns, AVERAGE]
     for pattern in columns:
-        shown.add_column(escape(pattern), justify="right")
+        shown.add_column(_shown(pattern), justify="right")
     everything = {(r.label, r.pattern): r for r in table.all_trials}
     for row in table.rows:
         cells = []
@@ -547,7 +561,7 @@ def _comparison(table: ComparisonTable) -> Table:
             values = [table.cell(row, pattern, metric) for metric, *_ in COLUMNS]
             text = " ".join(f"[bold]{v}[/]" if best else v for v, best in values)
             cells.append(f"{text}\n{_successes(table, row, pattern)}")
-        shown.add_row(escape(row), *cells)  # labels hold [brackets]
+        shown.add_row(_shown(row), *cells)  # labels hold [brackets]
         if any((row, pattern) in everything for pattern in columns):
             means = {
                 pattern: " ".join(
@@ -557,7 +571,7 @@ def _comparison(table: ComparisonTable) -> Table:
                 for pattern in columns
                 if (r := everything.get((row, pattern))) is not None
             }
-            shown.add_row(escape(f"{row}, all trials"), *(means.get(p, "") for p in columns))
+            shown.add_row(_shown(f"{row}, all trials"), *(means.get(p, "") for p in columns))
     return shown
 
 
@@ -583,9 +597,14 @@ def _cells_table(title: str, columns: Sequence[str], rows: Sequence[Sequence[str
 @app.command("report")
 def report_command(
     runs: Annotated[
-        list[Path], typer.Argument(help="Eval --out directories: methods, backends, patterns.")
+        list[str],
+        typer.Argument(
+            metavar="RUN...", help="Eval --out directories: methods, backends, patterns."
+        ),
     ],
-    out: Annotated[Path, typer.Option(help="Directory for the report's files.")] = Path("report"),
+    out: Annotated[
+        str, typer.Option(metavar="DIR", help="Directory for the report's files.")
+    ] = "report",
     gif: Annotated[
         bool, typer.Option(help="Also make an animated GIF of every trial with snapshots.")
     ] = False,
@@ -601,10 +620,12 @@ def report_command(
     from actionreasoning.runs.run_dir import check_output_path
 
     try:
-        check_output_path(out)  # before reading the runs; created once they are read
-        report = build_report(runs, out, gifs=gif)
+        out_dir = _path(out, "--out")
+        run_dirs = [_path(run, "RUN") for run in runs]
+        check_output_path(out_dir)  # before reading the runs; created once they are read
+        report = build_report(run_dirs, out_dir, gifs=gif)
     except (ActionReasoningError, OSError) as error:
-        _fail(error, out)
+        _fail(error, Path(out))
     console.print(_comparison(report.table))
     if report.table.ladder:
         title = "the ablation ladder: rungs of verification under each condition"
@@ -615,13 +636,11 @@ def report_command(
         rows = [pair.cells for pair in report.table.pairs]
         console.print(_cells_table(title, PAIR_COLUMNS, rows))
     for note in report.table.notes:
-        console.print(note, highlight=False, markup=False, soft_wrap=True)
+        _say(note)
     if gif and not report.gifs:
         console.print("no GIFs: no run kept snapshots (eval --snapshots)", highlight=False)
     written = [*report.tables, *(p for p, _ in (*report.plots, *report.grids, *report.gifs))]
-    console.print(
-        f"{len(written) + 1} files in {out}/; open {report.html}", highlight=False, markup=False
-    )
+    _say(f"{len(written) + 1} files in {out}/; open {report.html}")
 
 
 @app.command("prompt")
@@ -650,7 +669,7 @@ def prompt_command(
         _fail(error)
     spec = agent_specs(tools)[agent - 1] if agent else single_agent_spec(tools)
     try:
-        print(first_prompt(trial, spec.key), end="")
+        print(printable(first_prompt(trial, spec.key)), end="")
     except ActionReasoningError as error:
         _fail(error)
 
@@ -757,7 +776,7 @@ def pattern_command(
         Tolerances.derive().for_goal(goal)  # joints the agents' gates can work with
     except ActionReasoningError as error:
         _fail(error)
-    table = Table(title=escape(f"pattern {goal.name}: {len(goal.targets)} bricks, valid"))
+    table = Table(title=_shown(f"pattern {goal.name}: {len(goal.targets)} bricks, valid"))
     for column in ("#", "x (m)", "y (m)", "z (m)", "yaw (deg)"):
         table.add_column(column, justify="right")
     for target in goal.targets:
@@ -768,7 +787,14 @@ def pattern_command(
         )
     console.print(table)
     if out is not None:
-        console.print(f"wrote {escape(str(out))}", highlight=False, soft_wrap=True)
+        _say(f"wrote {out}")
+
+
+def _path(text: str, option: str) -> Path:
+    """The path ``option`` names; refused in one line if it is empty (not the current
+    directory) or no file can have it (said by its length, not printed whole)."""
+    check_file_name(text, option)
+    return Path(text)
 
 
 def _new_file(out: str | None, force: bool) -> Path:
@@ -776,7 +802,7 @@ def _new_file(out: str | None, force: bool) -> Path:
     or exists (unless ``force``)."""
     if out is None:
         raise ConfigError("--wall needs --out FILE, the pattern file to write")
-    path = Path(out)
+    path = _path(out, "--out") if out.strip() else Path()
     if not out.strip() or path.is_dir() or not path.stem:
         raise ConfigError(f"--out {out!r} names no file: give the pattern file to write")
     if path.exists() and not force:
@@ -799,7 +825,7 @@ def tolerances_command(
         run = Tolerances.derive().for_goal(goal).under(level.sensing())
     except ActionReasoningError as error:
         _fail(error)
-    print(derivation_table(run, f"{goal.name}, noise {level.name}"), end="")
+    print(printable(derivation_table(run, f"{goal.name}, noise {level.name}")), end="")
 
 
 @app.command("serve-reference")
@@ -897,7 +923,7 @@ def llm_check(
         report = check_backend(LLMConfig(spec=llm, server=server, sampling=sampling))
     except ActionReasoningError as error:
         _fail(error)
-    table = Table(title=f"llm check {escape(report.label)}", show_header=False)
+    table = Table(title=f"llm check {_shown(report.label)}", show_header=False)
     for name, value in (
         ("model", report.model),
         ("structured output", report.mode),
@@ -905,7 +931,7 @@ def llm_check(
         ("tokens", f"{report.prompt_tokens} prompt, {report.completion_tokens} completion"),
         ("answer", ("valid: " if report.valid else "INVALID: ") + report.detail),
     ):
-        table.add_row(name, escape(value))
+        table.add_row(name, _shown(value))
     console.print(table)
     if not report.valid:
         raise typer.Exit(code=1)

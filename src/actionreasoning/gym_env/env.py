@@ -20,6 +20,7 @@ from typing import Any
 import gymnasium
 import numpy as np
 
+from actionreasoning.agents.answer_errors import AnswerErrors
 from actionreasoning.agents.tiers import DEFAULT_TIER
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.errors import ConfigError
@@ -61,6 +62,7 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
         render_mode: str | None = None,
         max_trial_s: float = TrialBudget().max_wall_s,
         tools: str = DEFAULT_TIER.value,
+        answer_errors: float = 0.0,
     ) -> None:
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ConfigError(f"render_mode {render_mode!r}: use 'rgb_array' or None")
@@ -71,7 +73,12 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
                 f"a {type(max_trial_s).__name__}"
             )
         self.conditions = Conditions.load(
-            pattern, physics, noise, TrialBudget(max_wall_s=max_trial_s), tools
+            pattern,
+            physics,
+            noise,
+            TrialBudget(max_wall_s=max_trial_s),
+            tools,
+            answer_errors=_answer_errors(answer_errors),
         )
         Tolerances.derive().for_goal(self.conditions.goal)  # joints the gates work with
         self.observation_space = observation_space(len(self.conditions.goal.targets))
@@ -196,3 +203,15 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
             "seed": self._run_seed,
             "trial": self._trial,
         }
+
+
+def _answer_errors(rate: object) -> AnswerErrors:
+    """``eval --answer-errors RATE``: the caller's answers corrupted with probability
+    ``rate`` (0 to 1), as any reasoner's are; refused in one line otherwise."""
+    if (
+        isinstance(rate, bool)
+        or not isinstance(rate, int | float)
+        or not 0.0 <= rate <= 1.0  # NaN too
+    ):
+        raise ConfigError(f"answer_errors {rate!r}: give a rate from 0 to 1")
+    return AnswerErrors(rate=rate + 0.0)  # -0 is 0

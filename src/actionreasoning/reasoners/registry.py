@@ -125,6 +125,8 @@ def _prepare_replay(config: LLMConfig, deadline: float | None) -> LLMConfig:
 
     if config.record:
         raise ConfigError("--record cannot record a replay")
+    if not config.argument:
+        raise ConfigError("--llm replay:FILE needs a --record file after 'replay:'")
     replay = ReplayChat(Path(config.argument))
     if config.sampling not in (Sampling(), replay.sampling):
         raise ConfigError(

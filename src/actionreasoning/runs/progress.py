@@ -16,6 +16,7 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
+from actionreasoning.runs.printable import printable
 from actionreasoning.trial.results import TrialResult
 
 
@@ -76,7 +77,10 @@ class ConsoleProgress:
             )
         if self._bar is not None:
             self._task = self._bar.add_task(
-                escape(self.title), total=total, completed=len(finished), successes=self.successes
+                escape(printable(self.title)),
+                total=total,
+                completed=len(finished),
+                successes=self.successes,
             )
 
     def finished(self, result: TrialResult) -> None:
@@ -89,7 +93,12 @@ class ConsoleProgress:
         self._say(trial_line(result))
         self._bar.update(self._task, advance=1, successes=self.successes)
 
+    def note(self, line: str) -> None:
+        """Print a line about the run (not a trial's)."""
+        self._say(line)
+
     def _say(self, line: str) -> None:
+        line = printable(line)
         if self._bar is not None:
             self._bar.console.print(line, highlight=False, markup=False)
         else:

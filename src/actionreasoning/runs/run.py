@@ -95,6 +95,8 @@ class RunObserver(Protocol):
 
     def finished(self, result: TrialResult) -> None: ...
 
+    def note(self, line: str) -> None: ...
+
 
 def check_engine(config: RunConfig) -> None:
     """Refuse engine options that cannot work together, or that lack their package."""
@@ -124,6 +126,8 @@ def _run_locked(config: RunConfig, observer: RunObserver | None) -> RunSummary:
     resumed = len(results)
     if observer is not None:
         observer.started(config.trials, list(results))
+        if missing := _missing_files(run, config, results):
+            observer.note(missing)
     jobs = _jobs(config, trials, {r.trial for r in results})
     provenance = current_provenance()
     started = time.perf_counter()
@@ -171,6 +175,33 @@ def _prepared(config: TrialConfig) -> TrialConfig:
             error.reason, f"the start probe took longer than --max-trial-s ({limit_s:g} s)"
         ) from None
     return config.model_copy(update={"llm": llm})
+
+
+def _missing_files(run: RunDir, config: RunConfig, finished: list[TrialResult]) -> str | None:
+    """One line naming the files the run's options ask for that trials finished by an
+    earlier session lack (a video that could not be finished, say), and how to make them;
+    None if none lacks any."""
+    lacking: dict[str, list[int]] = {}
+    for result in finished:
+        failure = None if result.failure is None else str(result.failure.reason)
+        for kind, wanted, path in (
+            ("transcript", config.transcripts, run.transcript(result.trial)),
+            ("snapshots", config.snapshots, run.snapshots(result.trial)),
+            ("Rerun recording", config.rerun, run.recording(result.trial)),
+            ("video", config.video, run.video(result.trial, failure)),
+        ):
+            if wanted and not path.exists():
+                lacking.setdefault(kind, []).append(result.trial)
+    if not lacking:
+        return None
+    what = "; ".join(
+        f"{kind} of trial{'s' if len(trials) > 1 else ''} {', '.join(map(str, trials))}"
+        for kind, trials in lacking.items()
+    )
+    return (
+        f"missing from {run.root}: {what}, not written when those trials ran; a resume runs no "
+        "finished trial again: to make them, run the same command with a new --out"
+    )
 
 
 def _kept(finished: int) -> str:

@@ -84,8 +84,11 @@ def check_file_name(
     name_or_path: str | Path, argument: str, error: type[ActionReasoningError] = ConfigError
 ) -> None:
     """Refuse, in one ``error`` line naming ``argument``, a name or path no file can have:
-    one with a NUL byte, one the file system cannot encode, one too long to open."""
+    an empty one (not taken as the current directory), one with a NUL byte, one the file
+    system cannot encode, one too long to open (said by its length, not printed whole)."""
     text = str(name_or_path)
+    if not text:
+        raise error(f"{argument}: empty")
     if "\0" in text:
         raise error(f"{argument}: contains a NUL byte")
     try:
@@ -122,7 +125,9 @@ def open_user_file(
 ) -> BinaryIO:
     """The ``what`` file at ``path`` opened to read in binary, if it is a regular file
     (symlinks followed); else a one-line ``error``. Opening does not block (a FIFO without
-    a writer opens at once and is then refused). Errors while reading are the caller's."""
+    a writer opens at once and is then refused). Errors while reading are the caller's. A
+    path no file can have is refused by its length, not printed whole."""
+    check_file_name(path, what, error)
     try:
         descriptor = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
     except OSError as exc:

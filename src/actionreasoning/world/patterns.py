@@ -155,19 +155,20 @@ def save_pattern(pattern: PatternFile, path: Path, spec: SceneSpec) -> GoalPatte
     """Write ``pattern`` to ``path`` (JSON or YAML by its suffix) if it is valid, and return
     it loaded back from there; a refusal names ``path`` and leaves no file behind.
 
-    The file is written under a temporary name beside ``path``, loaded as any pattern file
-    is, and only then renamed to ``path``.
+    The file is written under a short temporary name beside ``path`` (a legal 255-byte
+    name has no room for a longer one), loaded as any pattern file is, and only then
+    renamed to ``path``; a write that fails (a full disk) leaves no temporary file.
     """
     suffix = path.suffix.lower()
     if suffix not in _DUMPERS:
         raise PatternError(f"{path}: unknown extension '{suffix}' (use .json, .yaml or .yml)")
     place_pattern(pattern, str(path), spec)
     text = _DUMPERS[suffix](pattern.model_dump(mode="json", exclude_none=True))
-    temporary = path.with_name(f".{path.stem}-{os.getpid()}{suffix}")
+    temporary = path.with_name(f".pattern-{os.getpid()}{suffix}")
     try:
-        with temporary.open("x", encoding="utf-8") as file:
-            file.write(text)
         try:
+            with temporary.open("w", encoding="utf-8") as file:
+                file.write(text)
             goal = load_pattern(temporary, spec)
             os.replace(temporary, path)
         finally:
