@@ -3,6 +3,7 @@ process; one test through the real entry point)."""
 
 from __future__ import annotations
 
+import importlib.metadata
 import json
 import socket
 import subprocess
@@ -403,3 +404,9 @@ def test_a_run_that_fails_to_start_leaves_no_out_directory(tmp_path: Path) -> No
                  "--trials", "1", "--out", str(out))  # fmt: skip
     assert_clean_error(result, "llm_unreachable: cannot connect to")
     assert not out.exists()
+
+
+def test_version_is_the_installed_distributions() -> None:
+    shown = cli("--version")
+    assert shown.returncode == 0, shown.stderr
+    assert shown.stdout == f"actionreasoning {importlib.metadata.version('actionreasoning')}\n"

@@ -19,6 +19,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from actionreasoning import __version__
 from actionreasoning.agents.tiers import DEFAULT_TIER, TIER_HELP, ToolTier
 from actionreasoning.agents.verification import Verification
 from actionreasoning.errors import ActionReasoningError, ConfigError
@@ -26,6 +27,7 @@ from actionreasoning.reasoners.registry import backend_help
 from actionreasoning.reasoners.sampling import MAX_COMPLETION_TOKENS, Effort, Sampling
 from actionreasoning.recording.names import VIDEO_FPS
 from actionreasoning.runs.layout import RunDir
+from actionreasoning.runs.paper import TRIALS as PAPER_TRIALS
 from actionreasoning.runs.printable import printable
 from actionreasoning.trial.rules import Method, check_rung, rung_of
 from actionreasoning.world.budget import TrialBudget
@@ -46,12 +48,33 @@ if TYPE_CHECKING:
     from actionreasoning.trial.session import Conditions
 
 app = typer.Typer(
-    help="LLM action reasoning for robot brick stacking: simulate, evaluate, report.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
 )
 console = Console()
 err_console = Console(stderr=True)
+
+
+def _print_version(given: bool) -> None:
+    if given:
+        console.print(f"actionreasoning {__version__}", highlight=False)
+        raise typer.Exit()
+
+
+@app.callback()
+def main(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version",
+            callback=_print_version,
+            is_eager=True,
+            help="Print the version and exit.",
+        ),
+    ] = False,
+) -> None:
+    """LLM action reasoning for robot brick stacking: simulate, evaluate, report."""
+
 
 BUILTIN_PATTERNS = ", ".join(f"'{name}'" for name in PATTERNS)
 PatternOption = Annotated[
@@ -614,18 +637,27 @@ def report_command(
     Runs are pooled only under the same run.json conditions (the seed aside) and pattern
     content; others are set side by side, and the report names the fields that differ.
     """
+    try:
+        out_dir = _path(out, "--out")
+        run_dirs = [_path(run, "RUN") for run in runs]
+    except ActionReasoningError as error:
+        _fail(error)
+    _report(run_dirs, out_dir, gif)
+
+
+def _report(run_dirs: list[Path], out: Path, gif: bool = False) -> None:
+    """Write the report of ``run_dirs`` into ``out`` and print its tables; errors end the
+    command."""
     from actionreasoning.report.build import build_report
     from actionreasoning.report.ladder import LADDER_COLUMNS
     from actionreasoning.report.pairs import PAIR_COLUMNS
     from actionreasoning.runs.run_dir import check_output_path
 
     try:
-        out_dir = _path(out, "--out")
-        run_dirs = [_path(run, "RUN") for run in runs]
-        check_output_path(out_dir)  # before reading the runs; created once they are read
-        report = build_report(run_dirs, out_dir, gifs=gif)
+        check_output_path(out)  # before reading the runs; created once they are read
+        report = build_report(run_dirs, out, gifs=gif)
     except (ActionReasoningError, OSError) as error:
-        _fail(error, Path(out))
+        _fail(error, out)
     console.print(_comparison(report.table))
     if report.table.ladder:
         title = "the ablation ladder: rungs of verification under each condition"
@@ -641,6 +673,56 @@ def report_command(
         console.print("no GIFs: no run kept snapshots (eval --snapshots)", highlight=False)
     written = [*report.tables, *(p for p, _ in (*report.plots, *report.grids, *report.gifs))]
     _say(f"{len(written) + 1} files in {out}/; open {report.html}")
+
+
+@app.command("paper")
+def paper_command(
+    out: OutOption,
+    llm: LLMOption = "builtin",
+    base_url: BaseUrlOption = None,
+    llm_timeout: TimeoutOption = 60.0,
+    trials: Annotated[
+        int, typer.Option(min=1, help="Trials per method and pattern (the paper's: 10).")
+    ] = PAPER_TRIALS,
+    seed: SeedOption = 0,
+    workers: WorkersOption = 1,
+    snapshots: SnapshotsOption = False,
+) -> None:
+    """Run the paper's Table I protocol and report it beside the paper's figures.
+
+    The six gated agents, the single agent and the classical script, each on pyramid and
+    grid, --trials seeded trials under the paper's physics, into DIR/runs/METHOD-PATTERN as
+    eval writes them; then the report into DIR/report. Run it again to resume.
+    """
+    from actionreasoning.reasoners.backend import LLMConfig, ServerOptions
+    from actionreasoning.runs.paper import paper_runs
+    from actionreasoning.trial.session import Conditions
+
+    try:
+        out_dir = _path(out, "--out")
+        backend = LLMConfig(
+            spec=llm, server=ServerOptions(base_url=base_url, timeout_s=llm_timeout)
+        )
+        runs = paper_runs(out_dir)
+        conditions = {
+            (run.method, run.pattern): Conditions.load(
+                run.pattern, llm=LLMConfig() if run.method is Method.CLASSICAL else backend
+            )
+            for run in runs
+        }
+    except ActionReasoningError as error:
+        _fail(error)
+    for run in runs:
+        _evaluate(
+            run.method,
+            conditions[(run.method, run.pattern)],
+            trials,
+            seed,
+            run.out,
+            snapshots=snapshots,
+            workers=workers,
+        )
+    _report([run.out for run in runs], out_dir / "report")
 
 
 @app.command("prompt")
