@@ -1,8 +1,8 @@
 """The MCP server `actionreasoning mcp`, driven as a real subprocess by the SDK's own client
 over stdio: its tools, the gates' measurements for the waiting agent, a one-brick build with
 the built-in reasoner's answers that gives eval's line, a gate's refusal that leaves the arm
-where it was, hostile calls refused as typed tool results, and nothing but protocol messages
-on stdout."""
+where it was, answer errors as eval's, hostile calls refused as typed tool results (a file
+that does not parse told without its text), and nothing but protocol messages on stdout."""
 
 from __future__ import annotations
 
@@ -25,6 +25,7 @@ from conftest import SMALL_PATTERN, assert_clean_error, eval_lines
 from mcp import ClientSession
 from mcp.client.stdio import StdioServerParameters, stdio_client
 
+from actionreasoning.agents.answer_errors import CorruptionKind
 from actionreasoning.agents.spec import single_agent_spec
 from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.errors import ToolError
@@ -95,7 +96,7 @@ def test_the_tools_are_listed_with_their_schemas(tmp_path: Path) -> None:
             assert tool.description.startswith(tool_schema(tool.name).description)
     start = next(tool for tool in tools if tool.name == "start_trial")
     assert set(start.input_schema["properties"]) == {
-        "pattern", "physics", "noise", "tools", "seed", "trial", "max_trial_s",
+        "pattern", "physics", "noise", "tools", "seed", "trial", "max_trial_s", "answer_errors",
     }  # fmt: skip
 
 
@@ -229,6 +230,74 @@ def test_an_answer_a_gate_refuses_comes_back_with_its_feedback_and_the_arm_stays
         after, _ = await call(client, "read_state")
         assert after["turn"]["feedback"] == call_record["feedback"]
         assert after["turn"]["state"] == state  # nothing moved: the same measured state
+
+    run(scenario, tmp_path)
+
+
+def test_answer_errors_corrupt_the_agents_answers_and_the_line_counts_them_as_evals(
+    tmp_path: Path,
+) -> None:
+    async def scenario(client: ClientSession) -> None:
+        for rate, detail in (
+            (-0.5, "greater than or equal to 0"),
+            (1.5, "less than or equal to 1"),
+            (math.nan, "a valid number"),  # sent as null
+            (True, "a valid number"),
+            ("0.5", "a valid number"),
+        ):
+            data, refused = await call(client, "start_trial", answer_errors=rate)
+            assert refused and data["refusal"]["code"] == "invalid_action", (rate, data)
+            assert (
+                data["refusal"]["detail"] == f"start_trial: answer_errors: Input should be {detail}"
+            )
+        clean, refused = await call(client, "start_trial", answer_errors=-0.0)  # -0 is 0: none
+        assert not refused and "answer_errors" not in clean["trial"]
+        start, refused = await call(client, "start_trial", seed=0, answer_errors=1.0)
+        assert not refused and start["trial"]["answer_errors"] == 1.0
+        assert "answer_errors" not in start["previous_result"]  # eval's line at rate 0
+        judged, refused = await call(
+            client, "submit_answer", answer=answer_at(start["turn"]["state"], brick=0)
+        )
+        corruption = judged["call"]["corruption"]  # every answer at rate 1
+        assert not refused and corruption["kind"] in set(CorruptionKind), judged
+        assert judged["call"]["outcome"] == "refused"  # and the gates caught it
+        finished, _ = await call(client, "finish_trial")
+        counts = finished["result"]["answer_errors"]
+        assert counts["corrupted"] == 1 and counts["by_kind"] == {corruption["kind"]: 1}
+        assert counts["caught"] == {corruption["kind"]: {"before": 1}}
+
+    run(scenario, tmp_path)
+
+
+SECRET = "sk-live-5f3a9c2e7b1d40681f2a"
+
+
+def test_a_file_that_does_not_parse_is_told_by_line_and_column_never_by_its_text(
+    tmp_path: Path,
+) -> None:
+    files = {
+        "pattern": ("open.yaml", f'name: x\nbricks: []\napi_key: "{SECRET}\nbrick_size: full\n'),
+        "physics": ("tab.yaml", f"name: p\n\ttoken: {SECRET}\n"),
+        "noise": ("alias.yml", f"name: n\npassword: *{SECRET}\n"),
+    }
+    told = {
+        "pattern": "(while scanning a quoted scalar at line 3, column 10; found unexpected end "
+        "of stream at line 5, column 1)",
+        "physics": "(while scanning for the next token; found character '\\t' that cannot "
+        "start any token at line 2, column 1)",
+        "noise": "(found undefined alias '...' at line 2, column 11)",
+    }
+    for name, text in files.values():
+        (tmp_path / name).write_text(text)
+
+    async def scenario(client: ClientSession) -> None:
+        for argument, (name, _) in files.items():
+            path = tmp_path / name
+            data, refused = await call(client, "start_trial", **{argument: str(path)})
+            assert refused and data["refusal"]["code"] == "invalid_action", data
+            detail = data["refusal"]["detail"]
+            assert detail == f"start_trial: {path}: not valid YAML {told[argument]}", detail
+            assert SECRET[3:] not in json.dumps(data)
 
     run(scenario, tmp_path)
 

@@ -8,12 +8,14 @@ only for the agent whose tool it is, a gate's measurement for whichever agent wa
 ``submit_answer`` hands the session an answer as text, to be validated, gated and
 executed as a language model's is; ``finish_trial`` ends the trial and gives its results
 line. Whatever a call asks, it comes back as JSON data: a refusal, ``{"refusal": {code,
-detail}}``, is data too, never an exception.
+detail}}``, is data too, never an exception. An argument holding a lone surrogate (a
+string, at any depth, that JSON can escape but Unicode has no character for) is refused.
 """
 
 from __future__ import annotations
 
 import json
+import re
 import threading
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
@@ -22,6 +24,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from pydantic_core import to_json
 
+from actionreasoning.agents.answer_errors import AnswerErrors
 from actionreasoning.agents.spec import single_agent_spec
 from actionreasoning.agents.tiers import DEFAULT_TIER, TIER_HELP, ToolTier
 from actionreasoning.errors import ActionReasoningError
@@ -46,6 +49,8 @@ KNOWLEDGE_TOOLS: tuple[str, ...] = tuple(
 )
 #: Every registry tool the door serves: the knowledge bases', then the gates' measurements.
 REGISTRY_TOOLS: tuple[str, ...] = tuple(dict.fromkeys(KNOWLEDGE_TOOLS + GATE_MEASUREMENTS))
+#: A surrogate code point: in a Python string (where a pair is one character), a lone one.
+LONE_SURROGATE = re.compile("[\ud800-\udfff]")
 
 
 def _named(builtins: Iterable[str]) -> str:
@@ -74,6 +79,14 @@ class StartTrial(_Arguments):
     trial: int = Field(0, ge=0, description="The trial's index in that run.")
     max_trial_s: float = Field(
         TrialBudget().max_wall_s, gt=0, description="Wall-clock seconds the trial may take."
+    )
+    answer_errors: float = Field(
+        0.0,
+        ge=0,
+        le=1,
+        exclude_if=lambda rate: rate == 0,
+        description="Probability that each answer is corrupted, as eval's --answer-errors, "
+        "before it is validated and gated; the results line counts what the gates caught.",
     )
 
 
@@ -161,11 +174,15 @@ class Door:
     def call(self, name: str, arguments: Mapping[str, Any] | None) -> Reply:
         """Run tool ``name`` on ``arguments``; a typed refusal for anything it cannot do."""
         with self._lock:
-            if name in REGISTRY_TOOLS:
-                return self._tool(name, dict(arguments or {}))
-            if name not in self._calls:
+            if name not in self._names():
                 detail = f"no tool {name[:64]!r}; the tools are {', '.join(self._names())}"
                 return Reply.refusal(RefusalCode.UNKNOWN_TOOL, detail)
+            unicode = _not_unicode(arguments or {})
+            if unicode is not None:
+                detail = f"{name}: {unicode}: not valid Unicode (holds a lone surrogate)"
+                return Reply.refusal(RefusalCode.INVALID_ACTION, detail)
+            if name in REGISTRY_TOOLS:
+                return self._tool(name, dict(arguments or {}))
             model, run = self._calls[name]
             try:
                 parsed = model.model_validate(dict(arguments or {}))
@@ -182,8 +199,9 @@ class Door:
     def _start(self, start: StartTrial) -> Reply:
         try:
             budget = TrialBudget(max_wall_s=start.max_trial_s)
+            errors = AnswerErrors(rate=start.answer_errors + 0.0)  # -0 is 0, as eval's
             conditions = Conditions.load(
-                start.pattern, start.physics, start.noise, budget, start.tools
+                start.pattern, start.physics, start.noise, budget, start.tools, answer_errors=errors
             )
             Tolerances.derive().for_goal(conditions.goal)  # joints the gates work with
             spec = conditions.spec(start.seed, start.trial)
@@ -263,6 +281,23 @@ _GATE_NOTE = (
 
 def _description(model: type[BaseModel]) -> str:
     return " ".join((model.__doc__ or "").split())
+
+
+def _not_unicode(arguments: Mapping[str, Any]) -> str | None:
+    """The name of the first argument whose name or value (any string in it, keys too)
+    holds a lone surrogate, shown with it escaped; None if none does."""
+    for name, value in arguments.items():
+        stack: list[object] = [name, value]
+        while stack:  # not recursive: arguments may nest as deep as JSON does
+            item = stack.pop()
+            if isinstance(item, str) and LONE_SURROGATE.search(item):
+                return name[:64].encode("utf-8", "backslashreplace").decode()
+            if isinstance(item, Mapping):
+                stack.extend(item)
+                stack.extend(item.values())
+            elif isinstance(item, list):
+                stack.extend(item)
+    return None
 
 
 def _first(error: ValidationError) -> str:

@@ -3,9 +3,10 @@ stdio transport).
 
 The SDK serves the protocol on the process's stdout and, while it serves, points file
 descriptor 1 at stderr, so nothing the simulator or a library prints can reach the wire.
-Every call runs in a worker thread (a trial's answer moves the arm for seconds) and comes
-back as a tool result: its JSON as text and as structured content, ``isError`` set when it
-was refused. A refusal is never a protocol error.
+Every call runs in a worker thread (a trial's answer moves the arm for seconds), after
+every call that arrived before it (:mod:`arrivals`), and comes back as a tool result: its
+JSON as text and as structured content, ``isError`` set when it was refused. A refusal is
+never a protocol error.
 
 The SDK reads stdin through :mod:`wire`, which answers every line the SDK would drop
 (not JSON, not a JSON-RPC message, over ``MAX_MESSAGE_BYTES``) with a JSON-RPC error.
@@ -22,6 +23,7 @@ import mcp_types as types
 from mcp.server import Server, ServerRequestContext
 
 from actionreasoning import __version__
+from actionreasoning.mcp_server.arrivals import Arrivals
 from actionreasoning.mcp_server.door import Door
 from actionreasoning.mcp_server.wire import stdio
 
@@ -38,8 +40,8 @@ When a reply's result is set the trial has ended; finish_trial returns its resul
 closes it. One trial per connection: start_trial again abandons the one running."""
 
 
-def build(door: Door) -> Server[Any]:
-    """A server whose tools are ``door``'s."""
+def build(door: Door, arrivals: Arrivals) -> Server[Any]:
+    """A server whose tools are ``door``'s, each call run in its turn among ``arrivals``."""
     tools = [
         types.Tool(name=entry.name, description=entry.description, input_schema=entry.input_schema)
         for entry in door.tools()
@@ -53,7 +55,9 @@ def build(door: Door) -> Server[Any]:
     async def call_tool(
         ctx: ServerRequestContext[Any], params: types.CallToolRequestParams
     ) -> types.CallToolResult:
-        reply = await anyio.to_thread.run_sync(door.call, params.name, params.arguments)
+        async with arrivals.turn(ctx.request_id) as sent:
+            name, arguments = sent or (params.name, params.arguments)
+            reply = await anyio.to_thread.run_sync(door.call, name, arguments)
         return types.CallToolResult(
             content=[types.TextContent(text=json.dumps(reply.data))],
             structured_content=reply.data,
@@ -75,10 +79,10 @@ def serve() -> None:
 
 
 async def _serve() -> None:
-    door = Door()
+    door, arrivals = Door(), Arrivals()
     try:
-        async with stdio() as (read_stream, write_stream):
-            server = build(door)
+        async with stdio(arrivals) as (read_stream, write_stream):
+            server = build(door, arrivals)
             await server.run(read_stream, write_stream, server.create_initialization_options())
     finally:
         door.close()

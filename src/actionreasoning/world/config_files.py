@@ -1,7 +1,9 @@
 """Reading the project's JSON/YAML files (patterns, physics profiles, noise levels).
 
 Every problem becomes one line naming the file and the field, raised as the error class
-the caller passes (a :class:`PatternError` for patterns, a :class:`ConfigError` else).
+the caller passes (a :class:`PatternError` for patterns, a :class:`ConfigError` else). A
+file that does not parse is told by line, column and problem, never by its text (a file
+may hold a secret, and the message reaches an MCP client too).
 Every file a user names is read through :func:`read_user_file`: only a regular file, and
 only up to a size limit, so a FIFO, a device or a huge file cannot hang or exhaust a run.
 """
@@ -10,6 +12,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import stat
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -37,6 +40,10 @@ def _json(text: str) -> Any:
     return json.loads(text, object_pairs_hook=_unique_members)
 
 
+class _KeyGivenTwice(yaml.constructor.ConstructorError):
+    """A mapping gives a key twice."""
+
+
 class _UniqueKeyLoader(yaml.SafeLoader):
     """PyYAML's safe loader, refusing a mapping that gives a key twice (the last would win)."""
 
@@ -45,7 +52,7 @@ class _UniqueKeyLoader(yaml.SafeLoader):
         for key_node, _ in node.value:
             key = self.construct_object(key_node, deep=deep)
             if key in keys:
-                raise yaml.constructor.ConstructorError(
+                raise _KeyGivenTwice(
                     None, None, f"the key '{key}' is given twice", key_node.start_mark
                 )
             keys.add(key)
@@ -54,6 +61,32 @@ class _UniqueKeyLoader(yaml.SafeLoader):
 
 def _yaml(text: str) -> Any:
     return yaml.load(text, Loader=_UniqueKeyLoader)
+
+
+#: A fragment PyYAML quotes in a problem, and those of them kept: a character (maybe
+#: escaped) or a token's name; others (an alias, an anchor, a tag) are the file's text.
+_QUOTED = re.compile(r"'(?:[^'\\]|\\.)*'|\"(?:[^\"\\]|\\.)*\"")
+_KEPT = re.compile(r".|\\(?:.|x[0-9a-f]{2}|u[0-9a-f]{4}|U[0-9a-f]{8})|<[a-z ]+>")
+
+
+def _yaml_problem(exc: yaml.YAMLError) -> str:
+    """What is wrong with a YAML text and where (line and column), without its lines."""
+    if not isinstance(exc, yaml.MarkedYAMLError):
+        return one_line(exc)  # a character the reader refuses: its code and its position
+    parts = []
+    for text, mark in ((exc.context, exc.context_mark), (exc.problem, exc.problem_mark)):
+        if text:
+            if not isinstance(exc, _KeyGivenTwice):  # the key is the problem: keep it
+                text = _unquoted(text)
+            where = "" if mark is None else f" at line {mark.line + 1}, column {mark.column + 1}"
+            parts.append(one_line(text) + where)
+    return "; ".join(parts)
+
+
+def _unquoted(problem: str) -> str:
+    """``problem`` with each fragment of the file it quotes left out, but a character or a
+    token's name."""
+    return _QUOTED.sub(lambda q: q[0] if _KEPT.fullmatch(q[0][1:-1]) else "'...'", problem)
 
 
 _PARSERS: dict[str, tuple[str, Callable[[str], Any]]] = {
@@ -183,7 +216,9 @@ def read_mapping(path: Path, what: str, error: type[ActionReasoningError]) -> di
         data = parse(text)
     except RecursionError as exc:
         raise error(f"{path}: not valid {kind} (nested too deeply)") from exc
-    except (ValueError, yaml.YAMLError) as exc:
+    except yaml.YAMLError as exc:
+        raise error(f"{path}: not valid {kind} ({_yaml_problem(exc)})") from exc
+    except ValueError as exc:  # JSON's, which quote no text of the file
         raise error(f"{path}: not valid {kind} ({one_line(exc)})") from exc
     if not isinstance(data, dict):
         raise error(f"{path}: top level must be a mapping, not {type(data).__name__}")
