@@ -20,7 +20,9 @@ def test_control_characters_are_written_as_escapes() -> None:
         "r\\x0ddel\\x7fc1\\x85bidi\\u202enul\\x00"
     )
     assert printable("lone \udcff surrogate") == "lone \\udcff surrogate"
-    assert printable("lines\n\tand tabs, ünïcode °") == "lines\n\tand tabs, ünïcode °"
+    assert printable("a\nnew line") == "a\\x0anew line"  # a one-line message stays one
+    assert printable("lines\n\tand tabs, ünïcode °", lines=True) == "lines\n\tand tabs, ünïcode °"
+    assert printable("a \x1b[2J table\n", lines=True) == "a \\x1b[2J table\n"
 
 
 def test_a_pattern_name_with_escape_sequences_is_printed_escaped(tmp_path: Path) -> None:
@@ -42,3 +44,14 @@ def test_a_path_with_escape_sequences_is_named_escaped_in_an_error(tmp_path: Pat
     refused = cli("tolerances", "--pattern", str(missing))
     assert_clean_error(refused, "no\\x1b[2J")
     assert "\x1b" not in refused.stderr
+
+
+def test_a_file_name_with_a_newline_is_one_line_and_a_trailing_slash_names_no_file(
+    tmp_path: Path,
+) -> None:
+    written = cli("pattern", "--wall", "0.83", "--out", "a\nb.json", cwd=tmp_path)
+    assert written.returncode == 0, written.stderr
+    assert written.stdout.splitlines()[-1] == "wrote a\\x0ab.json"
+    refused = cli("pattern", "--wall", "0.83", "--out", "w.yaml/", cwd=tmp_path)
+    assert_clean_error(refused, "--out 'w.yaml/' names no file")
+    assert not (tmp_path / "w.yaml").exists()

@@ -7,6 +7,7 @@ load neither the simulator nor a model client.
 from __future__ import annotations
 
 import math
+import os
 import signal
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -751,7 +752,7 @@ def prompt_command(
         _fail(error)
     spec = agent_specs(tools)[agent - 1] if agent else single_agent_spec(tools)
     try:
-        print(printable(first_prompt(trial, spec.key)), end="")
+        print(printable(first_prompt(trial, spec.key), lines=True), end="")
     except ActionReasoningError as error:
         _fail(error)
 
@@ -885,7 +886,7 @@ def _new_file(out: str | None, force: bool) -> Path:
     if out is None:
         raise ConfigError("--wall needs --out FILE, the pattern file to write")
     path = _path(out, "--out") if out.strip() else Path()
-    if not out.strip() or path.is_dir() or not path.stem:
+    if not out.strip() or out.endswith(os.sep) or path.is_dir() or not path.stem:
         raise ConfigError(f"--out {out!r} names no file: give the pattern file to write")
     if path.exists() and not force:
         raise ConfigError(f"--out {out!r} exists: give --force to overwrite it")
@@ -907,7 +908,8 @@ def tolerances_command(
         run = Tolerances.derive().for_goal(goal).under(level.sensing())
     except ActionReasoningError as error:
         _fail(error)
-    print(printable(derivation_table(run, f"{goal.name}, noise {level.name}")), end="")
+    table = derivation_table(run, f"{goal.name}, noise {level.name}")
+    print(printable(table, lines=True), end="")
 
 
 @app.command("serve-reference")
