@@ -8,6 +8,7 @@ import os
 from pathlib import Path
 
 import pytest
+import yaml
 from conftest import SMALL_PATTERN, assert_clean_error, cli
 
 from actionreasoning.errors import ConfigError
@@ -175,11 +176,18 @@ def test_a_key_given_twice_is_refused_not_overwritten(
     assert_clean_error(cli("pattern", str(path)), f"{path}: {needle}")
 
 
-def test_a_number_yaml_reads_as_text_is_refused_saying_how_to_write_it(tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    ("written", "wanted"), [("3.0e0", "3.0e+0"), ("3e-2", "3.0e-2"), ("3E+1", "3.0e+1")]
+)
+def test_a_number_yaml_reads_as_text_is_refused_saying_how_to_write_it(
+    tmp_path: Path, written: str, wanted: str
+) -> None:
+    """YAML 1.1 wants a point and a signed exponent; the way it is told to write it loads."""
     path = tmp_path / "e.yaml"
-    path.write_text("name: e\nbrick_size: full\nbricks:\n  - {position: [0, 0, 3.0e0]}\n")
+    path.write_text(f"name: e\nbrick_size: full\nbricks:\n  - {{position: [0, 0, {written}]}}\n")
     assert_clean_error(
         cli("pattern", str(path)),
-        f"{path}: bricks[0].position[2]: Input should be a valid number ('3.0e0' is read as "
-        "text by YAML: write 3.0e+0)",
+        f"{path}: bricks[0].position[2]: Input should be a valid number ('{written}' is read as "
+        f"text by YAML: write {wanted})",
     )
+    assert isinstance(yaml.safe_load(wanted), float)

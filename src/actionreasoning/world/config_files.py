@@ -243,8 +243,8 @@ def parse_model(
 
 
 def _yaml_number_hint(value: object) -> str:
-    """For a number YAML read as text (its 1.1 rules want a signed exponent: 1.0e+6, not
-    1.0e6), how to write it; else nothing."""
+    """For a number YAML read as text (its 1.1 rules want a point and a signed exponent:
+    1.0e+6, not 1.0e6 or 1e+6), how to write it; else nothing."""
     if not isinstance(value, str) or "e" not in value.lower():
         return ""
     try:
@@ -253,6 +253,8 @@ def _yaml_number_hint(value: object) -> str:
         return ""
     mantissa, _, exponent = value.lower().partition("e")
     signed = exponent if exponent[:1] in "+-" else f"+{exponent}"
+    if "." not in mantissa:
+        mantissa += ".0"
     return f" ('{value}' is read as text by YAML: write {mantissa}e{signed})"
 
 
