@@ -39,7 +39,7 @@ def drive(env: gymnasium.Env, seed: int, trial: int, verbose: bool = False) -> t
     def step(action: dict[str, Any]) -> dict[str, Any]:
         nonlocal episode_return
         _, reward, _, truncated, info = env.step(json.dumps(action))
-        assert info["refusal"] is None and not truncated, info["refusal"]
+        assert not info["refusal"]["code"] and not truncated, info["refusal"]
         episode_return += reward
         return info
 
@@ -49,17 +49,17 @@ def drive(env: gymnasium.Env, seed: int, trial: int, verbose: bool = False) -> t
             raise ToolError(result["refusal"]["detail"])
         return TOOLS[name].output_model.model_validate(result["result"])
 
-    while info["result"] is None:
+    while not info["result"]:
         request = dataclasses.replace(env.unwrapped.session.request, call_tool=call_tool)
         answer = policy.decide(request).answer
         info = step({"answer": answer.model_dump(mode="json")})
         if verbose:
-            call = info["call"]
+            call = json.loads(info["call"])
             gates = ", ".join(
                 f"{g['gate']} {'pass' if g['passed'] else 'FAIL'}" for g in call["gates"]
             )
             print(f"{call['agent']:>10} brick {call['brick']}: {call['outcome']}  {gates}")
-    return info["result"], episode_return
+    return json.loads(info["result"]), episode_return
 
 
 def main() -> None:

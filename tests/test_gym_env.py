@@ -22,13 +22,24 @@ from gymnasium.utils.env_checker import check_env
 import actionreasoning.gym_env
 from actionreasoning.agents.answer_errors import CorruptionKind
 from actionreasoning.errors import ActionReasoningError, ConfigError
-from actionreasoning.gym_env.env import BrickStackEnv
+from actionreasoning.gym_env import ENV_ID, MAX_EPISODE_STEPS, SCENARIOS, scenario_id
+from actionreasoning.gym_env.env import INFO_TYPES, BrickStackEnv
+from actionreasoning.gym_env.observation import MAX_ACTION_CHARS
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.trial.rules import Method
 from actionreasoning.world.scenarios import NOISE, PHYSICS, Scenario
 from actionreasoning.world.scene_spec import FINGERTIPS_BEYOND_TCP_M, SceneSpec
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "gym_builtin.py"
+
+
+def assert_typed(info: dict[str, Any]) -> None:
+    """``info`` has the keys of INFO_TYPES, each of its type; ``refusal`` has code and detail."""
+    assert {key: type(value) for key, value in info.items()} == INFO_TYPES, info
+    assert {key: type(value) for key, value in info["refusal"].items()} == {
+        "code": str,
+        "detail": str,
+    }
 
 
 def example() -> Any:
@@ -60,10 +71,12 @@ def test_check_env_passes_and_render_is_the_overview_picture() -> None:
         made.close()
 
 
-@pytest.mark.parametrize("scenario", actionreasoning.gym_env.SCENARIOS, ids=str)
-def test_every_builtin_scenario_makes_an_env(scenario: Scenario) -> None:
-    """Made only (the scene is built on reset): its conditions are the scenario's."""
-    made = gymnasium.make(actionreasoning.gym_env.ENV_ID, **asdict(scenario))
+@pytest.mark.parametrize("scenario", SCENARIOS, ids=str)
+def test_every_builtin_scenario_makes_an_env_by_its_own_id_too(scenario: Scenario) -> None:
+    """Made only (the scene is built on reset): its conditions are the scenario's, through
+    the generic id and the scenario's own alike."""
+    made = gymnasium.make(ENV_ID, **asdict(scenario))
+    own = gymnasium.make(scenario_id(scenario))
     try:
         env = made.unwrapped
         assert isinstance(env, BrickStackEnv)
@@ -71,13 +84,24 @@ def test_every_builtin_scenario_makes_an_env(scenario: Scenario) -> None:
         assert (env.conditions.pattern_name, goal.name) == (scenario.pattern, scenario.pattern)
         assert (config.physics, config.noise) == (PHYSICS[scenario.physics], NOISE[scenario.noise])
         assert env.observation_space["brick_poses"].shape == (len(goal.targets), 7)
+        assert own.unwrapped.conditions == env.conditions
+        assert own.spec is not None and own.spec.max_episode_steps == MAX_EPISODE_STEPS
     finally:
         made.close()
+        own.close()
+
+
+def test_the_ids_are_the_generic_one_and_one_per_builtin_scenario() -> None:
+    ours = {env_id for env_id in gymnasium.registry if env_id.startswith("actionreasoning/")}
+    assert ours == {ENV_ID, *map(scenario_id, SCENARIOS)} and len(ours) == len(SCENARIOS) + 1
+    assert scenario_id(SCENARIOS[0]) == "actionreasoning/BrickStack-pyramid-paper-none-v0"
 
 
 def test_reset_seed_and_trial_are_those_of_eval(env: BrickStackEnv) -> None:
     _, info = env.reset(seed=5)
     assert (info["seed"], info["trial"], info["agent"]) == (5, 0, "pre_grasp")
+    assert (info["refusal"], info["call"], info["result"]) == ({"code": "", "detail": ""}, "", "")
+    assert_typed(info)
     second, info = env.reset()
     assert (info["seed"], info["trial"]) == (5, 1)
     assert info["prompt"].startswith("# Agent 1 of 6")
@@ -150,7 +174,8 @@ def test_a_hostile_action_is_refused_and_the_arm_stays(
     ticks = env.session.in_scene(lambda scene: scene.ticks)
     observed, reward, terminated, truncated, info = env.step(action)
     assert info["refusal"]["code"] == code and detail in info["refusal"]["detail"], info
-    assert (reward, terminated, truncated, info["call"]) == (0.0, False, False, None)
+    assert (reward, terminated, truncated, info["call"]) == (0.0, False, False, "")
+    assert_typed(info)
     assert info["agent"] == "pre_grasp" and observed["state"] == before["state"]
     assert env.session.in_scene(lambda scene: scene.ticks) == ticks
 
@@ -161,7 +186,7 @@ def test_hostile_tool_poses_are_refused_without_hanging_the_arm_model(env: Brick
     env.reset(seed=0)
     accepted = BuiltinReasoner().decide(env.session.request).answer
     _, _, _, _, info = env.step(json.dumps({"answer": accepted.model_dump(mode="json")}))
-    assert info["call"]["outcome"] == "accepted" and info["agent"] == "descent"
+    assert json.loads(info["call"])["outcome"] == "accepted" and info["agent"] == "descent"
     ticks = env.session.in_scene(lambda scene: scene.ticks)
     for tool in ("collision_check", "reachability"):
         for pose, detail in (
@@ -175,8 +200,9 @@ def test_hostile_tool_poses_are_refused_without_hanging_the_arm_model(env: Brick
             assert reward == 0.0 and info["agent"] == "descent"
     slip = {"tool": "slip_estimate", "arguments": {"brick_id": accepted.brick_id}}
     _, _, _, _, info = env.step(json.dumps(slip))
-    assert info["refusal"] is None and info["agent"] == "descent"
+    assert info["refusal"] == {"code": "", "detail": ""} and info["agent"] == "descent"
     assert info["tool_results"][0]["result"]["brick_id"] == accepted.brick_id
+    assert_typed(info)
     assert env.session.in_scene(lambda scene: scene.ticks) == ticks
 
 
@@ -188,8 +214,9 @@ def test_an_answer_a_gate_refuses_comes_back_with_its_checks_and_the_arm_stays(
     other = observed["brick_poses"][1]  # approach brick 0 through the middle of brick 1
     waypoint = {"position_m": other[:3].tolist(), "quat_xyzw": [1, 0, 0, 0]}
     _, reward, terminated, _, info = env.step(answer(waypoint=waypoint))
-    call = info["call"]
-    assert info["refusal"] is None and call["outcome"] == "refused" and not terminated
+    assert_typed(info)
+    call = json.loads(info["call"])
+    assert info["refusal"]["code"] == "" and call["outcome"] == "refused" and not terminated
     # A choice that can be built; an approach that is no hover over the brick it chose, refused
     # before it moves (sigma_1's path check is never reached).
     choice, plan = call["gates"]
@@ -213,7 +240,9 @@ def test_step_before_reset_and_after_the_end() -> None:
     env.session.close()
     _, reward, terminated, truncated, info = env.step('{"answer": {}}')
     assert info["refusal"]["code"] == "trial_over" and (terminated, truncated) == (True, False)
-    assert info["result"]["failure"]["reason"] == "abandoned" and reward == 0.0
+    assert json.loads(info["result"])["failure"]["reason"] == "abandoned" and reward == 0.0
+    assert (info["agent"], info["prompt"], info["tools"], info["call"]) == ("", "", [], "")
+    assert_typed(info)
     env.close()
 
 
@@ -273,20 +302,62 @@ def test_a_trial_out_of_time_before_its_first_question_is_one_line_and_needs_a_r
         env.close()
 
 
-def test_answer_errors_corrupt_the_callers_answers_as_eval_does() -> None:
-    """The docs promise ``answer_errors`` over Gymnasium: at rate 1 the caller's answer is
-    corrupted before its gate sees it, and the call says how."""
-    made = gymnasium.make(actionreasoning.gym_env.ENV_ID, pattern="pyramid", answer_errors=1.0)
+PYRAMID = [(ENV_ID, {"pattern": "pyramid"}), (scenario_id(SCENARIOS[0]), {})]
+
+
+@pytest.mark.parametrize(("env_id", "kwargs"), PYRAMID, ids=["generic", "scenario"])
+def test_answer_errors_corrupt_the_callers_answers_as_eval_does(
+    env_id: str, kwargs: dict[str, str]
+) -> None:
+    """The docs promise ``answer_errors`` over Gymnasium, by the generic id and a scenario's:
+    at rate 1 the caller's answer is corrupted before its gate sees it, and the call says
+    how."""
+    made = gymnasium.make(env_id, **kwargs, answer_errors=1.0)
     env = made.unwrapped
+    assert (
+        env.conditions.pattern_name == "pyramid" and env.conditions.config.answer_errors.rate == 1
+    )
     env.reset(seed=0)
     given = BuiltinReasoner().decide(env.session.request).answer.model_dump(mode="json")
     _, _, _, _, info = env.step(json.dumps({"answer": given}))
-    corruption = info["call"]["corruption"]
+    corruption = json.loads(info["call"])["corruption"]
     assert corruption["original"] == given and corruption["kind"] in set(CorruptionKind)
     made.close()
 
 
+@pytest.mark.parametrize("env_id", [ENV_ID, scenario_id(SCENARIOS[-1])])
 @pytest.mark.parametrize("rate", [-0.1, 1.5, math.nan, True, "0.2"])
-def test_an_answer_error_rate_outside_0_to_1_is_refused(rate: object) -> None:
+def test_an_answer_error_rate_outside_0_to_1_is_refused(env_id: str, rate: object) -> None:
     with pytest.raises(ConfigError, match=r"answer_errors .*: give a rate from 0 to 1"):
-        gymnasium.make(actionreasoning.gym_env.ENV_ID, answer_errors=rate)
+        gymnasium.make(env_id, answer_errors=rate)
+
+
+def test_the_action_space_admits_every_action_the_env_accepts_and_nothing_it_refuses(
+    env: BrickStackEnv,
+) -> None:
+    """Non-ASCII text (a model's rationale in degrees) and the longest action the env takes
+    are in the space; a character or a length the space excludes is refused."""
+    space = env.action_space
+    env.reset(seed=0)
+    decided = BuiltinReasoner().decide(env.session.request).answer.model_dump(mode="json")
+    rationale = "wrist turned 90°, ±0.5 mm ✓ 👍"
+    non_ascii = json.dumps({"answer": {**decided, "rationale": rationale}}, ensure_ascii=False)
+    wrapped = json.dumps({"answer": decided})
+    longest = wrapped[:-1] + " " * (MAX_ACTION_CHARS - len(wrapped)) + "}"
+    assert len(longest) == MAX_ACTION_CHARS == space.max_length and not non_ascii.isascii()
+    for action in (non_ascii, longest):
+        assert space.contains(action)
+        env.reset(seed=0)
+        _, _, _, _, info = env.step(action)
+        assert json.loads(info["call"])["outcome"] == "accepted", info["refusal"]
+    env.reset(seed=0)
+    for action, detail in (
+        (longest + " ", f"more than {MAX_ACTION_CHARS}"),
+        (non_ascii.replace("°", "\ud800"), "U+D800"),  # a lone surrogate: no UTF-8 for it
+        (wrapped.replace(" ", "\x1b", 1), "U+001B"),  # a control character
+        (wrapped.encode(), "not bytes"),
+    ):
+        assert not space.contains(action)
+        _, _, _, _, info = env.step(action)  # type: ignore[arg-type]
+        assert info["refusal"]["code"] == "invalid_action", info["refusal"]
+        assert detail in info["refusal"]["detail"] and info["agent"] == "pre_grasp"

@@ -8,7 +8,7 @@ import json
 from dataclasses import dataclass
 from typing import Any
 
-from actionreasoning.gym_env.observation import MAX_ACTION_CHARS
+from actionreasoning.gym_env.observation import MAX_ACTION_CHARS, foreign_character
 from actionreasoning.trial.session import Refusal, RefusalCode
 from actionreasoning.world.json_text import JSONTextError, parse_json
 
@@ -36,6 +36,12 @@ def parse_action(action: object) -> ToolAction | AnswerAction | Refusal:
         return _refused(f"the action is JSON text, not {type(action).__name__}")
     if len(action) > MAX_ACTION_CHARS:
         return _refused(f"the action is {len(action)} characters, more than {MAX_ACTION_CHARS}")
+    if (index := foreign_character(action)) is not None:
+        code = ord(action[index])
+        return _refused(
+            f"character {index} of the action, U+{code:04X}, is outside the action space: "
+            "a surrogate, or a control character other than tab, newline and carriage return"
+        )
     try:
         data = parse_json(action)
     except JSONTextError as error:

@@ -47,6 +47,21 @@ from actionreasoning.world.tolerances import Tolerances
 
 #: Trial ends that are budgets outside the task (Gymnasium's truncation), not its outcome.
 TRUNCATIONS = frozenset({FailureCode.STEP_BUDGET, FailureCode.TIME_BUDGET})
+#: ``info``'s keys and the type of each, the same at every reset and step, so that
+#: Gymnasium's vector envs can merge them: they merge a dict key by key (``refusal`` always
+#: has ``code`` and ``detail``) and keep other values whole, per env. The records with
+#: optional parts (the agent call, the trial's result) are JSON text, "" when there is none.
+INFO_TYPES: dict[str, type] = {
+    "agent": str,  # the waiting agent; "" once none waits
+    "prompt": str,  # its prompt; ""
+    "tools": list,  # its tools' names; []
+    "refusal": dict,  # {"code", "detail"}: why the step changed nothing; both "" if it did
+    "tool_results": list,  # the step's tool replies: {"tool", "result", "refusal"} each
+    "call": str,  # the judged answer's record (gates, outcome, feedback): its transcript line
+    "result": str,  # the ended trial's results.jsonl line; "" while it runs
+    "seed": int,  # the run seed
+    "trial": int,  # the trial of that run seed
+}
 
 
 class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
@@ -189,17 +204,20 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
         tool_results: list[ToolReply] | None = None,
         call: AgentCall | None = None,
     ) -> dict[str, Any]:
-        """What the step did, as JSON data, and the question that waits now."""
+        """What the step did and the question that waits now: the same keys, each of one
+        type, at every reset and step (see :data:`INFO_TYPES`)."""
         assert self.session is not None
         request, result = self.session.request, self.session.result
         return {
-            "agent": None if request is None else str(request.spec.key),
-            "prompt": None if request is None else request.prompt,
+            "agent": "" if request is None else str(request.spec.key),
+            "prompt": "" if request is None else request.prompt,
             "tools": [] if request is None else list(request.spec.tools),
-            "refusal": None if refusal is None else refusal.model_dump(mode="json"),
+            "refusal": (
+                {"code": "", "detail": ""} if refusal is None else refusal.model_dump(mode="json")
+            ),
             "tool_results": [reply.model_dump(mode="json") for reply in tool_results or ()],
-            "call": None if call is None else call.model_dump(mode="json"),
-            "result": None if result is None else result.model_dump(mode="json"),
+            "call": "" if call is None else call.model_dump_json(),
+            "result": "" if result is None else result.model_dump_json(),
             "seed": self._run_seed,
             "trial": self._trial,
         }

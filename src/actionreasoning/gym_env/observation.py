@@ -4,7 +4,9 @@ action as JSON text."""
 from __future__ import annotations
 
 import json
+import re
 import string
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -23,13 +25,95 @@ STATUSES: tuple[BrickStatus, ...] = tuple(BrickStatus)
 CHARSET = string.printable
 #: The longest action: an answer as long as a model's may be, and its wrapper.
 MAX_ACTION_CHARS = MAX_ANSWER_CHARS + 1_000
+#: The characters an action may hold, as inclusive ranges of code points: every character
+#: JSON text can hold (any Unicode scalar value, as UTF-8 carries it: no surrogates) but the
+#: control characters below U+0020 other than tab, newline and carriage return.
+ACTION_CODE_POINTS: tuple[tuple[int, int], ...] = (
+    (0x09, 0x0A),
+    (0x0D, 0x0D),
+    (0x20, 0xD7FF),
+    (0xE000, 0x10FFFF),
+)
+_FOREIGN = re.compile(
+    "[^" + "".join(f"\\U{lo:08x}-\\U{hi:08x}" for lo, hi in ACTION_CODE_POINTS) + "]"
+)
+_LOWS = np.array([lo for lo, _ in ACTION_CODE_POINTS])
+_SIZES = np.array([hi - lo + 1 for lo, hi in ACTION_CODE_POINTS])
+#: Where each range starts in the action space's character list, and how long that is.
+_STARTS, _COUNT = np.cumsum(_SIZES) - _SIZES, int(_SIZES.sum())
 #: Bounds of the real-valued arrays (SI units): far beyond any measurement of the scene.
 BOUND = 1e6
 
 
-def action_space() -> spaces.Text:
+class ActionText(spaces.Text):
+    """Gymnasium's ``Text`` of 0 to ``max_length`` characters of :data:`ACTION_CODE_POINTS`.
+
+    Its charset is 1.1 million characters: listing them, as ``Text`` does when made, takes
+    seconds and 200 MB, so they are listed only when asked for (``character_list``, masked
+    sampling); membership, sampling and ``character_index`` work on the code points.
+    """
+
+    def __init__(self, max_length: int) -> None:
+        spaces.Space.__init__(self, dtype=str)  # not Text's: it lists the charset
+        self.min_length, self.max_length = 0, max_length
+
+    def contains(self, x: Any) -> bool:
+        """Whether ``x`` is text of at most ``max_length`` characters the space admits."""
+        return isinstance(x, str) and len(x) <= self.max_length and foreign_character(x) is None
+
+    def sample(
+        self,
+        mask: tuple[int | None, np.ndarray | None] | None = None,
+        probability: tuple[int | None, np.ndarray | None] | None = None,
+    ) -> str:
+        """Uniform characters of a uniform length; with a mask or probabilities, as ``Text``."""
+        if mask is not None or probability is not None:
+            return super().sample(mask, probability)
+        length = self.np_random.integers(self.min_length, self.max_length + 1)
+        indexes = self.np_random.integers(0, _COUNT, size=length)
+        ranges = np.searchsorted(_STARTS, indexes, side="right") - 1
+        codes = _LOWS[ranges] + indexes - _STARTS[ranges]
+        return "".join(map(chr, codes.tolist()))
+
+    def character_index(self, char: str) -> np.int32:
+        """The index of ``char`` in :attr:`character_list` (KeyError if it has none)."""
+        code = ord(char)
+        for (lo, hi), start in zip(ACTION_CODE_POINTS, _STARTS, strict=True):
+            if lo <= code <= hi:
+                return np.int32(start + code - lo)
+        raise KeyError(char)
+
+    @cached_property
+    def characters(self) -> str:
+        """Every character of the space, in code point order."""
+        return "".join(chr(code) for lo, hi in ACTION_CODE_POINTS for code in range(lo, hi + 1))
+
+    @cached_property
+    def character_list(self) -> tuple[str, ...]:
+        """Every character of the space, in code point order."""
+        return tuple(self.characters)
+
+    @cached_property
+    def character_set(self) -> frozenset[str]:
+        """Every character of the space."""
+        return frozenset(self.characters)
+
+    def __eq__(self, other: object, /) -> bool:
+        return isinstance(other, ActionText) and self.max_length == other.max_length
+
+    def __repr__(self) -> str:
+        return f"ActionText(0, {self.max_length}, charset=ACTION_CODE_POINTS)"
+
+
+def foreign_character(text: str) -> int | None:
+    """The index of the first character of ``text`` no action may hold, or None."""
+    found = _FOREIGN.search(text)
+    return None if found is None else found.start()
+
+
+def action_space() -> ActionText:
     """One agent's answer or one tool call, as JSON text."""
-    return spaces.Text(max_length=MAX_ACTION_CHARS, min_length=0, charset=CHARSET)
+    return ActionText(max_length=MAX_ACTION_CHARS)
 
 
 def observation_space(bricks: int) -> spaces.Dict:
