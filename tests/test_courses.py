@@ -82,5 +82,5 @@ def test_the_summary_gives_courses_bricks_before_the_first_failure_and_cycle_tim
     assert summary.cycle_time.seconds_per_brick == pytest.approx(seconds)
     text = summary_markdown(summary)
     assert "| 1 | 2 | 2.000 ± 1.000 | 1.000 ± 0.500 | 80.00 ± 10.00 |" in text
-    assert f"Cycle time: {seconds:.1f} simulated s per placed brick" in text
+    assert f"{seconds:.1f} simulated s per brick within the success rule" in text
     assert RunSummary.model_validate_json(summary.model_dump_json()) == summary

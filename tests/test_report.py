@@ -14,6 +14,8 @@ import imageio.v3 as iio
 import pytest
 from conftest import SMALL_PATTERN, assert_clean_error, cli
 
+from actionreasoning.runs.courses import FINISHED_BUILD as FINISHED
+
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 
@@ -74,7 +76,7 @@ def test_the_tables_hold_each_runs_figures(runs: list[Path], report: Path) -> No
     assert f"| classical, precise | {success} | {success} |" in markdown
     latex = (report / "table.tex").read_text()
     assert r"\multicolumn{3}{c}{\textbf{small}}" in latex
-    assert latex.count(r"\\") == 4 + 3  # Table I; success with its Wilson intervals
+    assert latex.count(r"\\") == 4 + 4 + 3  # Table I, over all trials; success
     assert r"2/2 (100 \%, 95 \% CI 34--100 \%)" in latex
 
 
@@ -169,7 +171,7 @@ def test_the_course_plot_is_a_png_of_its_size(report: Path) -> None:
     path = report / "courses.png"
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     image = iio.imread(path)
-    assert image.shape == (429, 924, 4)  # 8.4 x 3.9 in at 110 dpi: one row of legend
+    assert image.shape == (418, 924, 4)  # 8.4 x 3.8 in at 110 dpi: 3.6 in, a row of legend
     assert image.std() > 10
     assert "![Errors per course](courses.png)" in (report / "table.md").read_text()
 
@@ -213,10 +215,15 @@ def test_the_course_tables_hold_a_hand_computation_from_the_lines(
             before.append([*ok, False].index(False))
         step_s = json.loads((run / "run.json").read_text())["config"]["physics"]["time_step_s"]
         seconds = sum(line["sim_steps"] for line in lines) * step_s
-        per_brick = seconds / sum(line["bricks_placed"] for line in lines)
+        finished = [not line["failure"] or line["failure"]["reason"] in FINISHED for line in lines]
+        assert all(finished)  # every build finished: each set its 3 bricks down
+        set_down = [len(line["bricks"]) for line in lines]
+        within = [line["bricks_placed"] for line in lines]
+        per_set_down, per_within = seconds / sum(set_down), seconds / sum(within)
         pace = (
-            f"| {label} | small | {statistics.fmean(before):.2f} of 3 | {per_brick:.1f} | "
-            f"{3600 / per_brick:.0f} |"
+            f"| {label} | small | {statistics.fmean(set_down):.2f} of 3 | "
+            f"{statistics.fmean(within):.2f} of 3 | {statistics.fmean(before):.2f} of 3 | "
+            f"{per_set_down:.1f} | {3600 / per_set_down:.0f} | {per_within:.1f} |"
         )
         assert pace in markdown
         assert pace.replace(" | ", "</td><td>")[2:-2] in html
@@ -252,7 +259,8 @@ def test_a_run_of_an_earlier_version_gets_its_cycle_time_and_one_course_no_plot(
     assert outcome.returncode == 0, outcome.stderr
     table = (tmp_path / "report" / "table.md").read_text()
     assert PRECISE.time_step_s == 1 / 480  # two trials of 10 s, four bricks placed
-    assert "| agents (builtin, tools solve), precise | pyramid | – | 5.0 | 720 |" in table
+    row = "| agents (builtin, tools solve), precise | pyramid | 2.00 of 2 | 2.00 of 2 | – |"
+    assert f"{row} 5.0 | 720 | 5.0 |" in table  # both built: all their bricks set down
     # offsets 0.5, 1.5, 0.5, 1.5: mean 1, std 0.5; rotation half of them, IoU 1 - offset/10
     assert table_after(table, "Per course of agents") == [
         "| 0 | 4 | 1.000 ± 0.500 | 0.500 ± 0.250 | 90.00 ± 5.00 |"

@@ -134,7 +134,7 @@ def test_the_progress_bar_counts_resumed_trials_and_successes() -> None:
         progress.finished(result(2))
     text = buffer.getvalue()
     assert "resuming: 1 of 4 trials already in results.jsonl (1 ok)" in text
-    assert "trial 1: FAILED (misplaced)" in text
+    assert "trial 1: FAILED (misplaced: brick 3)" in text
     assert "3/4" in text and "2 ok" in text
 
 
@@ -144,7 +144,7 @@ def test_plain_lines_when_not_a_terminal(capsys: pytest.CaptureFixture[str]) -> 
         progress.started(2, [])
         progress.finished(result(0))
     assert capsys.readouterr().out.splitlines() == [
-        "[1/2, 1 ok] trial 0: ok; 0.010 cm, 0.020 deg, IoU 0.990"
+        "[1/2, 1 ok] trial 0: ok; mean 0.010 cm, 0.020 deg, IoU 0.990"
     ]
 
 

@@ -243,18 +243,66 @@ def test_the_report_shows_success_with_its_wilson_interval(report: Path) -> None
     assert "9/10 (90 %" not in table
 
 
-def test_a_method_without_success_gets_its_means_over_all_trials(report: Path) -> None:
-    rows = table_after((report / "table.md").read_text(), "No successful trial")
-    offsets = np.arange(8) / 10  # 0.35 ± 0.229
+def test_table_i_over_all_trials_gives_a_method_without_success_its_figures(
+    report: Path,
+) -> None:
+    """The script succeeded in none of its 8 pyramid trials: dashes in Table I, its means
+    over all trials beside it, in table.md, report.html, table.tex and table.csv."""
+    markdown = (report / "table.md").read_text()
+    offsets = np.arange(8) / 10  # 0.35 over all trials
     interval = bootstrap_mean(offsets)
     assert interval is not None
-    assert rows == [
-        f"| {CLASSICAL}, all trials | pyramid | 0.020 ± 0.000 [0.020, 0.020] | 0.350 ± "
-        f"{np.std(offsets):.3f} [{interval.low:.3f}, {interval.high:.3f}] | "
-        "99.00 ± 0.00 [99.00, 99.00] | 0/8 (0 %, 95 % CI 0–32 %) |"
-    ]
+    over_all = f"0.350 [{interval.low:.3f}, {interval.high:.3f}]"
+    rows = table_after(markdown, "Table I over all trials:")
+    script = next(row for row in rows if row.startswith(f"| {CLASSICAL} |"))
+    assert script.startswith(f"| {CLASSICAL} | **0.020** [0.020, 0.020] | {over_all} | ")
+    successful = markdown.split("Table I over all trials:")[0]
+    assert f"| {CLASSICAL} | – | – | – | " in successful  # no successful pyramid trial
     html = (report / "report.html").read_text()
-    assert f"<td>{CLASSICAL}, all trials</td><td>pyramid</td>" in html
+    section = html.split('id="table-i-all-trials"')[1].split("</table>")[0]
+    assert f'<td>{CLASSICAL}</td><td class="best">0.020<br>' in section
+    assert f"<td>0.350<br><small>[{interval.low:.3f}, {interval.high:.3f}]</small></td>" in section
+    latex = (report / "table.tex").read_text()
+    assert latex.count(r"\begin{tabular}") == 3  # Table I, over all trials, success
+    assert r"classical, precise & -- & -- & --" in latex.split("% Table I over all trials")[0]
+    assert r"classical, precise & \textbf{0.020} & 0.350 & 99.00" in latex
+    line = next(
+        r
+        for r in csv.DictReader((report / "table.csv").open())
+        if (r["method"], r["pattern"]) == (CLASSICAL, "pyramid")
+    )
+    assert (line["center_offset_cm_mean"], float(line["center_offset_cm_all_trials_mean"])) == (
+        "",
+        pytest.approx(0.35),
+    )
+    assert float(line["center_offset_cm_all_trials_ci_low"]) == interval.low
+
+
+def test_an_average_is_given_only_for_a_method_with_figures_on_every_pattern(
+    report: Path,
+) -> None:
+    """The script has figures on the grid only and the agents under noise ran the pyramid
+    only: neither gets an Average (a mean over other patterns does not compare), so the
+    agents' Average, alone, is not bold. Over all trials the script ran both patterns."""
+    markdown = (report / "table.md").read_text()
+    table_i = markdown.split("\n\n", 1)[0].splitlines()[2:]
+    rows = {row.split(" | ")[0][2:]: row for row in table_i}
+    assert rows[CLASSICAL].endswith("| – | – | – |")
+    assert rows[f"{AGENTS}, noise low"].endswith("| – | – | – |")
+    assert rows[AGENTS].endswith("| 0.020 | 0.150 | 99.00 |")  # (0.2 + 0.1) / 2, not bold
+    over_all = table_after(markdown, "Table I over all trials:")
+    rows = {row.split(" | ")[0][2:]: row for row in over_all}
+    assert rows[CLASSICAL].endswith("| **0.020** | 0.225 | **99.00** |")  # (0.35 + 0.1) / 2
+    assert rows[AGENTS].endswith("| **0.020** | **0.175** | **99.00** |")
+    averages = [
+        r for r in csv.DictReader((report / "table.csv").open()) if r["pattern"] == "Average"
+    ]
+    assert [(r["method"], r["center_offset_cm_mean"]) for r in averages][1:] == [
+        (CLASSICAL, ""),
+        (f"{AGENTS}, noise low", ""),
+    ]
+    assert float(averages[0]["center_offset_cm_mean"]) == pytest.approx(0.15)
+    assert float(averages[1]["center_offset_cm_all_trials_mean"]) == pytest.approx(0.225)
 
 
 def test_rows_on_the_same_trial_seeds_are_compared_by_mcnemars_test(report: Path) -> None:

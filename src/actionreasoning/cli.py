@@ -520,6 +520,7 @@ def _evaluate(
     from actionreasoning.runs.jobs import RESUME_HINT
     from actionreasoning.runs.progress import ConsoleProgress
     from actionreasoning.runs.run import RunConfig, run_eval
+    from actionreasoning.runs.summary import wall_time_text
 
     run = RunConfig(
         method=method,
@@ -545,7 +546,7 @@ def _evaluate(
         err_console.print(f"interrupted: {RESUME_HINT}", highlight=False)
         raise typer.Exit(code=130) from None
     console.print(_summary_table(summary))
-    _say(f"wall time {summary.wall_time_s:.1f} s; results in {out}/")
+    _say(f"{wall_time_text(summary)}; results in {out}/")
     return summary
 
 
@@ -782,14 +783,14 @@ def schema_command(
 
     from actionreasoning.runs.summary import RunSummary
     from actionreasoning.trial.config import TrialConfig
-    from actionreasoning.trial.results import TrialResult
+    from actionreasoning.trial.results import TrialResult, json_schema
 
     models: dict[Schema, type[BaseModel]] = {
         Schema.RESULTS: TrialResult,
         Schema.SUMMARY: RunSummary,
         Schema.CONFIG: TrialConfig,
     }
-    print(json.dumps(models[records].model_json_schema(mode="serialization"), indent=2))
+    print(json.dumps(json_schema(models[records]), indent=2))
 
 
 @app.command("pattern")

@@ -33,15 +33,17 @@ from actionreasoning.report.plots import (
 )
 from actionreasoning.report.runs import unique
 from actionreasoning.report.tables import (
-    ALL_TRIALS_COLUMNS,
     ALL_TRIALS_NOTE,
+    ALL_TRIALS_TITLE,
     AVERAGE,
     COLUMNS,
     COURSES_PLOT,
     MEANS_NOTE,
     PACE_COLUMNS,
+    PACE_NOTE,
     REFUSALS_PLOT,
     SUCCESS_NOTE,
+    Means,
     Table,
     comparison_table,
     failure_classes_of,
@@ -178,20 +180,8 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
         runs=[str(d) for d in unique(directories)],
         column_groups=column_groups,
         columns=[f"{title} {'↓' if lower else '↑'}" for _, title, _, _, lower in COLUMNS],
-        table_rows=[
-            {
-                "label": row,
-                "cells": [
-                    {
-                        **dict(zip(("text", "best"), table.cell(row, p, metric), strict=True)),
-                        "interval": table.interval_cell(row, p, metric),
-                    }
-                    for p in column_groups
-                    for metric, *_ in COLUMNS
-                ],
-            }
-            for row in table.rows
-        ],
+        table_rows=_means_rows(table.means),
+        all_trials_rows=_means_rows(table.all_means),
         success_columns=[p if p != AVERAGE else "all" for p in column_groups],
         success_rows=[
             {
@@ -201,9 +191,8 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
             for row in table.rows
         ],
         means_note=MEANS_NOTE,
+        all_trials_title=ALL_TRIALS_TITLE,
         all_trials_note=ALL_TRIALS_NOTE,
-        all_trials_columns=ALL_TRIALS_COLUMNS,
-        all_trials=[r.cells for r in table.all_trials],
         success_note=SUCCESS_NOTE,
         board_caption=BOARD_CAPTION,
         board_columns=BOARD_COLUMNS,
@@ -226,6 +215,7 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
         ],
         refusals=[_refusal_table(row, p, counts) for (row, p), counts in table.refusals.items()],
         notes=table.notes,
+        pace_note=PACE_NOTE,
         pace_columns=PACE_COLUMNS,
         pace=[row.cells for row in table.pace],
         course_columns=COURSE_COLUMNS,
@@ -244,6 +234,25 @@ def write_html(report: Report, directories: Sequence[Path]) -> Path:
     path = report.directory / HTML_FILE
     path.write_text(page, encoding="utf-8")
     return path
+
+
+def _means_rows(means: Means) -> list[dict[str, Any]]:
+    """Table I's rows as the page shows them: each cell's text, whether it is its column's
+    best, and its bootstrap interval."""
+    return [
+        {
+            "label": row,
+            "cells": [
+                {
+                    **dict(zip(("text", "best"), means.cell(row, p, metric), strict=True)),
+                    "interval": means.interval_cell(row, p, metric),
+                }
+                for p in [*means.patterns, AVERAGE]
+                for metric, *_ in COLUMNS
+            ],
+        }
+        for row in means.rows
+    ]
 
 
 def _refusal_table(label: str, pattern: str, refusals: Refusals) -> dict[str, Any]:

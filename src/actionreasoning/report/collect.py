@@ -21,6 +21,7 @@ from actionreasoning.errors import ConfigError
 from actionreasoning.recording.mp4 import Unfinished, check_mp4
 from actionreasoning.report.runs import Run, read_runs
 from actionreasoning.runs.layout import RunDir
+from actionreasoning.runs.markdown import plural
 from actionreasoning.runs.run_dir import AnyManifest, RecordedManifest, RunManifest
 from actionreasoning.runs.summary import RunSummary, summarize
 from actionreasoning.trial.provenance import Provenance
@@ -263,8 +264,9 @@ def condition_notes(groups: Sequence[Group]) -> list[str]:
     for group in groups:
         if group.repeated:
             notes.append(
-                f"{group.label} on {group.pattern}: {group.repeated} trial lines are also in "
-                "another directory, identical: each counted once."
+                f"{group.label} on {group.pattern}: {plural(group.repeated, 'trial line')} "
+                f"{'is' if group.repeated == 1 else 'are'} also in another directory, identical: "
+                f"{'it is' if group.repeated == 1 else 'each'} counted once."
             )
     return notes
 

@@ -16,8 +16,9 @@ BOARD_CAPTION = (
     "Success with its Wilson 95 % interval; first answers accepted: of the answers at "
     "attempt 1 of each request to an agent (once a brick; the placement agent twice, and "
     "again after a raise), those accepted as they came; refused and failed answers (repairs "
-    "included) and prompt tokens per brick of the pattern, and tokens per brick placed. A "
-    "dash: no reasoner, no token counted, or lines written before it was counted."
+    "included) and prompt tokens per brick of the pattern, and per brick placed within the "
+    "success rule. A dash: no reasoner, no token counted, no brick within the rule, or lines "
+    "written before it was counted."
 )
 
 

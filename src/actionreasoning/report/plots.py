@@ -1,15 +1,25 @@
 """Report plots as PNG: per-brick errors per method, success per pattern, errors per
-course, LLM cost and refused answers per agent."""
+course, LLM cost and refused answers per agent.
+
+Every chart names every method in a legend under its plots, and nothing is cut: the
+figures are laid out by matplotlib's constrained layout, legend labels and long tick labels
+are wrapped, a legend takes as many columns as the figure's width holds, and the figure
+grows by the legend's height.
+"""
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 from matplotlib import colormaps
+from matplotlib.artist import Artist
 from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.patches import Patch
 
 from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.records import LLMUsage
@@ -33,17 +43,68 @@ COURSE_METRICS = (
 #: The success rule's limit is drawn if the errors reach this share of it, else named.
 LIMIT_SHOWN_FROM = 0.25
 COURSE_MARKERS = "os^Dv<>p"  # one per pattern
+#: Characters a line of a legend label or a long tick label holds before it is wrapped.
+LINE_CHARS = 48
+#: The most columns a legend under the plots takes.
+LEGEND_COLUMNS = 3
+DPI = 110
 
 
-def _colours(n: int) -> list[tuple[float, ...]]:
+def _colours(n: int) -> list[tuple[float, float, float, float]]:
     return [colormaps["tab10"](i % 10) for i in range(n)]
+
+
+def _figure(width_in: float, height_in: float) -> Figure:
+    """A figure laid out by constrained layout, with a canvas to measure text on."""
+    figure = Figure(figsize=(width_in, height_in), dpi=DPI, layout="constrained")
+    FigureCanvasAgg(figure)
+    return figure
+
+
+def wrapped(text: str) -> str:
+    """``text`` in lines of at most LINE_CHARS characters."""
+    return "\n".join(textwrap.wrap(text, LINE_CHARS, break_on_hyphens=False)) or text
+
+
+def _legend_below(
+    figure: Figure, handles: Sequence[Artist], names: Sequence[str], fontsize: float = 8
+) -> None:
+    """A legend under the plots with every entry (labels wrapped), in as many columns as the
+    figure's width holds (up to LEGEND_COLUMNS); the figure grows by its height."""
+    canvas = figure.canvas
+    assert isinstance(canvas, FigureCanvasAgg)  # _figure's
+    renderer = canvas.get_renderer()
+    for columns in range(min(len(handles), LEGEND_COLUMNS), 0, -1):
+        legend = figure.legend(
+            handles,
+            [wrapped(name) for name in names],
+            loc="outside lower center",
+            ncol=columns,
+            fontsize=fontsize,
+            frameon=False,
+        )
+        box = legend.get_window_extent(renderer)
+        if box.width <= 0.95 * figure.bbox.width or columns == 1:
+            break
+        legend.remove()
+    figure.set_figheight(figure.get_figheight() + box.height / figure.dpi)
+
+
+def _save(figure: Figure, path: Path) -> Path:
+    figure.savefig(path)
+    return path
 
 
 def error_distributions(groups: Sequence[Group], path: Path) -> Path:
     """Box plots of per-brick errors in successful trials: a box per method and pattern."""
+    return _save(errors_figure(groups), path)
+
+
+def errors_figure(groups: Sequence[Group]) -> Figure:
+    """The figure of :func:`error_distributions`."""
     rows, cols = labels(groups), patterns(groups)
     by_key = {(g.label, g.pattern): g for g in groups}
-    figure = Figure(figsize=(4.2 * len(BRICK_METRICS), 3.8), dpi=110)
+    figure = _figure(4.2 * len(BRICK_METRICS), 3.8)
     axes = figure.subplots(1, len(BRICK_METRICS))
     width = 0.8 / len(rows)
     colours = _colours(len(rows))
@@ -76,35 +137,38 @@ def error_distributions(groups: Sequence[Group], path: Path) -> Path:
                 for box in boxes["boxes"]:
                     box.set_facecolor(colours[r])
                     box.set_alpha(0.7)
-        axis.set_xticks(range(len(cols)), cols)
+        axis.set_xticks(range(len(cols)), [wrapped(c) for c in cols])
         axis.set_title(title)
         axis.grid(axis="y", alpha=0.3)
-    handles = [
-        axes[0].bar(0, 0, color=colours[r], alpha=0.7, label=row) for r, row in enumerate(rows)
-    ]
-    figure.legend(handles=handles, loc="lower center", ncol=min(len(rows), 4), frameon=False)
+    handles = [Patch(facecolor=colours[r], alpha=0.7) for r in range(len(rows))]
     figure.suptitle("Per-brick errors over successful trials")
-    figure.tight_layout(rect=(0, 0.1, 1, 1))
-    figure.savefig(path)
-    return path
+    _legend_below(figure, handles, rows, fontsize=10)
+    return figure
 
 
 def success_rates(groups: Sequence[Group], path: Path) -> Path:
     """Bars: success rate of each method on each pattern, with its Wilson 95 % interval as
     an error bar and k/n on top."""
+    return _save(success_figure(groups), path)
+
+
+def success_figure(groups: Sequence[Group]) -> Figure:
+    """The figure of :func:`success_rates`: every method in its legend, whichever patterns
+    it ran."""
     rows, cols = labels(groups), patterns(groups)
     by_key = {(g.label, g.pattern): g for g in groups}
-    figure = Figure(figsize=(max(4.5, 1.8 * len(cols) * max(1, len(rows) / 2)), 3.6), dpi=110)
+    figure = _figure(max(4.5, 1.8 * len(cols) * max(1, len(rows) / 2)), 3.6)
     axis = figure.subplots()
     width = 0.8 / len(rows)
-    for r, (row, colour) in enumerate(zip(rows, _colours(len(rows)), strict=True)):
+    colours = _colours(len(rows))
+    for r, (row, colour) in enumerate(zip(rows, colours, strict=True)):
         for c, pattern in enumerate(cols):
             group = by_key.get((row, pattern))
             if group is None:
                 continue
             x = c + (r - (len(rows) - 1) / 2) * width
             rate = 100.0 * group.summary.success_rate
-            axis.bar(x, rate, width * 0.95, color=colour, label=row if c == 0 else None)
+            axis.bar(x, rate, width * 0.95, color=colour)
             interval = wilson(group.summary.successes, group.summary.trials)
             assert interval is not None  # a group has trials
             low, top = 100.0 * interval.low, 100.0 * interval.high
@@ -118,14 +182,12 @@ def success_rates(groups: Sequence[Group], path: Path) -> Path:
                 ha="center",
                 fontsize=8,
             )
-    axis.set_xticks(range(len(cols)), cols)
+    axis.set_xticks(range(len(cols)), [wrapped(c) for c in cols])
     axis.set_ylim(0, 112)
     axis.set_ylabel("success (%), Wilson 95 % CI")
-    figure.legend(loc="lower center", ncol=min(len(rows), 3), fontsize=8, frameon=False)
     axis.set_title("Success rate per pattern")
-    figure.tight_layout(rect=(0, 0.1, 1, 1))
-    figure.savefig(path)
-    return path
+    _legend_below(figure, [Patch(facecolor=colour) for colour in colours], rows)
+    return figure
 
 
 def course_errors(groups: Sequence[Group], path: Path) -> Path | None:
@@ -133,14 +195,18 @@ def course_errors(groups: Sequence[Group], path: Path) -> Path | None:
     bricks: a line per method (its colour) and pattern (its marker), one standard deviation
     as error bars, the success rule's limit dashed where it fits the scale. None if no
     pattern has two courses."""
+    figure = courses_figure(groups)
+    return None if figure is None else _save(figure, path)
+
+
+def courses_figure(groups: Sequence[Group]) -> Figure | None:
+    """The figure of :func:`course_errors`; None if no pattern has two courses."""
     shown = [g for g in groups if len(g.summary.courses) > 1]
     if not shown:
         return None
     rows, cols = labels(groups), patterns(shown)
     colours = _colours(len(rows))
-    legend_rows = -(-len(shown) // 3)
-    height_in = 3.6 + 0.3 * legend_rows
-    figure = Figure(figsize=(8.4, height_in), dpi=110)
+    figure = _figure(8.4, 3.6)
     axes = figure.subplots(1, len(COURSE_METRICS))
     width = min(0.08, 0.4 / len(shown))  # lines side by side, their bars apart
     for axis, (field, title, limit, unit) in zip(axes, COURSE_METRICS, strict=True):
@@ -168,21 +234,21 @@ def course_errors(groups: Sequence[Group], path: Path) -> Path | None:
         axis.set_title(title)
         axis.grid(axis="y", alpha=0.3)
     handles, names = axes[0].get_legend_handles_labels()
-    figure.legend(
-        handles, names, loc="lower center", ncol=min(len(shown), 3), fontsize=8, frameon=False
-    )
     figure.suptitle("Errors per course over all trials' bricks (mean ± std)")
-    figure.tight_layout(rect=(0, 0.3 * legend_rows / height_in, 1, 1))
-    figure.savefig(path)
-    return path
+    _legend_below(figure, handles, names)
+    return figure
 
 
 def _limits(axis: Axes, limits: Sequence[float], top: float, unit: str) -> None:
     """The success rule's limits on ``axis``: dashed where the errors (up to ``top``) reach
     LIMIT_SHOWN_FROM of them, else named at the top, above the errors."""
     above = [limit for limit in limits if top < LIMIT_SHOWN_FROM * limit]
-    if above and top > 0:
-        axis.set_ylim(top=top * (1.15 + 0.1 * len(above)))  # room for the notes
+    drawn = [limit for limit in limits if limit not in above]
+    room = [top * (1.15 + 0.1 * len(above))] if above and top > 0 else []  # for the notes
+    if drawn:
+        room.append(max(top, *drawn) * 1.12)  # for the name above the highest line
+    if room:
+        axis.set_ylim(top=max(room))
     for limit in limits:
         if limit not in above:
             axis.axhline(limit, color="grey", linestyle="--", linewidth=1)
@@ -212,6 +278,12 @@ def _limits(axis: Axes, limits: Sequence[float], top: float, unit: str) -> None:
 
 def llm_cost(groups: Sequence[Group], path: Path) -> Path | None:
     """Tokens per brick and latency per call of every agent, for methods that called a model."""
+    figure = llm_cost_figure(groups)
+    return None if figure is None else _save(figure, path)
+
+
+def llm_cost_figure(groups: Sequence[Group]) -> Figure | None:
+    """The figure of :func:`llm_cost`; None if no method called a model."""
     usage: dict[str, dict[str, LLMUsage]] = {}
     bricks: dict[str, int] = {}
     for group in groups:
@@ -224,7 +296,7 @@ def llm_cost(groups: Sequence[Group], path: Path) -> Path | None:
     if not usage:
         return None
     agents = list(dict.fromkeys(a for row in usage.values() for a in row))
-    figure = Figure(figsize=(max(6.0, 1.3 * len(agents) * 2), 3.8), dpi=110)
+    figure = _figure(max(6.0, 1.3 * len(agents) * 2), 3.8)
     tokens, latency = figure.subplots(1, 2)
     width = 0.8 / len(usage)
     x = np.arange(len(agents))
@@ -246,22 +318,26 @@ def llm_cost(groups: Sequence[Group], path: Path) -> Path | None:
         )
         calls = [row.get(a, LLMUsage()) for a in agents]
         per_call = [u.latency_s / u.calls if u.calls else 0.0 for u in calls]
-        latency.bar(shift, per_call, width * 0.95, color=colour, label=label)
+        latency.bar(shift, per_call, width * 0.95, color=colour)
     for axis, title in ((tokens, "tokens per brick"), (latency, "latency per call (s)")):
         axis.set_xticks(x, [a.replace("_", " ") for a in agents], rotation=30, ha="right")
         axis.set_title(title)
         axis.grid(axis="y", alpha=0.3)
-    tokens.legend(fontsize=7)
-    latency.legend(fontsize=7)
-    figure.tight_layout()
-    figure.savefig(path)
-    return path
+    handles, names = tokens.get_legend_handles_labels()
+    _legend_below(figure, handles, names)
+    return figure
 
 
 def refusal_categories(groups: Sequence[Group], path: Path) -> Path | None:
     """Horizontal bars: the refused and failed answers of each agent, stacked by error
     category; a bar per method (its patterns summed) under each agent. None if no answer was
     refused."""
+    figure = refusals_figure(groups)
+    return None if figure is None else _save(figure, path)
+
+
+def refusals_figure(groups: Sequence[Group]) -> Figure | None:
+    """The figure of :func:`refusal_categories`; None if no answer was refused."""
     by_method = {
         label: sum_refusals(g.summary.refusals for g in groups if g.label == label)
         for label in labels(groups)
@@ -271,7 +347,11 @@ def refusal_categories(groups: Sequence[Group], path: Path) -> Path | None:
         return None
     shown = categories_in(*by_method.values())
     bars = [(agent, label) for agent in sum_refusals(by_method.values()) for label in by_method]
-    figure = Figure(figsize=(8.5, 1.4 + 0.35 * len(bars)), dpi=110)
+    names = [
+        wrapped(agent if len(by_method) == 1 else f"{agent} · {label}") for agent, label in bars
+    ]
+    # 0.35 in a bar of one line of name, 0.15 in more for each further line
+    figure = _figure(8.5, 1.4 + sum(0.35 + 0.15 * name.count("\n") for name in names))
     axis = figure.subplots()
     y = np.arange(len(bars))[::-1]
     left = np.zeros(len(bars))
@@ -283,12 +363,10 @@ def refusal_categories(groups: Sequence[Group], path: Path) -> Path | None:
         )
         axis.barh(y, widths, left=left, color=colours[category], label=str(category))
         left += widths
-    names = [agent if len(by_method) == 1 else f"{agent} · {label}" for agent, label in bars]
     axis.set_yticks(y, names, fontsize=8)
     axis.set_xlabel("refused or failed answers (repairs included)")
     axis.set_title("Refused answers per agent, by error category")
     axis.grid(axis="x", alpha=0.3)
-    axis.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
-    figure.tight_layout()
-    figure.savefig(path)
-    return path
+    handles, categories = axis.get_legend_handles_labels()
+    _legend_below(figure, handles, categories, fontsize=7)
+    return figure

@@ -1,13 +1,14 @@
 """The paper's Table I: methods in rows; per pattern and on average, rotation error (°),
 centre offset (cm) and IoU (%), means over successful trials with their bootstrap
-intervals; as markdown, CSV and LaTeX. Success comes with its Wilson interval; a method
-that succeeded in no trial of a pattern gets its means over all trials instead, on a row of
-their own. Then the leaderboard and the paired comparisons (McNemar's test). Rows and
-pattern columns are the groups of collect.py; the notes say how runs differ. Runs with
-answer errors get a table of what was corrupted and what caught it, runs with refused
-answers a table per group of them by agent and error category, and runs whose checks refused
-answers nobody corrupted a list of those checks. Every group gets its bricks placed before
-the first failure and cycle time, and a table of its errors per course.
+intervals; the same over all trials beside it (where a method that succeeded in no trial of
+a pattern has its figures); as markdown, CSV and LaTeX. A method's Average is given only
+where it has figures on every pattern. Success comes with its Wilson interval. Then the
+leaderboard and the paired comparisons (McNemar's test). Rows and pattern columns are the
+groups of collect.py; the notes say how runs differ. Runs with answer errors get a table of
+what was corrupted and what caught it, runs with refused answers a table per group of them
+by agent and error category, and runs whose checks refused answers nobody corrupted a list
+of those checks. Every group gets its bricks set down and within the success rule (before
+the first failure, too), its cycle time, and a table of its errors per course.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from __future__ import annotations
 import csv
 import io
 from collections import Counter
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,16 +28,16 @@ from actionreasoning.report.ladder import LadderRow, ladder_lines, ladders
 from actionreasoning.report.leaderboard import board_lines, board_rows
 from actionreasoning.report.pairs import Pair, pair_lines, paired_comparisons
 from actionreasoning.runs.courses import CourseMetrics
-from actionreasoning.runs.markdown import captioned_table, table_lines
+from actionreasoning.runs.markdown import table_lines
 from actionreasoning.runs.statistics import BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED, Interval, wilson
 from actionreasoning.runs.summary import (
     CAUGHT_TITLES,
     AnswerErrorTotals,
     MetricStats,
+    RunSummary,
     category_table,
     course_table,
     failure_classes,
-    stats_text,
     success_text,
 )
 from actionreasoning.trial.results import Refusals
@@ -51,11 +52,15 @@ AVERAGE = "Average"  # Table I's last column group; for success counts, the tota
 MEANS_NOTE = (
     "Means over successful trials (per-brick values averaged per trial), each pattern's with "
     f"a bootstrap 95 % interval in brackets ({BOOTSTRAP_RESAMPLES} resamples, seed "
-    f"{BOOTSTRAP_SEED}); {AVERAGE}: the mean over the patterns."
+    f"{BOOTSTRAP_SEED}); {AVERAGE}: the mean over the patterns, given only for a method with "
+    "figures on every pattern (a dash otherwise: a mean over other patterns does not "
+    "compare); the best of each column in bold."
 )
+ALL_TRIALS_TITLE = "Table I over all trials"
 ALL_TRIALS_NOTE = (
-    "No successful trial, so no figure in Table I: means ± standard deviations over all "
-    "trials [bootstrap 95 % interval of the mean]."
+    "The same over all trials, failed ones included (a method that succeeded in no trial of "
+    "a pattern has its figures here): means, each pattern's with its bootstrap 95 % "
+    f"interval; {AVERAGE} only for a method that ran every pattern."
 )
 SUCCESS_NOTE = (
     "Success: successful trials of all, the rate and its Wilson 95 % interval (all: the "
@@ -68,9 +73,19 @@ COURSES_PLOT = "courses.png"
 PACE_COLUMNS = (
     "Method",
     "Pattern",
-    "Placed before the first failure",
-    "Cycle time (simulated s / brick)",
-    "Bricks an hour",
+    "Set down",
+    "Within the rule",
+    "Within the rule before the first failure",
+    "Cycle time (simulated s / brick set down)",
+    "Set down an hour",
+    "Simulated s / brick within the rule",
+)
+PACE_NOTE = (
+    "Bricks a trial set down on their targets, whatever their errors, and those within the "
+    "success rule (in all, and before the first brick out of it), means per trial; the cycle "
+    "time: simulated seconds per brick set down and the bricks set down an hour, and the "
+    "simulated seconds per brick within the rule. A dash where a figure is unknown (lines "
+    "of an earlier version) or there is no such brick."
 )
 
 
@@ -145,107 +160,68 @@ def _summed(rows: Iterable[Mapping[str, int]]) -> str:
 
 @dataclass(frozen=True)
 class PaceRow:
-    """How far one method's trials on one pattern built within the success rule, and how
-    fast: the bricks placed before the first brick out of the rule (a mean per trial, None
-    where the rule is unknown), and simulated seconds per placed brick and bricks an hour
-    (None where the physics is unknown or no brick was placed)."""
+    """How much one method's trials on one pattern built and how fast, means per trial:
+    the bricks set down whatever their errors (None where the lines do not tell), those
+    within the success rule, and those before the first brick out of it (None where the
+    rule is unknown); simulated seconds per brick set down, the bricks set down an hour,
+    and seconds per brick within the rule (None where the physics is unknown or there is no
+    such brick)."""
 
     label: str
     pattern: str
     bricks: int  # the pattern's
+    set_down: float | None
+    within: float
     before_failure: float | None
-    seconds_per_brick: float | None
-    bricks_per_hour: float | None
+    seconds_per_set_down: float | None
+    set_down_per_hour: float | None
+    seconds_per_within: float | None
 
     @property
     def cells(self) -> list[str]:
         """The row as shown: PACE_COLUMNS."""
-        before, seconds, hourly = self.before_failure, self.seconds_per_brick, self.bricks_per_hour
+
+        def shown(value: float | None, digits: int, of: bool = False) -> str:
+            if value is None:
+                return "–"
+            return f"{value:.{digits}f}" + (f" of {self.bricks}" if of else "")
+
         return [
             self.label,
             self.pattern,
-            "–" if before is None else f"{before:.2f} of {self.bricks}",
-            "–" if seconds is None else f"{seconds:.1f}",
-            "–" if hourly is None else f"{hourly:.0f}",
+            shown(self.set_down, 2, of=True),
+            shown(self.within, 2, of=True),
+            shown(self.before_failure, 2, of=True),
+            shown(self.seconds_per_set_down, 1),
+            shown(self.set_down_per_hour, 0),
+            shown(self.seconds_per_within, 1),
         ]
 
 
 @dataclass(frozen=True)
 class AllTrialsRow:
     """A method's means over all trials of a pattern it succeeded on in none (Table I has
-    dashes there): labelled ``LABEL, all trials``."""
+    dashes there), for the terminal's ``LABEL, all trials`` row."""
 
     label: str
     pattern: str
     stats: dict[str, MetricStats]  # metric -> over all trials
-    successes: int
-    trials: int
-
-    @property
-    def cells(self) -> list[str]:
-        """The row as ALL_TRIALS_COLUMNS shows it: means ± standard deviations [intervals]."""
-        return [
-            f"{self.label}, all trials",
-            self.pattern,
-            *(
-                stats_text(self.stats[metric], scale, digits)
-                for metric, _, scale, digits, _ in COLUMNS
-            ),
-            success_text(self.successes, self.trials),
-        ]
-
-
-ALL_TRIALS_COLUMNS = (
-    "Method",
-    "Pattern",
-    *(f"{title} {'↓' if lower else '↑'}" for _, title, _, _, lower in COLUMNS),
-    "Success",
-)
 
 
 @dataclass(frozen=True)
-class Table:
-    """Cell values (None where a method has no successful trial on a pattern)."""
+class Means:
+    """Table I's figures over one set of trials (the successful ones, or all): a value per
+    (row, pattern or Average, metric), None where there is none (no such trial; for Average,
+    a row without a value on every pattern), and each (row, pattern)'s statistics, with the
+    bootstrap interval of each mean."""
 
     rows: list[str]
     patterns: list[str]
-    values: dict[tuple[str, str, str], float | None]  # (row, pattern or Average, metric)
-    successful: dict[tuple[str, str], dict[str, MetricStats]]  # (row, pattern) -> metric ->
-    # over successful trials, with the bootstrap interval of the mean where there are any
-    success: dict[tuple[str, str], tuple[int, int]]  # (row, pattern) -> (successes, trials);
-    # (row, Average): summed over the patterns
-    failures: list[FailureRow]
-    notes: list[str]  # how the runs' conditions differ (collect.condition_notes)
-    answer_errors: list[AnswerErrorRow]  # the groups run with answer errors
-    refusals: dict[tuple[str, str], Refusals]  # (row, pattern) -> refused answers, where any
-    # (row, pattern) -> answers nobody corrupted that a pre-move check, sigma_1 or sigma_6
-    # refused, by gate:check, where any
-    premove_refusals: dict[tuple[str, str], dict[str, int]]
-    pace: list[PaceRow]  # a row per group
-    courses: dict[tuple[str, str], list[CourseMetrics]]  # (row, pattern) -> its courses, if
-    # its lines measured bricks
-    all_stats: dict[tuple[str, str], dict[str, MetricStats]]  # (row, pattern) -> metric ->
-    # over all trials
-    board: list[list[str]]  # the leaderboard, a row per group (leaderboard.BOARD_COLUMNS)
-    pairs: list[Pair]  # rows run on the same trials, compared
-    ladder: list[LadderRow]  # the rungs of verification under each condition
-
-    @property
-    def all_trials(self) -> list[AllTrialsRow]:
-        """A row of means over all trials for each method and pattern without a success."""
-        return [
-            AllTrialsRow(label, pattern, stats, *self.success[(label, pattern)])
-            for (label, pattern), stats in self.all_stats.items()
-            if not self.success[(label, pattern)][0]
-        ]
-
-    @property
-    def course_plot(self) -> bool:
-        """Whether a pattern has two courses or more, so that plots.course_errors draws."""
-        return any(len(courses) > 1 for courses in self.courses.values())
+    values: dict[tuple[str, str, str], float | None]
+    stats: dict[tuple[str, str], dict[str, MetricStats]]
 
     def best(self, pattern: str, metric: str) -> float | None:
-        """The best value of a column, for bold type."""
+        """The best value of a column, for bold type; None with fewer than two values."""
         lower = next(c[4] for c in COLUMNS if c[0] == metric)
         found = [v for r in self.rows if (v := self.values[(r, pattern, metric)]) is not None]
         if len(found) < 2:
@@ -262,11 +238,73 @@ class Table:
 
     def interval_cell(self, row: str, pattern: str, metric: str) -> str:
         """The bootstrap interval of a cell's mean, ``[0.441, 0.618]``; empty where none."""
-        stats = self.successful.get((row, pattern), {}).get(metric)
+        stats = self.stats.get((row, pattern), {}).get(metric)
         if stats is None or stats.ci_low is None or stats.ci_high is None:
             return ""
         _, _, scale, digits, _ = next(c for c in COLUMNS if c[0] == metric)
         return f"[{stats.ci_low * scale:.{digits}f}, {stats.ci_high * scale:.{digits}f}]"
+
+
+def means_of(
+    groups: Sequence[Group], over: Callable[[RunSummary], dict[str, MetricStats]]
+) -> Means:
+    """Table I's figures of ``groups`` over the trials ``over`` picks from a summary; a row's
+    Average is the mean over the patterns only if it has a value on every one of them."""
+    rows, cols = labels(groups), patterns(groups)
+    stats = {(g.label, g.pattern): over(g.summary) for g in groups}
+    values: dict[tuple[str, str, str], float | None] = {}
+    for row in rows:
+        for metric, *_ in COLUMNS:
+            found = [stats[(row, p)][metric].mean if (row, p) in stats else None for p in cols]
+            values |= {(row, p, metric): mean for p, mean in zip(cols, found, strict=True)}
+            known = [mean for mean in found if mean is not None]
+            average = float(np.mean(known)) if len(known) == len(cols) else None
+            values[(row, AVERAGE, metric)] = average
+    return Means(rows=rows, patterns=cols, values=values, stats=stats)
+
+
+@dataclass(frozen=True)
+class Table:
+    """Table I over successful trials (``means``) and over all trials (``all_means``), with
+    every table that goes with it."""
+
+    rows: list[str]
+    patterns: list[str]
+    means: Means  # over successful trials
+    all_means: Means  # over all trials
+    success: dict[tuple[str, str], tuple[int, int]]  # (row, pattern) -> (successes, trials);
+    # (row, Average): summed over the patterns
+    failures: list[FailureRow]
+    notes: list[str]  # how the runs' conditions differ (collect.condition_notes)
+    answer_errors: list[AnswerErrorRow]  # the groups run with answer errors
+    refusals: dict[tuple[str, str], Refusals]  # (row, pattern) -> refused answers, where any
+    # (row, pattern) -> answers nobody corrupted that a pre-move check, sigma_1 or sigma_6
+    # refused, by gate:check, where any
+    premove_refusals: dict[tuple[str, str], dict[str, int]]
+    pace: list[PaceRow]  # a row per group
+    courses: dict[tuple[str, str], list[CourseMetrics]]  # (row, pattern) -> its courses, if
+    # its lines measured bricks
+    board: list[list[str]]  # the leaderboard, a row per group (leaderboard.BOARD_COLUMNS)
+    pairs: list[Pair]  # rows run on the same trials, compared
+    ladder: list[LadderRow]  # the rungs of verification under each condition
+
+    @property
+    def all_trials(self) -> list[AllTrialsRow]:
+        """A row of means over all trials for each method and pattern without a success."""
+        return [
+            AllTrialsRow(label, pattern, stats)
+            for (label, pattern), stats in self.all_means.stats.items()
+            if not self.success[(label, pattern)][0]
+        ]
+
+    @property
+    def course_plot(self) -> bool:
+        """Whether a pattern has two courses or more, so that plots.course_errors draws."""
+        return any(len(courses) > 1 for courses in self.courses.values())
+
+    def cell(self, row: str, pattern: str, metric: str) -> tuple[str, bool]:
+        """A cell of Table I over successful trials, and whether it is its column's best."""
+        return self.means.cell(row, pattern, metric)
 
     def success_cell(self, row: str, pattern: str) -> str:
         """Successful trials out of all with the rate's Wilson interval, or a dash where the
@@ -284,21 +322,11 @@ class Table:
 
 
 def comparison_table(groups: Sequence[Group]) -> Table:
-    """Table I from grouped runs; Average is the mean over the patterns a method has values on."""
+    """Table I from grouped runs, over successful trials and over all (see :func:`means_of`)."""
     rows, cols = labels(groups), patterns(groups)
     by_key = {(g.label, g.pattern): g for g in groups}
-    values: dict[tuple[str, str, str], float | None] = {}
     success: dict[tuple[str, str], tuple[int, int]] = {}
     for row in rows:
-        for metric, *_ in COLUMNS:
-            means = []
-            for pattern in cols:
-                group = by_key.get((row, pattern))
-                mean = None if group is None else group.summary.successful[metric].mean
-                values[(row, pattern, metric)] = mean
-                if mean is not None:
-                    means.append(mean)
-            values[(row, AVERAGE, metric)] = float(np.mean(means)) if means else None
         for pattern in cols:
             group = by_key.get((row, pattern))
             if group is not None:
@@ -308,8 +336,8 @@ def comparison_table(groups: Sequence[Group]) -> Table:
     return Table(
         rows=rows,
         patterns=cols,
-        values=values,
-        successful={(g.label, g.pattern): g.summary.successful for g in groups},
+        means=means_of(groups, lambda summary: summary.successful),
+        all_means=means_of(groups, lambda summary: summary.all_trials),
         success=success,
         failures=_failures(groups),
         notes=condition_notes(groups),
@@ -326,7 +354,6 @@ def comparison_table(groups: Sequence[Group]) -> Table:
         },
         pace=[_pace(g) for g in groups],
         courses={(g.label, g.pattern): g.summary.courses for g in groups if g.summary.courses},
-        all_stats={(g.label, g.pattern): g.summary.all_trials for g in groups},
         board=board_rows(groups),
         pairs=paired_comparisons(groups),
         ladder=ladders(groups),
@@ -334,14 +361,17 @@ def comparison_table(groups: Sequence[Group]) -> Table:
 
 
 def _pace(group: Group) -> PaceRow:
-    time = group.summary.cycle_time
+    summary, time = group.summary, group.summary.cycle_time
     return PaceRow(
         label=group.label,
         pattern=group.pattern,
-        bricks=group.summary.bricks_per_trial,
-        before_failure=group.summary.placed_before_first_failure_mean,
-        seconds_per_brick=None if time is None else time.seconds_per_brick,
-        bricks_per_hour=None if time is None else time.bricks_per_hour,
+        bricks=summary.bricks_per_trial,
+        set_down=summary.bricks_set_down_mean,
+        within=summary.bricks_placed_mean,
+        before_failure=summary.placed_before_first_failure_mean,
+        seconds_per_set_down=None if time is None else time.seconds_per_brick_set_down,
+        set_down_per_hour=None if time is None else time.bricks_set_down_per_hour,
+        seconds_per_within=None if time is None else time.seconds_per_brick,
     )
 
 
@@ -376,25 +406,30 @@ def failure_classes_of(
     return {key: failure_classes(reasons) for key, reasons in counts.items()}
 
 
-def to_markdown(table: Table) -> str:
-    """Table I as a markdown table (best of each column in bold), then success per pattern."""
-    groups = [*table.patterns, AVERAGE]
+def _means_lines(means: Means) -> list[str]:
+    """Table I's figures as a markdown table (the best of each column in bold)."""
+    groups = [*means.patterns, AVERAGE]
     header = ["Method"] + [
         f"{p}: {title} {'↓' if lower else '↑'}" for p in groups for _, title, _, _, lower in COLUMNS
     ]
     lines = ["| " + " | ".join(header) + " |", "|---" * len(header) + "|"]
-    for row in table.rows:
+    for row in means.rows:
         cells = [row]
         for pattern in groups:
             for metric, *_ in COLUMNS:
-                text, best = table.cell(row, pattern, metric)
-                interval = table.interval_cell(row, pattern, metric)
+                text, best = means.cell(row, pattern, metric)
+                interval = means.interval_cell(row, pattern, metric)
                 cells.append(" ".join(filter(None, (f"**{text}**" if best else text, interval))))
         lines.append("| " + " | ".join(cells) + " |")
-    lines += ["", MEANS_NOTE, ""]
-    if table.all_trials:
-        rows = [r.cells for r in table.all_trials]
-        lines += [*captioned_table(ALL_TRIALS_NOTE, ALL_TRIALS_COLUMNS, rows), ""]
+    return lines
+
+
+def to_markdown(table: Table) -> str:
+    """Table I as a markdown table over successful trials and another over all trials, then
+    success per pattern."""
+    groups = [*table.patterns, AVERAGE]
+    lines = [*_means_lines(table.means), "", MEANS_NOTE, ""]
+    lines += [f"{ALL_TRIALS_TITLE}:", "", *_means_lines(table.all_means), "", ALL_TRIALS_NOTE, ""]
     lines += [
         "| Method | "
         + " | ".join(f"{p if p != AVERAGE else 'all'}: success" for p in groups)
@@ -476,13 +511,7 @@ def to_markdown(table: Table) -> str:
 def _pace_and_course_lines(table: Table) -> list[str]:
     """Bricks before the first failure and cycle time, a row per group; then a table of
     errors per course for each group, and the plot of them."""
-    lines = [
-        "Bricks placed within the success rule before the first brick out of it (a mean per "
-        "trial), and the cycle time: simulated seconds per placed brick, and the bricks an "
-        "hour that makes:",
-        "",
-        *table_lines(PACE_COLUMNS, [row.cells for row in table.pace]),
-    ]
+    lines = [f"{PACE_NOTE}:", "", *table_lines(PACE_COLUMNS, [row.cells for row in table.pace])]
     for (row, pattern), courses in table.courses.items():
         lines += [
             "",
@@ -499,7 +528,8 @@ def _pace_and_course_lines(table: Table) -> list[str]:
 def to_csv(table: Table) -> str:
     """One line per method and pattern (Average included): every Table I value, unrounded;
     then the Wilson interval of the success rate (fractions), each mean's bootstrap
-    interval, and the means and standard deviations over all trials (patterns only)."""
+    interval, and over all trials each mean (Average included), its standard deviation
+    and its bootstrap interval."""
     metrics = [m for m, *_ in COLUMNS]
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
@@ -509,21 +539,27 @@ def to_csv(table: Table) -> str:
             "success_ci_low", "success_ci_high",
             *(f"{m}_ci_{end}" for m in metrics for end in ("low", "high")),
             *(f"{m}_all_trials_{what}" for m in metrics for what in ("mean", "std")),
+            *(f"{m}_all_trials_ci_{end}" for m in metrics for end in ("low", "high")),
         ]
     )  # fmt: skip
     for row in table.rows:
         for pattern in [*table.patterns, AVERAGE]:
             if (row, pattern) not in table.success:
                 continue
-            successful = table.successful.get((row, pattern), {})
-            everything = table.all_stats.get((row, pattern), {})
+            successful = table.means.stats.get((row, pattern), {})
+            everything = table.all_means.stats.get((row, pattern), {})
             interval = table.success_interval(row, pattern)
             values = [
                 *table.success[(row, pattern)],
-                *(table.values[(row, pattern, m)] for m in metrics),
+                *(table.means.values[(row, pattern, m)] for m in metrics),
                 *((None, None) if interval is None else (interval.low, interval.high)),
                 *(v for m in metrics for v in _ci(successful.get(m))),
-                *(v for m in metrics for v in _mean_std(everything.get(m))),
+                *(
+                    v
+                    for m in metrics
+                    for v in (table.all_means.values[(row, pattern, m)], _std(everything.get(m)))
+                ),
+                *(v for m in metrics for v in _ci(everything.get(m))),
             ]
             writer.writerow([row, pattern, *("" if v is None else repr(v) for v in values)])
     return buffer.getvalue()
@@ -533,8 +569,8 @@ def _ci(stats: MetricStats | None) -> tuple[float | None, float | None]:
     return (None, None) if stats is None else (stats.ci_low, stats.ci_high)
 
 
-def _mean_std(stats: MetricStats | None) -> tuple[float | None, float | None]:
-    return (None, None) if stats is None else (stats.mean, stats.std)
+def _std(stats: MetricStats | None) -> float | None:
+    return None if stats is None else stats.std
 
 
 def _latex_escape(text: str) -> str:
@@ -546,8 +582,16 @@ def _latex_escape(text: str) -> str:
 
 
 def to_latex(table: Table) -> str:
-    """Table I as a booktabs tabular, laid out like the paper's (best values in bold)."""
-    groups = [*table.patterns, AVERAGE]
+    """Table I as a booktabs tabular, laid out like the paper's (best values in bold); then
+    the same over all trials, and success."""
+    lines = [*_latex_means(table.means), "", f"% {ALL_TRIALS_TITLE}"]
+    lines += [*_latex_means(table.all_means), "", *_latex_success(table)]
+    return "\n".join(lines) + "\n"
+
+
+def _latex_means(means: Means) -> list[str]:
+    """Table I's figures as a booktabs tabular."""
+    groups = [*means.patterns, AVERAGE]
     n = len(COLUMNS)
     lines = [
         r"\begin{tabular}{l" + "c" * (n * len(groups)) + "}",
@@ -567,16 +611,15 @@ def to_latex(table: Table) -> str:
         + r" \\",
         r"\midrule",
     ]
-    for row in table.rows:
+    for row in means.rows:
         cells = [_latex_escape(row)]
         for pattern in groups:
             for metric, *_ in COLUMNS:
-                text, best = table.cell(row, pattern, metric)
+                text, best = means.cell(row, pattern, metric)
                 text = "--" if text == "–" else text
                 cells.append(rf"\textbf{{{text}}}" if best else text)
         lines.append(" & ".join(cells) + r" \\")
-    lines += [r"\bottomrule", r"\end{tabular}", "", *_latex_success(table)]
-    return "\n".join(lines) + "\n"
+    return [*lines, r"\bottomrule", r"\end{tabular}"]
 
 
 def _latex_success(table: Table) -> list[str]:

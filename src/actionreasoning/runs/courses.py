@@ -1,5 +1,6 @@
 """How error grows with height, and how fast a method builds: per-course placement
-metrics, bricks placed before the first failure, and the robot's cycle time.
+metrics, bricks within the success rule before the first failure, the bricks set down, and
+the robot's cycle time.
 
 A brick's course is the rank of its target's bottom height among the pattern's: bricks
 whose bottoms lie within COURSE_TOL_M of each other share a course (a course's bottoms
@@ -11,14 +12,17 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, NonNegativeFloat, NonNegativeInt
 
-from actionreasoning.trial.results import BrickResult, TrialResult
+from actionreasoning.records import FailureCode
+from actionreasoning.trial.results import BrickResult, IoU, OffsetCm, RotationDeg, TrialResult
 from actionreasoning.world.success import SuccessRule
 
 #: Bottom heights closer than this are one course (m).
 COURSE_TOL_M = 0.01
 SECONDS_PER_HOUR = 3600.0
+#: Failures found on the finished build, every target's brick set down.
+FINISHED_BUILD = (FailureCode.MISPLACED, FailureCode.NOT_AT_REST)
 
 
 class CourseMetrics(BaseModel):
@@ -27,20 +31,26 @@ class CourseMetrics(BaseModel):
 
     model_config = ConfigDict(frozen=True)
 
-    course: int
-    bricks: int
-    center_offset_cm: tuple[float, float]
-    rotation_error_deg: tuple[float, float]
-    iou: tuple[float, float]
+    course: NonNegativeInt
+    bricks: NonNegativeInt
+    center_offset_cm: tuple[OffsetCm, NonNegativeFloat]
+    rotation_error_deg: tuple[RotationDeg, NonNegativeFloat]
+    iou: tuple[IoU, NonNegativeFloat]
 
 
 class CycleTime(BaseModel):
-    """Simulated seconds per placed brick, and the bricks an hour that makes."""
+    """Simulated seconds per brick and the bricks an hour that makes: per brick within the
+    success rule (``seconds_per_brick``, ``bricks_per_hour``) and per brick set down,
+    whatever its errors (the robot's own pace). None without such a brick, and per brick set
+    down also where a line does not tell (see :func:`bricks_set_down`) or in summaries
+    written before it was computed."""
 
     model_config = ConfigDict(frozen=True)
 
-    seconds_per_brick: float | None
-    bricks_per_hour: float | None
+    seconds_per_brick: NonNegativeFloat | None
+    bricks_per_hour: NonNegativeFloat | None
+    seconds_per_brick_set_down: NonNegativeFloat | None = None
+    bricks_set_down_per_hour: NonNegativeFloat | None = None
 
 
 def _bottom_m(brick: BrickResult) -> float:
@@ -88,13 +98,36 @@ def placed_before_first_failure(result: TrialResult, rule: SuccessRule) -> int:
     return count
 
 
+def bricks_set_down(result: TrialResult) -> int | None:
+    """The bricks a trial set down on their targets, whatever their errors: all of them if
+    the build finished (the trial succeeded, or failed as FINISHED_BUILD), else None. A
+    results line does not say how many bricks a build cut short had set down (recording it
+    would change the lines of valid runs)."""
+    if result.failure is None or result.failure.reason in FINISHED_BUILD:
+        return len(result.bricks)
+    return None
+
+
 def cycle_time(results: Sequence[TrialResult], time_step_s: float) -> CycleTime:
-    """The run's simulated time over the bricks it placed; None if it placed none."""
-    placed = sum(r.bricks_placed for r in results)
-    if placed == 0:
-        return CycleTime(seconds_per_brick=None, bricks_per_hour=None)
-    seconds = sum(r.sim_steps for r in results) * time_step_s / placed
-    return CycleTime(seconds_per_brick=seconds, bricks_per_hour=SECONDS_PER_HOUR / seconds)
+    """The run's simulated time over the bricks it placed within the success rule, and over
+    those it set down (None if any trial's are unknown)."""
+    seconds = sum(r.sim_steps for r in results) * time_step_s
+    counts = [bricks_set_down(r) for r in results]
+    within = _pace(seconds, sum(r.bricks_placed for r in results))
+    set_down = _pace(seconds, None if None in counts else sum(n or 0 for n in counts))
+    return CycleTime(
+        seconds_per_brick=within[0],
+        bricks_per_hour=within[1],
+        seconds_per_brick_set_down=set_down[0],
+        bricks_set_down_per_hour=set_down[1],
+    )
+
+
+def _pace(seconds: float, bricks: int | None) -> tuple[float | None, float | None]:
+    """Seconds per brick and bricks an hour; None without a brick or time."""
+    if not bricks or not seconds:
+        return None, None
+    return seconds / bricks, SECONDS_PER_HOUR * bricks / seconds
 
 
 def _mean_std(values: list[float]) -> tuple[float, float]:

@@ -1,15 +1,15 @@
 """The figures a leaderboard row adds to success and Table I: answers accepted at the first
-attempt, refusals per brick, and prompt tokens per brick and per placed brick.
+attempt, refusals per brick, and prompt tokens per brick and per brick within the rule.
 
 "Per brick" counts the pattern's bricks in every trial (its targets), failed trials
-included; "per placed brick" the bricks placed within the success rule.
+included; "per brick within the rule" the bricks placed within the success rule's limits.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, NonNegativeFloat
 
 from actionreasoning.trial.results import FirstAttempts, TrialResult
 
@@ -18,7 +18,7 @@ LEADERBOARD_COLUMNS = (
     "First answers accepted",
     "Refusals / brick",
     "Prompt tokens / brick",
-    "Prompt tokens / placed brick",
+    "Prompt tokens / brick within the rule",
 )
 
 
@@ -34,11 +34,12 @@ class Leaderboard(BaseModel):
     first_attempts_by_agent: dict[str, FirstAttempts]
     #: Refused and failed answers (repairs included) over the pattern's bricks; None
     #: without a reasoner.
-    refusals_per_brick: float | None
-    #: Prompt tokens over the pattern's bricks and over the placed ones; None where none
-    #: were counted (the built-in reasoner spends none) or no brick was placed.
-    prompt_tokens_per_brick: float | None
-    prompt_tokens_per_placed_brick: float | None
+    refusals_per_brick: NonNegativeFloat | None
+    #: Prompt tokens over the pattern's bricks and over those placed within the success
+    #: rule; None where none were counted (the built-in reasoner spends none) or no brick
+    #: was placed within the rule.
+    prompt_tokens_per_brick: NonNegativeFloat | None
+    prompt_tokens_per_placed_brick: NonNegativeFloat | None
 
 
 def leaderboard(results: Sequence[TrialResult]) -> Leaderboard:

@@ -1,8 +1,14 @@
-"""Markdown tables of text cells, as summaries and reports write them."""
+"""Markdown tables of text cells, and counted nouns, as summaries and reports write them."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+
+
+def plural(count: int, noun: str, nouns: str | None = None) -> str:
+    """``1 trial``, ``2 trials``: ``count`` with ``noun`` in the number it takes (``nouns``
+    where the plural is not ``noun`` + s)."""
+    return f"{count} {noun if count == 1 else nouns or noun + 's'}"
 
 
 def table_lines(columns: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:

@@ -16,16 +16,27 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
+from actionreasoning.records import FailureCode
 from actionreasoning.runs.printable import printable
 from actionreasoning.trial.results import TrialResult
 
+#: Failures whose detail a trial's line gives: those the finished build was judged by,
+#: which name the bricks that broke the success rule.
+DETAILED = (FailureCode.MISPLACED, FailureCode.NOT_AT_REST)
+
 
 def trial_line(result: TrialResult) -> str:
-    """One finished trial in words."""
-    m = result.metrics
-    status = "ok" if result.failure is None else f"FAILED ({result.failure.reason})"
+    """One finished trial in words: its outcome (with the bricks that broke the success
+    rule, where they did) and its means over the bricks."""
+    m, failure = result.metrics, result.failure
+    if failure is None:
+        status = "ok"
+    elif failure.reason in DETAILED:
+        status = f"FAILED ({failure.reason}: {failure.detail})"
+    else:
+        status = f"FAILED ({failure.reason})"
     return (
-        f"trial {result.trial}: {status}; {m.center_offset_cm:.3f} cm, "
+        f"trial {result.trial}: {status}; mean {m.center_offset_cm:.3f} cm, "
         f"{m.rotation_error_deg:.3f} deg, IoU {m.iou:.3f}"
     )
 

@@ -7,7 +7,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any, TypeVar
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, NonNegativeFloat, NonNegativeInt, PositiveInt
 
 from actionreasoning.agents.answer_errors import AnswerErrors, Caught, CorruptionKind
 from actionreasoning.agents.error_kinds import ErrorCategory
@@ -15,6 +15,7 @@ from actionreasoning.records import FailureClass, FailureCode
 from actionreasoning.runs.courses import (
     CourseMetrics,
     CycleTime,
+    bricks_set_down,
     cycle_time,
     per_course,
     placed_before_first_failure,
@@ -26,7 +27,7 @@ from actionreasoning.runs.leaderboard import (
     leaderboard,
     leaderboard_cells,
 )
-from actionreasoning.runs.markdown import table_lines
+from actionreasoning.runs.markdown import plural, table_lines
 from actionreasoning.runs.statistics import (
     BOOTSTRAP_RESAMPLES,
     BOOTSTRAP_SEED,
@@ -59,7 +60,7 @@ class MetricStats(BaseModel):
     model_config = ConfigDict(frozen=True)
 
     mean: float | None
-    std: float | None
+    std: NonNegativeFloat | None
     ci_low: float | None = Field(None, exclude_if=lambda value: value is None)
     ci_high: float | None = Field(None, exclude_if=lambda value: value is None)
 
@@ -68,9 +69,9 @@ class AnswerErrorTotals(AnswerErrorCounts):
     """A run's answer errors: the rate, kinds and persistence it ran with (persistence absent
     at 0), its trials' counts summed."""
 
-    rate: float
+    rate: float = Field(ge=0.0, le=1.0)
     kinds: tuple[CorruptionKind, ...]
-    persistence: float = Field(0.0, exclude_if=lambda persistence: persistence == 0.0)
+    persistence: float = Field(0.0, ge=0.0, le=1.0, exclude_if=lambda value: value == 0.0)
 
 
 class RunSummary(Provenance):
@@ -88,41 +89,48 @@ class RunSummary(Provenance):
     #: The rung of verification (agents/verification.py); None for the classical script and
     #: in summaries written before rungs existed.
     verify: str | None = None
-    seed: int
-    trials: int
-    successes: int
-    success_rate: float
+    seed: NonNegativeInt
+    trials: PositiveInt
+    successes: NonNegativeInt
+    success_rate: float = Field(ge=0.0, le=1.0)
     #: The Wilson 95 % interval of the success rate; None in summaries written before it.
     success_interval: Interval | None = None
-    bricks_placed_mean: float
-    bricks_per_trial: int = 0
+    #: Bricks within the success rule's limits of their targets, a mean per trial.
+    bricks_placed_mean: NonNegativeFloat
+    #: Bricks set down on their targets whatever their errors, a mean per trial; None where
+    #: a line does not tell (courses.bricks_set_down) and in summaries written before it.
+    bricks_set_down_mean: NonNegativeFloat | None = None
+    bricks_per_trial: NonNegativeInt = 0
     success_rule: str
     successful: dict[str, MetricStats]
     all_trials: dict[str, MetricStats]
-    failures: dict[FailureCode, int]
-    failure_examples: dict[FailureCode, int]
+    failures: dict[FailureCode, NonNegativeInt]
+    failure_examples: dict[FailureCode, NonNegativeInt]
     #: The failures by what ended them (every class, zeros included); empty in summaries
     #: written before classes were counted.
-    failure_classes: dict[FailureClass, int] = Field(default_factory=dict)
+    failure_classes: dict[FailureClass, NonNegativeInt] = Field(default_factory=dict)
     llm_usage: LLMUsage
     llm_usage_by_agent: dict[str, LLMUsage] = Field(default_factory=dict)
     llm_mode: str | None = None
-    decisions: int = 0
-    fallback_decisions: int = 0
-    wall_time_s: float
-    resumed_trials: int = 0
+    decisions: NonNegativeInt = 0
+    fallback_decisions: NonNegativeInt = 0
+    #: The wall time of this session's trials (``trials - resumed_trials`` of them): an
+    #: earlier session's, whose trials were resumed, is not recorded (results.jsonl holds
+    #: no wall time, so that a seed gives the same lines).
+    wall_time_s: NonNegativeFloat
+    resumed_trials: NonNegativeInt = 0
     answer_errors: AnswerErrorTotals | None = Field(None, exclude_if=lambda totals: totals is None)
     #: Refused and failed answers by agent and category, summed over the trials (absent
     #: when there were none).
     refusals: Refusals = Field(default_factory=dict, exclude_if=lambda counts: not counts)
     #: Answers nobody corrupted that a pre-move check, sigma_1 or sigma_6 refused, by
     #: ``gate:check``, summed over the trials (absent when there were none).
-    premove_refusals: dict[str, int] = Field(
+    premove_refusals: dict[str, NonNegativeInt] = Field(
         default_factory=dict, exclude_if=lambda counts: not counts
     )
     #: Per course, over all trials; absent in summaries written before courses were measured.
     courses: list[CourseMetrics] = Field(default_factory=list)
-    placed_before_first_failure_mean: float | None = None
+    placed_before_first_failure_mean: NonNegativeFloat | None = None
     #: Needs the run's physics (its time step).
     cycle_time: CycleTime | None = None
     #: None in summaries written before it was computed.
@@ -201,6 +209,7 @@ def summarize(
         success_rate=len(ok) / len(results),
         success_interval=wilson(len(ok), len(results)),
         bricks_placed_mean=float(np.mean([r.bricks_placed for r in results])),
+        bricks_set_down_mean=_mean_known([bricks_set_down(r) for r in results]),
         bricks_per_trial=len(first.bricks),
         success_rule=describe_rule(rule),
         successful={m: _stats(ok, m) for m in METRICS},
@@ -230,6 +239,12 @@ def summarize(
         cycle_time=None if physics is None else cycle_time(results, physics.time_step_s),
         leaderboard=leaderboard(results),
     )
+
+
+def _mean_known(values: Sequence[int | None]) -> float | None:
+    """The mean of ``values``; None if any is unknown."""
+    known = [v for v in values if v is not None]
+    return float(np.mean(known)) if len(known) == len(values) else None
 
 
 def _answer_error_totals(
@@ -280,13 +295,8 @@ def summary_markdown(summary: RunSummary) -> str:
             else ""
         ),
         "",
-        f"Reasoning backend: `{summary.llm}` · seed {summary.seed} · {summary.trials} trials · "
-        f"wall time {summary.wall_time_s:.1f} s"
-        + (
-            f" (this session; {summary.resumed_trials} trials were finished by an earlier one)"
-            if summary.resumed_trials
-            else ""
-        ),
+        f"Reasoning backend: `{summary.llm}` · seed {summary.seed} · "
+        f"{plural(summary.trials, 'trial')} · {wall_time_text(summary)}",
         "",
         *_condition_lines(summary),
         "Means ± standard deviations over successful trials (per-brick values averaged per "
@@ -305,7 +315,7 @@ def summary_markdown(summary: RunSummary) -> str:
         ),
         "",
         *_leaderboard_lines(summary),
-        f"Bricks placed per trial: {summary.bricks_placed_mean:.2f}.",
+        _bricks_line(summary),
         f"Success rule: {summary.success_rule}.",
         "",
         *_course_lines(summary),
@@ -340,6 +350,30 @@ def summary_markdown(summary: RunSummary) -> str:
     return "\n".join(lines) + "\n"
 
 
+def wall_time_text(summary: RunSummary) -> str:
+    """The run's wall time in words: this session's, and how many trials it ran where an
+    earlier session (whose time is not recorded) finished the others."""
+    resumed, seconds = summary.resumed_trials, summary.wall_time_s
+    if not resumed:
+        return f"wall time {seconds:.1f} s"
+    earlier = f"{plural(resumed, 'trial')} finished by an earlier session, not timed here"
+    if resumed >= summary.trials:
+        return f"no trial run in this session ({earlier})"
+    ran = plural(summary.trials - resumed, "trial")
+    return f"wall time {seconds:.1f} s for the {ran} run in this session ({earlier})"
+
+
+def _bricks_line(summary: RunSummary) -> str:
+    """The bricks set down per trial, whatever their errors, and those within the rule."""
+    of = f" of {summary.bricks_per_trial}" if summary.bricks_per_trial else ""
+    set_down = summary.bricks_set_down_mean
+    return (
+        "Bricks per trial: "
+        + ("" if set_down is None else f"set down {set_down:.2f}{of} (whatever their errors), ")
+        + f"within the success rule {summary.bricks_placed_mean:.2f}{of}."
+    )
+
+
 def _table_row(label: str, stats: Mapping[str, MetricStats], summary: RunSummary) -> str:
     """A row of summary.md's Table I: the means of ``stats``, the run's success."""
     cells = [
@@ -362,7 +396,7 @@ def _leaderboard_lines(summary: RunSummary) -> list[str]:
         "First answers accepted: of the answers at attempt 1 of each request to an agent (once "
         "a brick; the placement agent twice, and again after a raise), those accepted as they "
         "came; refused and failed answers (repairs included) and prompt tokens per brick of "
-        "the pattern, and tokens per brick placed:",
+        "the pattern, and tokens per brick placed within the success rule:",
         "",
         *table_lines(LEADERBOARD_COLUMNS, [leaderboard_cells(board)]),
         "",
@@ -394,16 +428,29 @@ def _course_lines(summary: RunSummary) -> list[str]:
         ]
     if summary.placed_before_first_failure_mean is not None:
         lines.append(
-            "Bricks placed before the first brick out of the rule, per trial: "
+            "Bricks within the success rule before the first brick out of it, per trial: "
             f"{summary.placed_before_first_failure_mean:.2f}."
         )
-    time = summary.cycle_time
-    if time is not None and time.seconds_per_brick is not None and time.bricks_per_hour:
-        lines.append(
-            f"Cycle time: {time.seconds_per_brick:.1f} simulated s per placed brick "
-            f"({time.bricks_per_hour:.0f} bricks an hour)."
-        )
+    if summary.cycle_time is not None and (pace := cycle_text(summary.cycle_time)):
+        lines.append(f"Cycle time: {pace}.")
     return [*lines, ""] if lines else []
+
+
+def cycle_text(time: CycleTime) -> str:
+    """``11.0 simulated s per brick set down (327 an hour); 33.0 s per brick within the
+    success rule (109 an hour)``: the figures known; empty without any."""
+    parts = []
+    if time.seconds_per_brick_set_down is not None and time.bricks_set_down_per_hour:
+        parts.append(
+            f"{time.seconds_per_brick_set_down:.1f} simulated s per brick set down "
+            f"({time.bricks_set_down_per_hour:.0f} an hour)"
+        )
+    if time.seconds_per_brick is not None and time.bricks_per_hour:
+        parts.append(
+            f"{time.seconds_per_brick:.1f} simulated s per brick within the success rule "
+            f"({time.bricks_per_hour:.0f} an hour)"
+        )
+    return "; ".join(parts)
 
 
 COURSE_COLUMNS = ("Course", "Bricks", "Ctr. Off. (cm)", "Rot. Err (°)", "IoU (%)")
@@ -458,7 +505,7 @@ def _answer_error_lines(totals: AnswerErrorTotals) -> list[str]:
     repeats = sum(totals.repeated.values())
     lines = [
         f"Answer errors: each answer corrupted with probability {totals.rate:g} "
-        f"({kinds}{persistence}); {totals.corrupted} answers corrupted"
+        f"({kinds}{persistence}); {plural(totals.corrupted, 'answer')} corrupted"
         + (f", {repeats} of them repeating a refused mistake." if repeats else "."),
     ]
     if not totals.corrupted:
@@ -566,8 +613,9 @@ def _llm_lines(summary: RunSummary) -> list[str]:
     u, bricks = summary.llm_usage, summary.trials * summary.bricks_per_trial
     own = summary.decisions - summary.fallback_decisions
     lines = [
-        f"LLM (`{summary.llm}`, structured output `{summary.llm_mode}`): {u.calls} calls, "
-        f"{u.prompt_tokens} prompt and {u.completion_tokens} completion tokens, "
+        f"LLM (`{summary.llm}`, structured output `{summary.llm_mode}`): "
+        f"{plural(u.calls, 'call')}, {plural(u.prompt_tokens, 'prompt token')} and "
+        f"{plural(u.completion_tokens, 'completion token')}, "
         f"{u.latency_s:.1f} s. Decisions: {summary.decisions}, "
         f"{summary.fallback_decisions} of them by the built-in fallback "
         f"({own / max(summary.decisions, 1):.0%} the model's own).",

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Collection, Iterable, Mapping, Sequence
-from typing import TYPE_CHECKING, TypeVar
+from typing import TYPE_CHECKING, Annotated, Any, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, NonNegativeInt
 
 from actionreasoning.agents.answer_errors import Caught, CorruptionKind
 from actionreasoning.agents.catches import catch_of
@@ -27,6 +27,7 @@ if TYPE_CHECKING:
     from actionreasoning.agents.transcript import AgentCall
 
 __all__ = [
+    "JSON_SCHEMA_DIALECT",
     "AnswerErrorCounts",
     "BrickResult",
     "Failure",
@@ -35,6 +36,7 @@ __all__ = [
     "PlacementMetrics",
     "Refusals",
     "TrialResult",
+    "json_schema",
     "refusals_of",
     "sum_refusals",
 ]
@@ -45,7 +47,20 @@ N = TypeVar("N", bound=str)
 M = TypeVar("M", bound=str)
 
 #: Refused and failed answers by agent and error category: agent -> category -> count.
-Refusals = dict[str, dict[ErrorCategory, int]]
+Refusals = dict[str, dict[ErrorCategory, NonNegativeInt]]
+#: The JSON Schema dialect pydantic's schemas follow, declared by :func:`json_schema`.
+JSON_SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"
+
+#: The bounds of the placement metrics (the paper's Table I), checked on every record.
+OffsetCm = Annotated[float, Field(ge=0.0)]
+RotationDeg = Annotated[float, Field(ge=0.0, le=180.0)]
+IoU = Annotated[float, Field(ge=0.0, le=1.0)]
+
+
+def json_schema(model: type[BaseModel]) -> dict[str, Any]:
+    """The JSON Schema of ``model`` as written to a file (serialization mode), declaring its
+    dialect (``$schema``: draft 2020-12) so that validators check it as such."""
+    return {"$schema": JSON_SCHEMA_DIALECT, **model.model_json_schema(mode="serialization")}
 
 
 class _Record(BaseModel):
@@ -55,16 +70,16 @@ class _Record(BaseModel):
 class BrickResult(_Record):
     """How one target of the pattern was filled. ``id`` is the brick placed there."""
 
-    id: int
+    id: NonNegativeInt
     size: Vec3
     target_position: Vec3
     target_orientation: QuatXYZW
     final_position: Vec3
     final_orientation: QuatXYZW
-    center_offset_cm: float
-    rotation_error_deg: float
-    symmetric_rotation_error_deg: float
-    iou: float
+    center_offset_cm: OffsetCm
+    rotation_error_deg: RotationDeg
+    symmetric_rotation_error_deg: RotationDeg
+    iou: IoU
     llm_usage: LLMUsage = LLMUsage()
 
 
@@ -72,10 +87,10 @@ class PlacementMetrics(_Record):
     """The paper's placement metrics of a brick against its target, or their means over a
     trial's bricks."""
 
-    center_offset_cm: float
-    rotation_error_deg: float
-    symmetric_rotation_error_deg: float
-    iou: float
+    center_offset_cm: OffsetCm
+    rotation_error_deg: RotationDeg
+    symmetric_rotation_error_deg: RotationDeg
+    iou: IoU
 
 
 class AnswerErrorCounts(_Record):
@@ -95,25 +110,25 @@ class AnswerErrorCounts(_Record):
     ``corrupted``, ``by_kind`` and ``caught_by`` is absent when empty (and in lines written
     before it existed)."""
 
-    corrupted: int = 0
-    by_kind: dict[CorruptionKind, int] = Field(default_factory=dict)
-    caught_by: dict[str, int] = Field(default_factory=dict)
-    repeated: dict[CorruptionKind, int] = Field(
+    corrupted: NonNegativeInt = 0
+    by_kind: dict[CorruptionKind, NonNegativeInt] = Field(default_factory=dict)
+    caught_by: dict[str, NonNegativeInt] = Field(default_factory=dict)
+    repeated: dict[CorruptionKind, NonNegativeInt] = Field(
         default_factory=dict, exclude_if=lambda counts: not counts
     )
-    caught: dict[CorruptionKind, dict[Caught, int]] = Field(
+    caught: dict[CorruptionKind, dict[Caught, NonNegativeInt]] = Field(
         default_factory=dict, exclude_if=lambda counts: not counts
     )
-    checks: dict[str, dict[CorruptionKind, int]] = Field(
+    checks: dict[str, dict[CorruptionKind, NonNegativeInt]] = Field(
         default_factory=dict, exclude_if=lambda counts: not counts
     )
-    led_to: dict[CorruptionKind, dict[str, int]] = Field(
+    led_to: dict[CorruptionKind, dict[str, NonNegativeInt]] = Field(
         default_factory=dict, exclude_if=lambda counts: not counts
     )
-    would_catch: dict[CorruptionKind, dict[str, int]] = Field(
+    would_catch: dict[CorruptionKind, dict[str, NonNegativeInt]] = Field(
         default_factory=dict, exclude_if=lambda counts: not counts
     )
-    refused_as: dict[CorruptionKind, dict[ErrorCategory, int]] = Field(
+    refused_as: dict[CorruptionKind, dict[ErrorCategory, NonNegativeInt]] = Field(
         default_factory=dict, exclude_if=lambda counts: not counts
     )
 
@@ -170,8 +185,8 @@ class FirstAttempts(_Record):
     for, and how many of them were accepted (or executed) as they came. Counts add up
     with ``+``."""
 
-    asked: int = 0
-    accepted: int = 0
+    asked: NonNegativeInt = 0
+    accepted: NonNegativeInt = 0
 
     def __add__(self, other: FirstAttempts) -> FirstAttempts:
         return FirstAttempts(
@@ -254,19 +269,22 @@ class TrialResult(Provenance):
     #: The rung of verification (agents/verification.py); None in lines written before
     #: rungs existed (agents: full; single agent: none) and for the classical script.
     verify: str | None = None
-    seed: int
-    trial: int
-    trial_seed: int
+    #: 0 or more: declared in the JSON Schema; a reader refuses others with its own message
+    #: (runs/run_dir.py), naming the line's trial and seed.
+    seed: int = Field(json_schema_extra={"minimum": 0})
+    trial: int = Field(json_schema_extra={"minimum": 0})
+    trial_seed: NonNegativeInt
     success: bool
     llm: str
     bricks: tuple[BrickResult, ...]
-    bricks_placed: int
+    #: The bricks within the success rule's offset and rotation limits of their targets.
+    bricks_placed: NonNegativeInt
     metrics: PlacementMetrics
     failure: Failure | None
     llm_usage: LLMUsage = LLMUsage()
     llm_usage_by_agent: dict[str, LLMUsage] = Field(default_factory=dict)
-    decisions: int = 0
-    fallback_decisions: int = 0
+    decisions: NonNegativeInt = 0
+    fallback_decisions: NonNegativeInt = 0
     #: With eval --answer-errors RATE > 0 only: lines at rate 0 have no such field.
     answer_errors: AnswerErrorCounts | None = Field(None, exclude_if=lambda counts: counts is None)
     #: Refused and failed answers, repairs included, by agent and category; lines of trials
@@ -279,7 +297,7 @@ class TrialResult(Provenance):
     )
     #: Answers nobody corrupted that an enforced pre-move check, sigma_1 or sigma_6 refused,
     #: by ``gate:check`` (agents/catches.py); absent when there were none.
-    premove_refusals: dict[str, int] = Field(
+    premove_refusals: dict[str, NonNegativeInt] = Field(
         default_factory=dict, exclude_if=lambda counts: not counts
     )
-    sim_steps: int
+    sim_steps: NonNegativeInt
