@@ -1,8 +1,10 @@
 """The MCP server `actionreasoning mcp`, driven as a real subprocess by the SDK's own client
-over stdio: its tools, the gates' measurements for the waiting agent, a one-brick build with
-the built-in reasoner's answers that gives eval's line, a gate's refusal that leaves the arm
-where it was, answer errors as eval's, hostile calls refused as typed tool results (a file
-that does not parse told without its text), and nothing but protocol messages on stdout."""
+over stdio: its tools (every one named in docs/mcp.md), the gates' measurements for the
+waiting agent, a one-brick build with the built-in reasoner's answers that gives eval's
+line, read_state's state and memory as the prompt's blocks, every result of every tool
+within its output schema, a gate's refusal that leaves the arm where it was, answer errors
+as eval's, hostile calls refused as typed tool results (a file that does not parse told
+without its text), and nothing but protocol messages on stdout."""
 
 from __future__ import annotations
 
@@ -11,6 +13,7 @@ import functools
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 from collections.abc import Awaitable, Callable, Mapping
@@ -21,15 +24,20 @@ import anyio
 import anyio.from_thread
 import anyio.to_thread
 import pytest
-from conftest import SMALL_PATTERN, assert_clean_error, eval_lines
+from conftest import SMALL_PATTERN, assert_clean_error, doc_table, eval_lines
+from jsonschema.protocols import Validator
+from jsonschema.validators import validator_for
 from mcp import ClientSession
 from mcp.client.stdio import StdioServerParameters, stdio_client
 
 from actionreasoning.agents.answer_errors import CorruptionKind
+from actionreasoning.agents.prompt import MEMORY_HEADING, STATE_HEADING, compact_json
 from actionreasoning.agents.spec import single_agent_spec
 from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.errors import ToolError
+from actionreasoning.reasoners import reference_model
 from actionreasoning.reasoners.builtin import BuiltinReasoner
+from actionreasoning.reasoners.llm import TOOL_RESULTS
 from actionreasoning.tools.base import ToolModel
 from actionreasoning.tools.registry import GATE_MEASUREMENTS, TOOLS, tool_schema
 from actionreasoning.trial.rules import Method
@@ -100,6 +108,18 @@ def test_the_tools_are_listed_with_their_schemas(tmp_path: Path) -> None:
     }  # fmt: skip
 
 
+def test_the_docs_name_every_tool_the_server_lists(tmp_path: Path) -> None:
+    listed: list[str] = []
+
+    async def scenario(client: ClientSession) -> None:
+        listed.extend(tool.name for tool in (await client.list_tools()).tools)
+
+    run(scenario, tmp_path)
+    rows = doc_table("mcp.md", "Tools (every result is JSON", "| tool | does |")
+    named = [name for first, *_ in rows for name in re.findall(r"`(\w+)`", f"`{first}`")]
+    assert sorted(named) == sorted(listed)  # each once
+
+
 @pytest.mark.slow  # two whole trials
 def test_the_builtin_reasoners_answers_build_a_brick_and_give_evals_line(
     tmp_path: Path, one_brick: Path
@@ -165,10 +185,167 @@ def test_the_builtin_reasoners_answers_build_a_brick_and_give_evals_line(
     assert {**result, "llm": "builtin"} == line  # the whole line, but who answered
 
 
+def blocks(prompt: str) -> tuple[Any, Any]:
+    """The state and memory blocks of an agent's prompt, parsed."""
+    parsed = []
+    for heading in (STATE_HEADING, MEMORY_HEADING):
+        block = re.search(re.escape(heading) + r"\n```json\n(.*?)\n```", prompt, flags=re.S)
+        assert block is not None, heading
+        parsed.append(json.loads(block.group(1)))
+    state, memory = parsed
+    return state, memory
+
+
+def test_read_state_shows_the_state_and_memory_blocks_of_its_prompt(tmp_path: Path) -> None:
+    """At the first agent and after each accepted answer (the prompt-only reference
+    model's, in the tier without tools), up to Ag5's second call."""
+    turns: list[dict[str, Any]] = []
+
+    async def scenario(client: ClientSession) -> None:
+        start, _ = await call(client, "start_trial", pattern="pyramid", seed=0, tools="none")
+        read, _ = await call(client, "read_state")
+        assert read["turn"] == start["turn"]
+        turns.append(read["turn"])
+        for _ in range(5):
+            text = reference_model.reply([{"role": "user", "content": turns[-1]["prompt"]}])
+            judged, refused = await call(client, "submit_answer", answer=text)
+            assert not refused and judged["call"]["outcome"] == "accepted", judged
+            read, _ = await call(client, "read_state")
+            turns.append(read["turn"])
+
+    run(scenario, tmp_path)
+    assert [turn["agent"] for turn in turns] == [
+        "pre_grasp", "descent", "grasp", "lift", "placement", "placement",
+    ]  # fmt: skip
+    for turn in turns:
+        assert (turn["state"], turn["memory"]) == blocks(turn["prompt"]), turn["agent"]
+    first, carry = turns[0], turns[4]
+    assert set(first["state"]) == {"robot", "bricks", "targets"} and first["memory"] == {}
+    assert "tool_pose" in first["state"]["robot"]
+    assert (carry["memory"]["current_brick"], carry["memory"]["phase"]) == (0, "carry")
+    decided = [step["agent"] for step in carry["memory"]["this_brick"]]
+    assert decided == ["pre_grasp", "descent", "grasp", "lift"]
+
+
+Checked = Callable[..., Awaitable[tuple[dict[str, Any], bool]]]
+
+
+async def run_every_tool(checked: Checked, turn: dict[str, Any]) -> None:
+    """Run each of the waiting agent's tools and each gate measurement, on its current
+    brick and target (brick 0 and target 0 before one is chosen) and the tool's pose."""
+    memory = turn["memory"]
+    values = {
+        "brick_id": memory.get("current_brick", 0),
+        "target_index": memory.get("current_target", 0),
+        "pose": turn["state"]["robot"]["tool_pose"],
+    }
+    for tool in turn["tools"] + turn["measurements"]:
+        await checked(
+            tool["name"], **{name: values[name] for name in tool["input_schema"]["required"]}
+        )
+
+
+async def answer_by_reference(checked: Checked, prompt: str) -> None:
+    """Answer the waiting agent as the prompt-only reference model does: its tool calls
+    submitted and their results told back, until it decides; the decision accepted."""
+    messages = [{"role": "user", "content": prompt}]
+    while True:
+        text = reference_model.reply(messages)
+        judged, refused = await checked("submit_answer", answer=text)
+        assert not refused, judged
+        if judged["call"] is not None:
+            assert judged["call"]["outcome"] == "accepted", judged
+            return
+        results = [{"tool": tool["tool"], "result": tool["result"]} for tool in judged["tools"]]
+        told = f"{TOOL_RESULTS}{compact_json(results)}\nCall more tools, or answer."
+        messages += [{"role": "assistant", "content": text}, {"role": "user", "content": told}]
+
+
+async def lift_without_duration(checked: Checked, turn: dict[str, Any]) -> None:
+    """Lift with no duration, as fast as the arm goes: the gate refuses the speed, which
+    is not finite and so written as null."""
+    tool = turn["state"]["robot"]["tool_pose"]
+    x, y, z = tool["position_m"]
+    waypoint = {"position_m": [x, y, z + 0.1], "quat_xyzw": tool["quat_xyzw"], "path": "linear"}
+    judged, refused = await checked(
+        "submit_answer", answer={"rationale": "up", "waypoint": waypoint}
+    )
+    assert not refused and judged["call"]["outcome"] == "refused", judged
+    checks = {c["name"]: c["value"] for gate in judged["call"]["gates"] for c in gate["checks"]}
+    assert checks["speed_mps"] is None
+
+
+@pytest.mark.slow  # two whole trials
+def test_every_result_of_every_tool_is_of_its_output_schema(
+    tmp_path: Path, one_brick: Path
+) -> None:
+    """Each tool refused before a trial starts; then, in the two tiers with tools (whose
+    agents hold every tool), a one-brick trial: the first agent's tools and the gates'
+    measurements refused once each, every tool of every waiting agent and every gate
+    measurement run, a lift refused for a speed that is not finite, and the reference
+    model's answers. Each result is checked by jsonschema and by the SDK's client against
+    the tool's output schema."""
+    validators: dict[str, Validator] = {}
+    seen: set[tuple[str, bool]] = set()
+
+    async def scenario(client: ClientSession) -> None:
+        for tool in (await client.list_tools()).tools:
+            schema = tool.output_schema
+            assert schema is not None and schema["type"] == "object", tool.name
+            check = validator_for(schema)
+            check.check_schema(schema)
+            validators[tool.name] = check(schema)
+            assert not validators[tool.name].is_valid({}), tool.name  # neither reply nor refusal
+
+        async def checked(tool: str, **arguments: Any) -> tuple[dict[str, Any], bool]:
+            # The SDK's client checks a result without isError against the tool's schema;
+            # a refused one, only when asked.
+            result = await client.call_tool(tool, arguments)
+            await client.validate_tool_result(tool, result)
+            data = result.structured_content
+            assert data is not None
+            validators[tool].validate(data)
+            seen.add((tool, result.is_error))
+            return data, result.is_error
+
+        for name in validators:
+            arguments = {"seed": -1} if name == "start_trial" else {}
+            data, refused = await checked(name, **arguments)
+            assert refused and "refusal" in data, (name, data)
+        for tier in ("solve", "check"):
+            data, _ = await checked("start_trial", pattern=str(one_brick), seed=0, tools=tier)
+            tools = [tool["name"] for tool in data["turn"]["tools"]]
+            for name in [*tools, *GATE_MEASUREMENTS]:
+                refused_call, refused = await checked(name)  # no arguments
+                assert refused and refused_call["refusal"]["code"] == "tool_error", name
+            _, refused = await checked("submit_answer", answer="{")
+            assert refused
+            fast_lift = True
+            while (turn := data["turn"]) is not None:
+                await run_every_tool(checked, turn)
+                if turn["agent"] == "lift" and fast_lift:
+                    fast_lift = False
+                    await lift_without_duration(checked, turn)
+                else:
+                    await answer_by_reference(checked, turn["prompt"])
+                data, _ = await checked("read_state")
+            assert data["result"]["success"], data["result"]
+            finished, refused = await checked("finish_trial")
+            assert not refused and finished["result"] == data["result"]
+
+    run(scenario, tmp_path)
+    assert seen == {(name, refused) for name in validators for refused in (False, True)}
+
+
+def shown_brick(state: dict[str, Any], brick: int) -> dict[str, Any]:
+    """Brick ``brick`` of a turn's state."""
+    return next(shown for shown in state["bricks"] if shown["id"] == brick)
+
+
 def answer_at(state: dict[str, Any], brick: int, **fields: Any) -> dict[str, Any]:
     """A pre-grasp answer for brick 0 and target 0 with its waypoint at brick ``brick``'s
     centre, and ``fields``."""
-    centre = state["bricks"][brick]["pose"]["position_m"]
+    centre = shown_brick(state, brick)["pose"]["position_m"]
     waypoint = {"position_m": centre, "quat_xyzw": [1, 0, 0, 0]}
     return {"brick_id": 0, "target_index": 0, "waypoint": waypoint} | fields
 
@@ -181,7 +358,7 @@ def test_the_gates_measurements_answer_any_waiting_agent_and_are_logged_with_its
         turn = start["turn"]
         assert [tool["name"] for tool in turn["measurements"]] == list(GATE_MEASUREMENTS)
         state = turn["state"]
-        pose = state["robot"]["ee_pose"]
+        pose = state["robot"]["tool_pose"]
         results = {}
         for name, arguments in (
             ("reachability", {"pose": pose}),
@@ -192,9 +369,10 @@ def test_the_gates_measurements_answer_any_waiting_agent_and_are_logged_with_its
             assert not refused and data["tool"] == name, data
             results[name] = TOOLS[name].output_model.model_validate(data["result"])
         assert results["reachability"].reachable  # where the arm is
-        target = state["goal"]["targets"][0]["pose"]["position_m"]
-        planar = math.dist(state["bricks"][0]["pose"]["position_m"][:2], target[:2])
-        assert results["alignment_errors"].e_xy_norm_m == pytest.approx(planar)
+        target = state["targets"][0]["pose"]["position_m"]
+        planar = math.dist(shown_brick(state, 0)["pose"]["position_m"][:2], target[:2])
+        # The state as the prompt shows it: positions to 0.01 mm.
+        assert results["alignment_errors"].e_xy_norm_m == pytest.approx(planar, abs=2e-5)
         # The answer's record holds every tool the outside agent ran for it.
         judged, _ = await call(client, "submit_answer", answer=answer_at(state, brick=1))
         assert [tool["name"] for tool in judged["call"]["tool_calls"]] == list(results)
@@ -222,10 +400,10 @@ def test_an_answer_a_gate_refuses_comes_back_with_its_feedback_and_the_arm_stays
         assert plan["gate"] == "pre_grasp_plan" and not plan["passed"]
         failed = {c["name"]: c["value"] for c in plan["checks"] if not c["passed"]}
         # The fingertips in the ground beside brick 0, under its top: no hover over it.
-        bricks = state["bricks"]
-        top = bricks[0]["pose"]["position_m"][2] + bricks[0]["size_m"][2] / 2
-        hover = bricks[1]["pose"]["position_m"][2] - FINGERTIPS_BEYOND_TCP_M - top
-        assert failed["hover_clearance_m"] == pytest.approx(hover, abs=1e-6)
+        chosen, through = shown_brick(state, 0), shown_brick(state, 1)
+        top = chosen["pose"]["position_m"][2] + chosen["size_m"][2] / 2
+        hover = through["pose"]["position_m"][2] - FINGERTIPS_BEYOND_TCP_M - top
+        assert failed["hover_clearance_m"] == pytest.approx(hover, abs=2e-5)  # shown to 0.01 mm
         assert call_record["feedback"].startswith("pre_grasp_plan failed: hover_clearance_m = ")
         after, _ = await call(client, "read_state")
         assert after["turn"]["feedback"] == call_record["feedback"]

@@ -39,10 +39,15 @@ MEMORY_HEADING = "## Memory M_t"
 THRESHOLDS_HEADING = "## Thresholds"
 
 
+def shown_json(data: Any) -> Any:
+    """JSON data as prompts show it: floats rounded to ``DIGITS`` decimals, a whole one as an
+    integer (0.0 as 0: the same number, read back)."""
+    return _whole(round_floats(data, DIGITS))
+
+
 def compact_json(data: Any) -> str:
-    """Compact JSON with floats rounded as in prompts, a whole one written as an integer
-    (0.0 as 0: the same number, read back)."""
-    return json.dumps(_whole(round_floats(data, DIGITS)), separators=(",", ":"))
+    """Compact JSON of ``data`` as prompts show it (:func:`shown_json`)."""
+    return json.dumps(shown_json(data), separators=(",", ":"))
 
 
 def _whole(value: Any) -> Any:
@@ -99,11 +104,22 @@ def _unread(spec: AgentSpec) -> set[str]:
     return {"step"} if spec.scope is Scope.PICK else {"step", "placed"}
 
 
+def state_blocks(
+    spec: AgentSpec, view: StateView, memory: TaskMemory
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The state S_t and the memory M_t as agent ``spec``'s prompt shows them, as JSON data
+    (:func:`shown_json`): the prompt writes them, the MCP server's read_state returns them."""
+    state = view.model_dump(mode="json", exclude_none=True)
+    shown = memory.model_dump(mode="json", exclude_defaults=True, exclude=_unread(spec))
+    return shown_json(state), shown_json(shown)
+
+
 def render_prompt(
     spec: AgentSpec, view: StateView, memory: TaskMemory, tolerances: Tolerances
 ) -> str:
     """The full prompt of agent ``spec`` for this view of the state and this memory."""
     template = _ENVIRONMENT.get_template("agent.md.j2")
+    state, shown_memory = state_blocks(spec, view, memory)
     tools = [
         {
             "name": name,
@@ -119,10 +135,8 @@ def render_prompt(
         conventions=conventions(spec.frames, view),
         role=spec.role,
         gate=spec.gate,
-        state_json=compact_json(view.model_dump(mode="json", exclude_none=True)),
-        memory_json=compact_json(
-            memory.model_dump(mode="json", exclude_defaults=True, exclude=_unread(spec))
-        ),
+        state_json=compact_json(state),
+        memory_json=compact_json(shown_memory),
         thresholds=thresholds_text(tolerances, spec.thresholds),
         tier=spec.tier,
         tier_help=TIER_HELP[spec.tier],

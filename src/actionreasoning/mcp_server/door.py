@@ -7,9 +7,10 @@ through the session, within the registry's bounds: a tool of the agents' knowled
 only for the agent whose tool it is, a gate's measurement for whichever agent waits;
 ``submit_answer`` hands the session an answer as text, to be validated, gated and
 executed as a language model's is; ``finish_trial`` ends the trial and gives its results
-line. Whatever a call asks, it comes back as JSON data: a refusal, ``{"refusal": {code,
-detail}}``, is data too, never an exception. An argument holding a lone surrogate (a
-string, at any depth, that JSON can escape but Unicode has no character for) is refused.
+line. Whatever a call asks, it comes back as JSON data of its tool's output schema
+(``replies.py``): a refusal, ``{"refusal": {code, detail}}``, is data too, never an
+exception. An argument holding a lone surrogate (a string, at any depth, that JSON can
+escape but Unicode has no character for) is refused.
 """
 
 from __future__ import annotations
@@ -25,9 +26,21 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from pydantic_core import to_json
 
 from actionreasoning.agents.answer_errors import AnswerErrors
+from actionreasoning.agents.prompt import state_blocks
 from actionreasoning.agents.spec import single_agent_spec
 from actionreasoning.agents.tiers import DEFAULT_TIER, TIER_HELP, ToolTier
 from actionreasoning.errors import ActionReasoningError
+from actionreasoning.mcp_server.replies import (
+    AgentTurn,
+    Finished,
+    Judged,
+    Refused,
+    Started,
+    StateRead,
+    TrialConditions,
+    output_schema,
+    tool_reply,
+)
 from actionreasoning.tools.registry import GATE_MEASUREMENTS, tool_schema
 from actionreasoning.trial.provenance import current_provenance, stamp
 from actionreasoning.trial.results import TrialResult
@@ -92,9 +105,9 @@ class StartTrial(_Arguments):
 
 class ReadState(_Arguments):
     """The waiting agent's turn: its prompt (role, measured state, memory, thresholds,
-    tools, answer format), the measured state as JSON, its tools with their schemas, the
-    schema of its answer and the feedback on its last refused answer; once the trial has
-    ended, its results line."""
+    tools, answer format), the prompt's state and memory blocks as JSON, its tools with
+    their schemas, the schema of its answer and the feedback on its last refused answer;
+    once the trial has ended, its results line."""
 
 
 class SubmitAnswer(_Arguments):
@@ -122,6 +135,7 @@ class ToolEntry:
     name: str
     description: str
     input_schema: dict[str, Any]
+    output_schema: dict[str, Any]
 
 
 @dataclass(frozen=True)
@@ -133,14 +147,14 @@ class Reply:
     refused: bool
 
     @classmethod
-    def of(cls, data: Mapping[str, Any], refused: bool = False) -> Reply:
+    def of(cls, data: BaseModel | Mapping[str, Any], refused: bool = False) -> Reply:
         """``data`` (models in it too) as JSON data."""
         return cls(json.loads(to_json(data)), refused)
 
     @classmethod
     def refusal(cls, code: RefusalCode, detail: str) -> Reply:
         """A typed refusal: nothing was done."""
-        return cls.of({"refusal": Refusal(code=code, detail=detail)}, refused=True)
+        return cls.of(Refused(refusal=Refusal(code=code, detail=detail)), refused=True)
 
 
 class Door:
@@ -149,26 +163,33 @@ class Door:
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self._session: TrialSession | None = None
-        self._trial: dict[str, Any] = {}
+        self._trial: TrialConditions | None = None
         self._provenance = current_provenance()
-        self._calls: dict[str, tuple[type[_Arguments], Callable[[Any], Reply]]] = {
-            "start_trial": (StartTrial, self._start),
-            "read_state": (ReadState, lambda _: self._state()),
-            "submit_answer": (SubmitAnswer, self._answer),
-            "finish_trial": (FinishTrial, lambda _: self._finish()),
+        self._calls: dict[str, tuple[type[_Arguments], type[BaseModel], Callable[[Any], Reply]]] = {
+            "start_trial": (StartTrial, Started, self._start),
+            "read_state": (ReadState, StateRead, lambda _: self._state()),
+            "submit_answer": (SubmitAnswer, Judged, self._answer),
+            "finish_trial": (FinishTrial, Finished, lambda _: self._finish()),
         }
 
     def tools(self) -> list[ToolEntry]:
-        """The door's own tools, then the registry's with their input schemas."""
+        """The door's own tools, then the registry's, with their input and output schemas."""
         own = [
-            ToolEntry(name, _description(model), model.model_json_schema())
-            for name, (model, _) in self._calls.items()
+            ToolEntry(name, _description(model), model.model_json_schema(), output_schema(reply))
+            for name, (model, reply, _) in self._calls.items()
         ]
         registry = []
         for name in REGISTRY_TOOLS:
             schema = tool_schema(name)
             note = _GATE_NOTE if name in GATE_MEASUREMENTS else _KNOWLEDGE_NOTE
-            registry.append(ToolEntry(name, f"{schema.description} {note}", schema.input_schema))
+            registry.append(
+                ToolEntry(
+                    name,
+                    f"{schema.description} {note}",
+                    schema.input_schema,
+                    output_schema(tool_reply(name)),
+                )
+            )
         return own + registry
 
     def call(self, name: str, arguments: Mapping[str, Any] | None) -> Reply:
@@ -183,7 +204,7 @@ class Door:
                 return Reply.refusal(RefusalCode.INVALID_ACTION, detail)
             if name in REGISTRY_TOOLS:
                 return self._tool(name, dict(arguments or {}))
-            model, run = self._calls[name]
+            model, _, run = self._calls[name]
             try:
                 parsed = model.model_validate(dict(arguments or {}))
             except ValidationError as error:
@@ -209,12 +230,16 @@ class Door:
             return Reply.refusal(RefusalCode.INVALID_ACTION, f"start_trial: {error}")
         previous = self._end()
         session = self._session = TrialSession(spec, agent=AgentLabel.MCP)
-        self._trial = start.model_dump(exclude={"max_trial_s"}) | {"pattern": spec.pattern_name}
-        return Reply.of(self._view(session) | {"previous_result": previous})
+        trial = self._trial = TrialConditions.model_validate(
+            start.model_dump(exclude={"max_trial_s"}) | {"pattern": spec.pattern_name}
+        )
+        return Reply.of(Started(**dict(self._view(session, trial)), previous_result=previous))
 
     def _state(self) -> Reply:
-        session = self._session
-        return _no_trial() if session is None else Reply.of(self._view(session))
+        session, trial = self._session, self._trial
+        if session is None or trial is None:
+            return _no_trial()
+        return Reply.of(self._view(session, trial))
 
     def _tool(self, name: str, arguments: dict[str, Any]) -> Reply:
         session = self._session
@@ -230,34 +255,34 @@ class Door:
         answer = submit.answer
         reply = session.answer(answer if isinstance(answer, str) else json.dumps(answer))
         if reply.refusal is not None:
-            return Reply.of({"refusal": reply.refusal}, refused=True)
+            return Reply.of(Refused(refusal=reply.refusal), refused=True)
         turn = session.turn()
         return Reply.of(
-            {
-                "tools": reply.tools,
-                "call": reply.call,
-                "agent": None if turn is None else turn.agent,
-                "result": self._line(session),
-            }
+            Judged(
+                tools=reply.tools,
+                call=reply.call,
+                agent=None if turn is None else turn.agent,
+                result=self._line(session),
+            )
         )
 
     def _finish(self) -> Reply:
         if self._session is None:
             return _no_trial()
-        return Reply.of({"result": self._end()})
+        return Reply.of(Finished(result=self._end()))
 
     # --- helpers ----------------------------------------------------------------------------
     def _end(self) -> TrialResult | None:
         """Close the trial (if any) and forget it; its results line."""
-        session, self._session, self._trial = self._session, None, {}
+        session, self._session, self._trial = self._session, None, None
         if session is None:
             return None
         session.close()
         return self._line(session)
 
-    def _view(self, session: TrialSession) -> dict[str, Any]:
+    def _view(self, session: TrialSession, trial: TrialConditions) -> StateRead:
         """What read_state shows: the trial, the waiting agent's turn, the results line."""
-        return {"trial": self._trial, "turn": session.turn(), "result": self._line(session)}
+        return StateRead(trial=trial, turn=_turn(session), result=self._line(session))
 
     def _line(self, session: TrialSession) -> TrialResult | None:
         """The trial's results line once it has ended, stamped with the code that wrote it
@@ -277,6 +302,16 @@ _GATE_NOTE = (
     "A gate's measurement: runs on the measured world for whichever agent waits, and is "
     "logged with its call (read_state lists the measurements with their result schemas)."
 )
+
+
+def _turn(session: TrialSession) -> AgentTurn | None:
+    """The waiting agent's turn, its state and memory as its prompt shows them (None once
+    the trial has ended)."""
+    turn, request = session.turn(), session.request
+    if turn is None or request is None:
+        return None
+    state, memory = state_blocks(request.spec, request.view, request.memory)
+    return AgentTurn(**{**dict(turn), "state": state, "memory": memory})
 
 
 def _description(model: type[BaseModel]) -> str:

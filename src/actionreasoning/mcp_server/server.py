@@ -5,8 +5,8 @@ The SDK serves the protocol on the process's stdout and, while it serves, points
 descriptor 1 at stderr, so nothing the simulator or a library prints can reach the wire.
 Every call runs in a worker thread (a trial's answer moves the arm for seconds), after
 every call that arrived before it (:mod:`arrivals`), and comes back as a tool result: its
-JSON as text and as structured content, ``isError`` set when it was refused. A refusal is
-never a protocol error.
+JSON as text and as structured content, of the output schema its tool is listed with,
+``isError`` set when it was refused. A refusal is never a protocol error.
 
 The SDK reads stdin through :mod:`wire`, which answers every line the SDK would drop
 (not JSON, not a JSON-RPC message, over ``MAX_MESSAGE_BYTES``) with a JSON-RPC error.
@@ -31,9 +31,10 @@ INSTRUCTIONS = """\
 Build a brick pattern with a robot arm by answering its six gated agents (pre_grasp,
 descent, grasp, lift, placement, release), one request at a time. start_trial starts a trial
 (pattern, physics, noise, seed, trial). read_state shows the waiting agent: its prompt (role,
-measured state, memory, thresholds, tools, answer format), the state as JSON, its tools and
-its answer schema. Call that agent's tools and, for any agent, the gates' measurements
-(slip_estimate, alignment_errors, reachability), then submit_answer with its answer.
+measured state, memory, thresholds, tools, answer format), its state and memory blocks as
+JSON, its tools and its answer schema. Call that agent's tools and, for any agent, the
+gates' measurements (slip_estimate, alignment_errors, reachability), then submit_answer
+with its answer.
 Every answer is validated and checked by the agent's gate before the arm moves; a refused
 one comes back with a typed refusal or the gate's feedback, and the arm stays where it was.
 When a reply's result is set the trial has ended; finish_trial returns its results line and
@@ -43,7 +44,12 @@ closes it. One trial per connection: start_trial again abandons the one running.
 def build(door: Door, arrivals: Arrivals) -> Server[Any]:
     """A server whose tools are ``door``'s, each call run in its turn among ``arrivals``."""
     tools = [
-        types.Tool(name=entry.name, description=entry.description, input_schema=entry.input_schema)
+        types.Tool(
+            name=entry.name,
+            description=entry.description,
+            input_schema=entry.input_schema,
+            output_schema=entry.output_schema,
+        )
         for entry in door.tools()
     ]
 
