@@ -647,9 +647,9 @@ def report_command(
     _report(run_dirs, out_dir, gif)
 
 
-def _report(run_dirs: list[Path], out: Path, gif: bool = False) -> None:
-    """Write the report of ``run_dirs`` into ``out`` and print its tables; errors end the
-    command."""
+def _report(run_dirs: list[Path], out: Path, gif: bool = False, paper: bool = False) -> None:
+    """Write the report of ``run_dirs`` into ``out`` and print its tables (with ``paper``,
+    Table I beside the paper's too); errors end the command."""
     from actionreasoning.report.build import build_report
     from actionreasoning.report.ladder import LADDER_COLUMNS
     from actionreasoning.report.pairs import PAIR_COLUMNS
@@ -657,10 +657,14 @@ def _report(run_dirs: list[Path], out: Path, gif: bool = False) -> None:
 
     try:
         check_output_path(out)  # before reading the runs; created once they are read
-        report = build_report(run_dirs, out, gifs=gif)
+        report = build_report(run_dirs, out, gifs=gif, paper=paper)
     except (ActionReasoningError, OSError) as error:
         _fail(error, out)
     console.print(_comparison(report.table))
+    if paper:
+        from actionreasoning.report.paper_rows import CAPTION, paper_rows
+
+        console.print(_cells_table(CAPTION, *paper_rows(report.table)))
     if report.table.ladder:
         title = "the ablation ladder: rungs of verification under each condition"
         rows = [row.cells for row in report.table.ladder]
@@ -694,7 +698,8 @@ def paper_command(
 
     The six gated agents, the single agent and the classical script, each on pyramid and
     grid, --trials seeded trials under the paper's physics, into DIR/runs/METHOD-PATTERN as
-    eval writes them; then the report into DIR/report. Run it again to resume.
+    eval writes them; then the report into DIR/report, with paper.md: our Table I beside
+    the paper's. Run it again to resume.
     """
     from actionreasoning.reasoners.backend import LLMConfig, ServerOptions
     from actionreasoning.runs.paper import paper_runs
@@ -724,7 +729,7 @@ def paper_command(
             snapshots=snapshots,
             workers=workers,
         )
-    _report([run.out for run in runs], out_dir / "report")
+    _report([run.out for run in runs], out_dir / "report", paper=True)
 
 
 @app.command("prompt")

@@ -23,6 +23,7 @@ from actionreasoning.report.collect import Group, load_groups, patterns
 from actionreasoning.report.ladder import LADDER_CAPTION, LADDER_COLUMNS
 from actionreasoning.report.leaderboard import BOARD_CAPTION, BOARD_COLUMNS
 from actionreasoning.report.pairs import PAIR_COLUMNS, PAIRS_CAPTION
+from actionreasoning.report.paper_rows import beside_the_paper
 from actionreasoning.report.pictures import stage_grid, trial_gif
 from actionreasoning.report.plots import (
     course_errors,
@@ -81,18 +82,23 @@ def _slug(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9]+", "_", text).strip("_").lower()
 
 
-def build_report(directories: Sequence[Path], out: Path, gifs: bool = False) -> Report:
+def build_report(
+    directories: Sequence[Path], out: Path, gifs: bool = False, paper: bool = False
+) -> Report:
     """Read the runs in ``directories`` and write the report into ``out`` (created once
-    they are read)."""
+    they are read); with ``paper``, also Table I beside the paper's (``paper.md``)."""
     groups = load_groups(directories)
     output_directory(out)
     table = comparison_table(groups)
     report = Report(directory=out, groups=groups, table=table)
-    for name, text in (
+    texts = [
         ("table.md", to_markdown(table)),
         ("table.csv", to_csv(table)),
         ("table.tex", to_latex(table)),
-    ):
+    ]
+    if paper:
+        texts.append(("paper.md", beside_the_paper(table)))
+    for name, text in texts:
         (out / name).write_text(text)
         report.tables.append(out / name)
     report.plots.append(
