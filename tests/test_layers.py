@@ -138,7 +138,8 @@ def test_an_ik_solution_is_an_ik_result(arm: KinematicArm) -> None:
 BELOW_TRIAL = {"records", "errors", "world", "sim", "tools", "control", "agents", "reasoners"}
 #: The packages each package may import at run time (``TYPE_CHECKING`` imports aside).
 #: Dependencies point one way: runs -> recording -> trial -> agents/control -> tools ->
-#: sim/world, and the Gym env and the MCP server reach the scene only through the session.
+#: sim/world, and the Gym env, the MCP server and the Inspect task reach the scene only
+#: through the trial layer.
 MAY_IMPORT: dict[str, set[str]] = {
     "records": set(),
     "errors": {"records"},
@@ -154,6 +155,12 @@ MAY_IMPORT: dict[str, set[str]] = {
     "report": {"records", "errors", "world", "agents", "trial", "recording", "runs"},
     "gym_env": {"records", "errors", "world", "tools", "agents", "trial"},
     "mcp_server": {"records", "errors", "world", "tools", "agents", "trial"},
+    # The Inspect task runs eval's trials with an LLMReasoner over Inspect's model
+    # (reasoners), describes the agents' answer models and tools to it (agents, tools) and
+    # gives the success rate the Wilson interval of runs/statistics.py (runs); nothing
+    # imports it but Inspect, through its entry point.
+    "inspect_task": {"records", "errors", "tools", "agents", "trial", "reasoners", "runs"},
+    "export": {"errors", "trial", "recording", "runs", "report"},
     "__main__": {"cli"},
 }
 #: The command line, which wires every layer together, may import them all.
