@@ -988,6 +988,32 @@ def mcp_command() -> None:
         pass
 
 
+export_app = typer.Typer(help="Eval runs in other tools' formats.", no_args_is_help=True)
+app.add_typer(export_app, name="export")
+
+
+@export_app.command("lerobot")
+def export_lerobot_command(
+    run: Annotated[
+        str, typer.Argument(metavar="RUN", help="An eval --out directory, filmed (--video).")
+    ],
+    out: Annotated[str, typer.Option(metavar="DIR", help="The dataset's directory: new or empty.")],
+) -> None:
+    """Write a filmed run's trials as a LeRobot dataset (format v3.0), an episode each.
+
+    A frame holds the overview camera's picture, the arm's joints and gripper as measured
+    (observation.state) and as commanded (action), and the pattern's task; the episodes
+    say which trials succeeded (docs/lerobot.md).
+    """
+    try:
+        from actionreasoning.export.lerobot import export_lerobot  # needs the export extra
+
+        written = export_lerobot(_path(run, "RUN"), _path(out, "--out"), _say)
+    except ActionReasoningError as error:
+        _fail(error)
+    _say(written.describe())
+
+
 llm_app = typer.Typer(help="Language-model backends.", no_args_is_help=True)
 app.add_typer(llm_app, name="llm")
 

@@ -4,7 +4,9 @@ as an MP4.
 Every ``FRAME_S`` (``1 / FPS``) simulated seconds the recorder reads where the arm's joints
 and the bricks are (a :class:`ScenePose`, some 50 microseconds) and hands it, with the
 frame's caption, to the film process (``recording/film.py``), which renders and encodes on
-another core while the trial runs on. The video plays in real time. Its caption: simulated
+another core while the trial runs on. From the same reading it keeps the frame's row of
+the trial's frame record (``recording/frame_record.py``: the joints and gripper measured and
+commanded). The video plays in real time. Its caption: simulated
 time; the agent at work (brick, attempt) or the stage last done; and the last gate verdict,
 which stays until the next (a gate that judges a motion's outcome is decided at no
 simulated time before the next agent answers). Filming only
@@ -30,9 +32,11 @@ import actionreasoning
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.errors import EngineError
 from actionreasoning.recording.film import Frame, Reel
+from actionreasoning.recording.frame_record import FrameRecord, FrameSample
 from actionreasoning.recording.names import VIDEO_FPS
 from actionreasoning.sim.camera import overview
 from actionreasoning.sim.replica import SceneLooks, ScenePose
+from actionreasoning.sim.robot_model import ARM_JOINTS, FINGER_LEFT, FINGER_RIGHT
 from actionreasoning.sim.scene import Scene
 from actionreasoning.trial.runner import TrialObserver
 from actionreasoning.world.stages import StageEvent
@@ -50,7 +54,8 @@ class FilmFailed(EngineError):
 
 
 class VideoRecorder(TrialObserver):
-    """Films a trial through a film process; ``close()`` waits for it and gives the MP4."""
+    """Films a trial through a film process; ``close()`` waits for it and gives the MP4,
+    ``frame_record()`` the frame record of the frames filmed."""
 
     every_s = FRAME_S
 
@@ -63,12 +68,15 @@ class VideoRecorder(TrialObserver):
         self._path: Path | None = None
         self._doing = "settling"
         self._verdict = ""
+        self._samples: list[FrameSample] = []
 
     def tick(self, scene: Scene) -> None:
         if self._film is None:
             self._start(Reel(SceneLooks.of(scene), overview(scene), WIDTH, HEIGHT, FPS))
         caption = (f"{scene.time_s:5.1f} s  {self._doing}", self._verdict)
-        self._queue.put(Frame(ScenePose.of(scene), caption))
+        pose = ScenePose.of(scene)
+        self._samples.append(sample_of(scene, pose))
+        self._queue.put(Frame(pose, caption))
 
     def stage(self, scene: Scene, event: StageEvent) -> None:
         brick = event.brick
@@ -140,6 +148,23 @@ class VideoRecorder(TrialObserver):
                 raise FilmFailed(f"{self._path}: {error.strerror or error}") from error
         finally:
             self._path.unlink(missing_ok=True)
+
+    def frame_record(self) -> bytes:
+        """The frame record (NPZ) of the frames filmed so far; empty if none was."""
+        return FrameRecord.of(self._samples).npz() if self._samples else b""
+
+
+def sample_of(scene: Scene, pose: ScenePose) -> FrameSample:
+    """The frame record's row of ``scene`` posed as ``pose`` (read from it just now): the
+    arm's joints and the opening between its finger pads, and the controller's targets."""
+    joints = pose.joints_rad
+    return FrameSample(
+        time_s=scene.time_s,
+        joints_rad=joints[list(ARM_JOINTS)],
+        gripper_m=float(joints[FINGER_LEFT] + joints[FINGER_RIGHT]),
+        joint_targets_rad=scene.arm_targets.copy(),
+        gripper_target_m=2.0 * scene.finger_target_m,
+    )
 
 
 def doing_text(call: AgentCall) -> str:

@@ -2,9 +2,9 @@
 processes, or tasks on a Ray cluster.
 
 A job carries everything its trial needs and returns everything it produced (result,
-transcript, pictures, video, Rerun recording), so only the process that owns the output
-directory writes files: the same code serves a worker on this machine and a Ray task on
-another.
+transcript, pictures, video and its frame record, Rerun recording), so only the process
+that owns the output directory writes files: the same code serves a worker on this machine
+and a Ray task on another.
 """
 
 from __future__ import annotations
@@ -49,13 +49,14 @@ class TrialJob:
 @dataclass(frozen=True)
 class TrialOutput:
     """What a job produced: the result line, the transcript lines, the pictures, the Rerun
-    recording, the MP4."""
+    recording, the MP4 and its frame record (NPZ)."""
 
     result: TrialResult
     transcript: str = ""
     pictures: dict[str, bytes] = field(default_factory=dict)
     recording: bytes = b""
     video: bytes = b""
+    frames: bytes = b""
     #: Why the video could not be made (a full temporary directory, say); "" if it was.
     video_error: str = ""
 
@@ -85,6 +86,7 @@ def execute(job: TrialJob) -> TrialOutput:
         pictures=snapshots.files if snapshots is not None else {},
         recording=recording,
         video=film,
+        frames=video.frame_record() if video is not None else b"",
         video_error=film_error,
     )
 

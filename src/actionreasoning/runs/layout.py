@@ -10,6 +10,8 @@
                                      frames/ and a close-up per stage
     rerun/trial_NNN.rrd              its Rerun recording (--rerun): open with `rerun FILE`
     videos/trial_NNN_OUTCOME.mp4     its video (--video); OUTCOME is ok or the failure code
+    frames/trial_NNN.npz             the video's frame record (--video): per frame, the joints
+                                     and gripper measured and commanded (frame_record.py)
     report.md, report/               the demo's pages (`demo` only)
     .actionreasoning-demo            marks a directory `demo` may write into again
 """
@@ -36,12 +38,13 @@ class RunDir:
     SNAPSHOTS: ClassVar[str] = "snapshots"
     RERUN: ClassVar[str] = "rerun"
     VIDEOS: ClassVar[str] = "videos"
+    FRAMES: ClassVar[str] = "frames"
     DEMO_PAGE: ClassVar[str] = "report.md"
     DEMO_REPORT: ClassVar[str] = "report"
     DEMO_MARKER: ClassVar[str] = ".actionreasoning-demo"
     #: What a demo writes, all removed before the next demo into the same directory.
     DEMO_FILES: ClassVar[tuple[str, ...]] = (RESULTS, MANIFEST, SUMMARY, SUMMARY_MD, DEMO_PAGE)
-    DEMO_FOLDERS: ClassVar[tuple[str, ...]] = (SNAPSHOTS, VIDEOS, DEMO_REPORT)
+    DEMO_FOLDERS: ClassVar[tuple[str, ...]] = (SNAPSHOTS, VIDEOS, FRAMES, DEMO_REPORT)
 
     @property
     def results(self) -> Path:
@@ -78,6 +81,10 @@ class RunDir:
     def video(self, trial: int, failure: str | None) -> Path:
         """Where trial ``trial``'s video is, named by its failure code (``ok`` if none)."""
         return self.root / self.VIDEOS / f"{trial_name(trial)}_{failure or 'ok'}.mp4"
+
+    def frames(self, trial: int) -> Path:
+        """Where trial ``trial``'s frame record is (its video's joints and commands)."""
+        return self.root / self.FRAMES / f"{trial_name(trial)}.npz"
 
     @property
     def demo_page(self) -> Path:

@@ -184,11 +184,14 @@ def _missing_files(run: RunDir, config: RunConfig, finished: list[TrialResult]) 
     lacking: dict[str, list[int]] = {}
     for result in finished:
         failure = None if result.failure is None else str(result.failure.reason)
+        video = run.video(result.trial, failure)
         for kind, wanted, path in (
             ("transcript", config.transcripts, run.transcript(result.trial)),
             ("snapshots", config.snapshots, run.snapshots(result.trial)),
             ("Rerun recording", config.rerun, run.recording(result.trial)),
-            ("video", config.video, run.video(result.trial, failure)),
+            ("video", config.video, video),
+            # A video's record, where the video is (one written before records were kept).
+            ("frame record", config.video and video.exists(), run.frames(result.trial)),
         ):
             if wanted and not path.exists():
                 lacking.setdefault(kind, []).append(result.trial)
@@ -241,7 +244,8 @@ def _engine(config: RunConfig, jobs: Iterator[TrialJob], count: int) -> Iterator
 
 
 def _write_outputs(run: RunDir, config: RunConfig, output: TrialOutput, kept: str) -> None:
-    """A trial's transcript, pictures, recording and video, written after its result line."""
+    """A trial's transcript, pictures, recording, and video with its frame record, written
+    after its result line."""
     result = output.result
     trial = result.trial
     files: dict[Path, bytes] = {}
@@ -255,7 +259,11 @@ def _write_outputs(run: RunDir, config: RunConfig, output: TrialOutput, kept: st
     if config.video and output.video:
         failure = None if result.failure is None else str(result.failure.reason)
         files[run.video(trial, failure)] = output.video
-    incomplete = f"not all of trial {trial}'s pictures, transcript, recording and video are written"
+        files[run.frames(trial)] = output.frames
+    incomplete = (
+        f"not all of trial {trial}'s pictures, transcript, recording, video and frame record "
+        "are written"
+    )
     for path, data in files.items():
         write_file(path, data, f"{incomplete}; {kept}")
     if config.video and output.video_error:

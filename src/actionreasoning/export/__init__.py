@@ -1,0 +1,1 @@
+"""Eval runs in other tools' formats: LeRobot datasets of filmed runs (``lerobot.py``)."""
