@@ -4,17 +4,19 @@ wall time of a resumed run says whose it is."""
 
 from __future__ import annotations
 
+import io
 import json
 from pathlib import Path
 
 import pytest
 from conftest import SMALL_PATTERN, cli
+from rich.console import Console
 from test_courses import brick
 from test_run_dir import result
 
 from actionreasoning.records import LLMUsage
 from actionreasoning.runs.markdown import plural
-from actionreasoning.runs.progress import trial_line
+from actionreasoning.runs.progress import ConsoleProgress, trial_line
 from actionreasoning.runs.summary import summarize, summary_markdown, wall_time_text
 from actionreasoning.trial.results import BrickResult
 from actionreasoning.trial.runner import misplaced
@@ -86,3 +88,9 @@ def test_a_resume_that_runs_nothing_new_says_so(tmp_path: Path) -> None:
     ) in text
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert (summary["trials"], summary["resumed_trials"]) == (1, 1)
+
+
+def test_a_resume_of_a_one_trial_run_says_trial(capsys: pytest.CaptureFixture[str]) -> None:
+    with ConsoleProgress(Console(file=io.StringIO()), "a run") as progress:
+        progress.started(1, [result(0, success=True)])
+    assert capsys.readouterr().out == "resuming: 1 of 1 trial already in results.jsonl (1 ok)\n"

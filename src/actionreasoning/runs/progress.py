@@ -17,6 +17,7 @@ from rich.progress import (
 )
 
 from actionreasoning.records import FailureCode
+from actionreasoning.runs.markdown import plural
 from actionreasoning.runs.printable import printable
 from actionreasoning.trial.results import TrialResult
 
@@ -83,7 +84,7 @@ class ConsoleProgress:
         self.successes = sum(r.success for r in finished)
         if finished:
             self._say(
-                f"resuming: {len(finished)} of {total} trials already in results.jsonl "
+                f"resuming: {len(finished)} of {plural(total, 'trial')} already in results.jsonl "
                 f"({self.successes} ok)"
             )
         if self._bar is not None:
