@@ -32,6 +32,7 @@ from actionreasoning.recording.frame_record import FrameRecord
 from actionreasoning.recording.names import VIDEO_FPS
 from actionreasoning.report.collect import pattern_title
 from actionreasoning.runs.layout import RunDir
+from actionreasoning.runs.markdown import plural
 from actionreasoning.runs.run_dir import partial_name, read_results, write_error
 from actionreasoning.trial.results import TrialResult
 
@@ -52,12 +53,13 @@ class FilmedTrial:
     def task(self) -> str:
         """What the trial was asked to do, as the dataset's task says it."""
         pattern, bricks = pattern_title(self.result.pattern), len(self.result.bricks)
-        return f"Build the {pattern} pattern: {_counted(bricks, 'brick')}"
+        return f"Build the {pattern} pattern: {plural(bricks, 'brick')}"
 
     @property
     def failure(self) -> str | None:
         """Its failure code; None if it succeeded."""
-        return _failure(self.result)
+        failure = self.result.failure
+        return None if failure is None else str(failure.reason)
 
 
 @dataclass(frozen=True)
@@ -74,8 +76,8 @@ class LeRobotExport:
     def describe(self) -> str:
         """``2 episodes (1 successful), 1902 frames, 1 task: a LeRobot v3.0 dataset in DIR/``."""
         return (
-            f"{_counted(self.episodes, 'episode')} ({self.successes} successful), "
-            f"{_counted(self.frames, 'frame')}, {_counted(len(self.tasks), 'task')}: "
+            f"{plural(self.episodes, 'episode')} ({self.successes} successful), "
+            f"{plural(self.frames, 'frame')}, {plural(len(self.tasks), 'task')}: "
             f"a LeRobot {fmt.CODEBASE_VERSION} dataset in {self.out}/"
         )
 
@@ -111,10 +113,7 @@ def filmed_trials(run: Path) -> list[FilmedTrial]:
     results = sorted(read_results(layout.results), key=lambda result: result.trial)
     if not results:
         raise ConfigError(f"{layout.results} holds no finished trial: nothing to export")
-    found = [
-        (result, layout.video(result.trial, _failure(result)), layout.frames(result.trial))
-        for result in results
-    ]
+    found = [(result, layout.video(result), layout.frames(result.trial)) for result in results]
     lacking = [r.trial for r, video, frames in found if not (video.is_file() and frames.is_file())]
     if len(lacking) == len(results):
         raise ConfigError(
@@ -131,14 +130,6 @@ def filmed_trials(run: Path) -> list[FilmedTrial]:
             "eval with --video into a new --out"
         )
     return [FilmedTrial(result, video, FrameRecord.read(frames)) for result, video, frames in found]
-
-
-def _counted(count: int, noun: str) -> str:
-    return f"{count} {noun}{'' if count == 1 else 's'}"
-
-
-def _failure(result: TrialResult) -> str | None:
-    return None if result.failure is None else str(result.failure.reason)
 
 
 def _write(

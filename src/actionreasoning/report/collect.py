@@ -64,9 +64,8 @@ class Group:
         """The video of ``result``, if its run filmed it (eval --video) and it is whole: only
         the final name is looked for (never a ``.partial`` one), and a file cut short there
         (left by an earlier version on a full disk) is left out."""
-        failure = None if result.failure is None else str(result.failure.reason)
         for directory in self.sources[(result.seed, result.trial)]:
-            path = RunDir(directory).video(result.trial, failure)
+            path = RunDir(directory).video(result)
             if path.is_file() and _whole(path):
                 return path
         return None

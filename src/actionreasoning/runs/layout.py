@@ -20,7 +20,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
+
+if TYPE_CHECKING:
+    from actionreasoning.trial.results import TrialResult
 
 
 @dataclass(frozen=True)
@@ -78,9 +81,11 @@ class RunDir:
         """Where trial ``trial``'s Rerun recording is."""
         return self.root / self.RERUN / f"{trial_name(trial)}.rrd"
 
-    def video(self, trial: int, failure: str | None) -> Path:
-        """Where trial ``trial``'s video is, named by its failure code (``ok`` if none)."""
-        return self.root / self.VIDEOS / f"{trial_name(trial)}_{failure or 'ok'}.mp4"
+    def video(self, result: TrialResult) -> Path:
+        """Where the video of the trial ``result`` is the line of is, named by its failure
+        code (``ok`` if none)."""
+        outcome = "ok" if result.failure is None else str(result.failure.reason)
+        return self.root / self.VIDEOS / f"{trial_name(result.trial)}_{outcome}.mp4"
 
     def frames(self, trial: int) -> Path:
         """Where trial ``trial``'s frame record is (its video's joints and commands)."""

@@ -183,8 +183,7 @@ def _missing_files(run: RunDir, config: RunConfig, finished: list[TrialResult]) 
     None if none lacks any."""
     lacking: dict[str, list[int]] = {}
     for result in finished:
-        failure = None if result.failure is None else str(result.failure.reason)
-        video = run.video(result.trial, failure)
+        video = run.video(result)
         for kind, wanted, path in (
             ("transcript", config.transcripts, run.transcript(result.trial)),
             ("snapshots", config.snapshots, run.snapshots(result.trial)),
@@ -257,8 +256,7 @@ def _write_outputs(run: RunDir, config: RunConfig, output: TrialOutput, kept: st
     if config.rerun:
         files[run.recording(trial)] = output.recording
     if config.video and output.video:
-        failure = None if result.failure is None else str(result.failure.reason)
-        files[run.video(trial, failure)] = output.video
+        files[run.video(result)] = output.video
         files[run.frames(trial)] = output.frames
     incomplete = (
         f"not all of trial {trial}'s pictures, transcript, recording, video and frame record "
@@ -267,9 +265,8 @@ def _write_outputs(run: RunDir, config: RunConfig, output: TrialOutput, kept: st
     for path, data in files.items():
         write_file(path, data, f"{incomplete}; {kept}")
     if config.video and output.video_error:
-        failure = None if result.failure is None else str(result.failure.reason)
         raise StorageError(
-            f"cannot write {run.video(trial, failure)}: the video could not be finished "
+            f"cannot write {run.video(result)}: the video could not be finished "
             f"({output.video_error}; videos are made in {tempfile.gettempdir()}); {kept}, "
             "without this video; make room, then run the same command again"
         )
