@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from functools import partial
 from typing import NoReturn, TypeVar, get_args
 
+from pydantic import NonNegativeInt, PositiveInt
 from scipy.spatial.transform import Rotation
 
 from actionreasoning.agents import gates, plans
@@ -128,13 +129,13 @@ HOVER_STEP_M = 0.01
 class Budgets:
     """Retry budgets of a trial."""
 
-    attempts_per_agent: int = 3
-    regrasps: int = 4
-    placement_attempts: int = 4
+    attempts_per_agent: PositiveInt = 3
+    regrasps: NonNegativeInt = 4
+    placement_attempts: PositiveInt = 4
     #: Bricks found off their targets (sigma_6 at rest, sigma_1 re-measuring the placed ones)
     #: withdrawn and built again, per trial: each costs a brick's cycle (about 31 s of the
     #: trial's simulated time), so two keep a six-brick trial within 1.4 times its length.
-    repairs: int = 2
+    repairs: NonNegativeInt = 2
 
 
 class _Refused(Exception):

@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from pydantic import NonNegativeFloat, PositiveFloat
 
 from actionreasoning.errors import TrialAborted
 from actionreasoning.records import FailureCode
@@ -31,15 +32,15 @@ HAND_RADIUS_M = 0.05
 class SafetyLimits:
     """The envelope every commanded motion must stay in, inside the scene's workspace box."""
 
-    min_height_m: float = 0.02
+    min_height_m: NonNegativeFloat = 0.02  # above the ground (z = 0)
     #: Tool centre point above a crossed brick's top. A held brick hangs 3 cm below it, so its
     #: bottom clears the brick by 1 cm; the built-in policies pass with 4.7 cm or more.
-    transit_clearance_m: float = 0.04
+    transit_clearance_m: NonNegativeFloat = 0.04
     #: Path points this close (horizontally) to the start or the end are not in transit:
     #: there the agents' own checks and gates govern the approach.
-    transit_margin_m: float = 0.10
+    transit_margin_m: NonNegativeFloat = 0.10
     #: The classical script's two-second transfer peaks at about 2.1 m/s.
-    max_tcp_speed_mps: float = 2.5
+    max_tcp_speed_mps: PositiveFloat = 2.5  # a move's least time divides by it
 
 
 def check_motion(

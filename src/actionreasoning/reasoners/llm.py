@@ -13,6 +13,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from pydantic import NonNegativeInt
+
 from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.outputs import AgentAnswer
 from actionreasoning.agents.prompt import compact_json
@@ -31,8 +33,8 @@ NO_MORE_TOOLS = "No more tool calls now"
 class LLMLimits:
     """Turn budgets of one agent request."""
 
-    tool_turns: int = 2
-    repairs: int = 2
+    tool_turns: NonNegativeInt = 2
+    repairs: NonNegativeInt = 2
 
 
 class LLMReasoner:

@@ -14,6 +14,7 @@ from enum import StrEnum
 from typing import Annotated, Any
 
 from pydantic import Field
+from pydantic.json_schema import JsonDict
 
 from actionreasoning.errors import ConfigError
 
@@ -41,6 +42,12 @@ def _unless(default: object) -> Any:
     return Field(exclude_if=lambda value: value == default)
 
 
+def _bounds(**bounds: float) -> Any:
+    """JSON Schema bounds only: ``__post_init__`` checks them, with the options' messages."""
+    extra: JsonDict = {**bounds}
+    return Field(json_schema_extra=extra)
+
+
 #: The command-line option of each setting, for messages.
 OPTIONS = {
     "temperature": "--temperature",
@@ -56,10 +63,14 @@ class Sampling:
     """The sampling settings sent with every request; ``top_p`` and ``reasoning_effort``
     only when set."""
 
-    temperature: Annotated[float, _unless(0.0)] = 0.0
-    top_p: Annotated[float | None, _unless(None)] = None
-    max_tokens: Annotated[int, _unless(MAX_COMPLETION_TOKENS)] = MAX_COMPLETION_TOKENS
-    seed: Annotated[int, _unless(0)] = 0
+    temperature: Annotated[float, _unless(0.0), _bounds(minimum=0, maximum=MAX_TEMPERATURE)] = 0.0
+    top_p: Annotated[
+        Annotated[float, _bounds(exclusiveMinimum=0, maximum=1)] | None, _unless(None)
+    ] = None
+    max_tokens: Annotated[int, _unless(MAX_COMPLETION_TOKENS), _bounds(minimum=1)] = (
+        MAX_COMPLETION_TOKENS
+    )
+    seed: Annotated[int, _unless(0), _bounds(minimum=0, maximum=MAX_SEED)] = 0
     reasoning_effort: Annotated[Effort | None, _unless(None)] = None
 
     def __post_init__(self) -> None:

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from statistics import NormalDist
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, Field
 
 #: The two-sided 95 % quantile of the standard normal, 1.95996...
 Z_95 = NormalDist().inv_cdf(0.975)
@@ -31,6 +31,13 @@ class Interval(BaseModel):
     high: float
 
 
+class RateInterval(Interval):
+    """A 95 % interval of a rate: fractions in [0, 1]."""
+
+    low: float = Field(ge=0.0, le=1.0)
+    high: float = Field(ge=0.0, le=1.0)
+
+
 class McNemar(BaseModel):
     """McNemar's exact test on paired trials: ``b`` trials only the first method succeeded
     in, ``c`` only the second; ``p`` the two-sided exact p-value."""
@@ -42,7 +49,7 @@ class McNemar(BaseModel):
     p: float
 
 
-def wilson(successes: int, trials: int) -> Interval | None:
+def wilson(successes: int, trials: int) -> RateInterval | None:
     """The Wilson score 95 % interval of a success rate (fractions in [0, 1]); None for no
     trials."""
     if not 0 <= successes <= trials:
@@ -54,7 +61,7 @@ def wilson(successes: int, trials: int) -> Interval | None:
     centre = (rate + z2 / (2 * trials)) / scale
     half = Z_95 * math.sqrt(rate * (1 - rate) / trials + z2 / (4 * trials**2)) / scale
     # At 0/n and n/n a bound is 0 or 1 exactly, which rounding would miss by a hair.
-    return Interval(
+    return RateInterval(
         low=0.0 if successes == 0 else centre - half,
         high=1.0 if successes == trials else centre + half,
     )

@@ -31,7 +31,7 @@ from actionreasoning.runs.markdown import plural, table_lines
 from actionreasoning.runs.statistics import (
     BOOTSTRAP_RESAMPLES,
     BOOTSTRAP_SEED,
-    Interval,
+    RateInterval,
     bootstrap_mean,
     wilson,
 )
@@ -59,10 +59,11 @@ class MetricStats(BaseModel):
 
     model_config = ConfigDict(frozen=True)
 
-    mean: float | None
+    #: The metrics (METRICS) are all offsets, angles or overlaps: none is negative.
+    mean: NonNegativeFloat | None
     std: NonNegativeFloat | None
-    ci_low: float | None = Field(None, exclude_if=lambda value: value is None)
-    ci_high: float | None = Field(None, exclude_if=lambda value: value is None)
+    ci_low: NonNegativeFloat | None = Field(None, exclude_if=lambda value: value is None)
+    ci_high: NonNegativeFloat | None = Field(None, exclude_if=lambda value: value is None)
 
 
 class AnswerErrorTotals(AnswerErrorCounts):
@@ -94,7 +95,7 @@ class RunSummary(Provenance):
     successes: NonNegativeInt
     success_rate: float = Field(ge=0.0, le=1.0)
     #: The Wilson 95 % interval of the success rate; None in summaries written before it.
-    success_interval: Interval | None = None
+    success_interval: RateInterval | None = None
     #: Bricks within the success rule's limits of their targets, a mean per trial.
     bricks_placed_mean: NonNegativeFloat
     #: Bricks set down on their targets whatever their errors, a mean per trial; None where

@@ -16,12 +16,8 @@ from actionreasoning.tools.geometry import ALIGNMENT, SUPPORT
 from actionreasoning.tools.grasp_plan import GRASP_OPTIONS
 from actionreasoning.tools.placement import HELD_POSE, PLACEMENT_CHECK, PLACEMENT_POSE
 from actionreasoning.tools.reach import REACHABILITY
-from actionreasoning.world.geometry import QUAT_NORM_TOLERANCE
+from actionreasoning.world.geometry import MAX_COORDINATE_M, QUAT_NORM_TOLERANCE
 from actionreasoning.world.models import Pose
-
-#: The farthest a pose asked of a tool may be from the arm's base along any axis: far
-#: beyond its reach (the tools report that), far below the numbers that hang its IK (1e308).
-MAX_COORDINATE_M = 100.0
 
 TOOLS: Mapping[str, Tool] = {
     tool.name: tool

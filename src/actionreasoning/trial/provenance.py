@@ -12,7 +12,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import TypeVar
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, PositiveInt
 
 #: The version of the results.jsonl and summary.json formats: 2 added these fields (lines
 #: without them are of version 1, and are read as such).
@@ -28,7 +28,7 @@ class Provenance(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    schema_version: int | None = None
+    schema_version: PositiveInt | None = None
     package_version: str | None = None
     git_revision: str | None = None
     pybullet_version: str | None = None

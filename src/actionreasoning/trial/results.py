@@ -12,7 +12,7 @@ from collections import Counter
 from collections.abc import Collection, Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Annotated, Any, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field, NonNegativeInt
+from pydantic import BaseModel, ConfigDict, Field, NonNegativeInt, PositiveFloat
 
 from actionreasoning.agents.answer_errors import Caught, CorruptionKind
 from actionreasoning.agents.catches import catch_of
@@ -20,7 +20,8 @@ from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.tiers import BEFORE_TIERS
 from actionreasoning.records import Failure, LLMUsage
 from actionreasoning.trial.provenance import Provenance
-from actionreasoning.world.geometry import QuatXYZW, Vec3
+from actionreasoning.world.geometry import QUAT_NORM_TOLERANCE, Vec3
+from actionreasoning.world.scene_spec import Coordinate
 from actionreasoning.world.stages import Stage
 
 if TYPE_CHECKING:
@@ -55,6 +56,9 @@ JSON_SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"
 OffsetCm = Annotated[float, Field(ge=0.0)]
 RotationDeg = Annotated[float, Field(ge=0.0, le=180.0)]
 IoU = Annotated[float, Field(ge=0.0, le=1.0)]
+#: A component of a unit quaternion, normalised within the tolerance the poses are read with.
+QuatComponent = Annotated[float, Field(ge=-1.0 - QUAT_NORM_TOLERANCE, le=1.0 + QUAT_NORM_TOLERANCE)]
+UnitQuat = tuple[QuatComponent, QuatComponent, QuatComponent, QuatComponent]
 
 
 def json_schema(model: type[BaseModel]) -> dict[str, Any]:
@@ -71,11 +75,14 @@ class BrickResult(_Record):
     """How one target of the pattern was filled. ``id`` is the brick placed there."""
 
     id: NonNegativeInt
-    size: Vec3
-    target_position: Vec3
-    target_orientation: QuatXYZW
+    size: tuple[PositiveFloat, PositiveFloat, PositiveFloat]
+    #: Inside the reach band, whose radii and height are bounded like the workspace's corners.
+    target_position: tuple[Coordinate, Coordinate, Coordinate]
+    target_orientation: UnitQuat
+    #: Where the physics left the brick: the one unbounded number of a line, since no code
+    #: keeps a brick a simulation throws within a bound a writer could promise.
     final_position: Vec3
-    final_orientation: QuatXYZW
+    final_orientation: UnitQuat
     center_offset_cm: OffsetCm
     rotation_error_deg: RotationDeg
     symmetric_rotation_error_deg: RotationDeg

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Annotated
+
+from pydantic import Field
 
 from actionreasoning.errors import ConfigError
 
@@ -13,8 +16,9 @@ class TrialBudget:
     """What a trial may spend: simulation steps and wall-clock seconds (positive; a NaN or
     infinite wall time would switch the budget off)."""
 
-    max_steps: int = 400_000
-    max_wall_s: float = 3600.0
+    # Bounds for the JSON Schema only: __post_init__ checks them, with its own messages.
+    max_steps: Annotated[int, Field(json_schema_extra={"minimum": 1})] = 400_000
+    max_wall_s: Annotated[float, Field(json_schema_extra={"exclusiveMinimum": 0})] = 3600.0
 
     def __post_init__(self) -> None:
         if not (isinstance(self.max_steps, int) and self.max_steps > 0):

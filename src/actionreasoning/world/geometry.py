@@ -16,6 +16,10 @@ Joints = Sequence[float] | np.ndarray
 
 #: How far from 1 a quaternion's norm may be and still be normalised rather than refused.
 QUAT_NORM_TOLERANCE = 1e-3
+#: The farthest a pose asked of a tool, or a corner of the workspace box, may be from the
+#: arm's base along any axis: far beyond its reach (the tools report that), far below the
+#: numbers that hang its IK (1e308).
+MAX_COORDINATE_M = 100.0
 
 #: A gripper pointing straight down: its z axis along world -z (a half turn about x).
 TOP_DOWN = Rotation.from_euler("x", math.pi)

@@ -7,10 +7,11 @@ over radius and height and prints the band in which the arm's IK converges with 
 from __future__ import annotations
 
 import math
+from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, PositiveFloat
 
-from actionreasoning.world.geometry import Vec3
+from actionreasoning.world.geometry import MAX_COORDINATE_M, Vec3
 
 #: The gripper (sim/assets/gripper.urdf.xml; sim/robot_model.py takes these from here): the
 #: gap between its pads closed and fully open (the finger joints' limits, doubled), and how
@@ -23,18 +24,26 @@ PAD_LENGTH_M = 0.04
 #: How far the tool rises straight up after letting go of a brick, before it moves on.
 RETREAT_M = 0.08
 
+#: An azimuth about the base (deg), as atan2 gives it.
+Azimuth = Annotated[float, Field(ge=-180.0, le=180.0)]
+#: A coordinate of the workspace box (m): no farther from the base than a tool is asked about.
+Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE_M, le=MAX_COORDINATE_M)]
+#: A distance from the base (m) within the same bound, so that a target the reach band
+#: admits has coordinates within it.
+Reach = Annotated[float, Field(ge=0.0, le=MAX_COORDINATE_M)]
+
 
 class ReachBand(BaseModel):
     """Where a top-down tool centre point can go: an annulus around the base, up to a height."""
 
     model_config = ConfigDict(frozen=True)
 
-    min_radius_m: float = 0.42
-    max_radius_m: float = 0.76
-    max_height_m: float = 0.45
+    min_radius_m: Reach = 0.42
+    max_radius_m: Reach = 0.76
+    max_height_m: Reach = 0.45
     #: The base joint's limit (the iiwa's A1, +-170 deg): a top-down tool farther round is
     #: reached, if at all, only with the arm folded back over its base.
-    max_azimuth_deg: float = 170.0
+    max_azimuth_deg: Annotated[float, Field(ge=0.0, le=180.0)] = 170.0
 
     def contains(self, x: float, y: float, z: float) -> bool:
         """Whether a top-down grasp centre at (x, y, z) lies inside the band."""
@@ -47,8 +56,8 @@ class WorkspaceBox(BaseModel):
 
     model_config = ConfigDict(frozen=True)
 
-    low_m: Vec3 = (-0.9, -0.9, 0.0)
-    high_m: Vec3 = (0.9, 0.9, 0.8)
+    low_m: tuple[Coordinate, Coordinate, Coordinate] = (-0.9, -0.9, 0.0)
+    high_m: tuple[Coordinate, Coordinate, Coordinate] = (0.9, 0.9, 0.8)
 
     def contains(self, position: Vec3) -> bool:
         """Whether ``position`` lies inside the box."""
@@ -82,16 +91,16 @@ class SceneSpec(BaseModel):
 
     model_config = ConfigDict(frozen=True)
 
-    brick_size_m: Vec3 = Field(
+    brick_size_m: tuple[PositiveFloat, PositiveFloat, PositiveFloat] = Field(
         BRICK_CATALOGUE["full"],
         description="The catalogue's full brick; a pattern may use another size.",
     )
-    brick_mass_kg: float = Field(1.5, description="The catalogue brick's mass.")
-    build_radius_m: float = 0.58
-    build_azimuth_deg: float = 40.0
-    pick_radius_m: tuple[float, float] = (0.44, 0.72)
-    pick_azimuth_deg: tuple[float, float] = (-150.0, -15.0)
-    pick_min_spacing_m: float = Field(
+    brick_mass_kg: PositiveFloat = Field(1.5, description="The catalogue brick's mass.")
+    build_radius_m: Reach = 0.58
+    build_azimuth_deg: Azimuth = 40.0
+    pick_radius_m: tuple[Reach, Reach] = (0.44, 0.72)
+    pick_azimuth_deg: tuple[Azimuth, Azimuth] = (-150.0, -15.0)
+    pick_min_spacing_m: PositiveFloat = Field(
         0.24, description="Minimum centre distance of spawned catalogue bricks."
     )
     reach: ReachBand = ReachBand()

@@ -7,9 +7,10 @@ It lives with the world model because the gates derive their tolerances from it
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Annotated, Protocol
 
 import numpy as np
+from pydantic import Field, NonNegativeFloat, PositiveFloat
 
 from actionreasoning.world.geometry import Vec3
 
@@ -28,10 +29,11 @@ class Placement(Protocol):
 class SuccessRule:
     """A trial succeeds when every brick is within these limits of its target and at rest."""
 
-    max_center_offset_cm: float = 2.0
-    max_rotation_error_deg: float = 5.0
-    max_speed_mps: float = 0.01
-    max_angular_speed_radps: float = 0.05
+    # excess() divides by the two placement limits; a rotation error is at most 180 deg.
+    max_center_offset_cm: PositiveFloat = 2.0
+    max_rotation_error_deg: Annotated[float, Field(gt=0.0, le=180.0)] = 5.0
+    max_speed_mps: NonNegativeFloat = 0.01
+    max_angular_speed_radps: NonNegativeFloat = 0.05
 
     def is_placed(self, brick: Placement) -> bool:
         """Whether a brick (its result or its metrics) is within the offset and rotation
