@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from actionreasoning.reasoners.brick_finder import SeenBrick, find_bricks
+from actionreasoning.reasoners.brick_finder import SeenBrick, find_bricks, merged
 from actionreasoning.sim.eyes import capture
 from actionreasoning.sim.scene import Scene
 from actionreasoning.world.cameras import PICK_SIDE, TOP_DOWN
@@ -28,17 +28,13 @@ def test_the_ground_deprojects_to_z_zero_and_rendering_changes_nothing(scene: Sc
 
 
 def seen_by_both(scene: Scene) -> list[SeenBrick]:
-    """The bricks the two depth cameras find, one per brick (the one of more pixels)."""
-    seen: list[SeenBrick] = []
-    for camera in (TOP_DOWN, PICK_SIDE):
-        shot = capture(scene.client, camera)
-        for found in find_bricks(shot.rgb, shot.depth_m, camera, [FOOTPRINT]):
-            same = [s for s in seen if math.dist(s.top_centre_m[:2], found.top_centre_m[:2]) < 0.05]
-            if not same:
-                seen.append(found)
-            elif found.pixels > same[0].pixels:
-                seen[seen.index(same[0])] = found
-    return seen
+    """The bricks the two depth cameras find, one find per brick."""
+    shots = [capture(scene.client, camera) for camera in (TOP_DOWN, PICK_SIDE)]
+    return merged(
+        find
+        for shot in shots
+        for find in find_bricks(shot.rgb, shot.depth_m, shot.camera, [FOOTPRINT])
+    )
 
 
 def test_every_brick_of_a_layout_is_found_where_it_lies(scene: Scene) -> None:

@@ -1,17 +1,19 @@
-"""Bricks found in a top-down colour and depth image: where each lies and how it is turned.
+"""Bricks found in colour and depth images: where each lies and how it is turned.
 
-This is how the pixel-reading reference sees (issue 40): nothing but the images and the
-camera they came from. A pixel is a brick's when its colour is brick red (red well above
-green, and blue a fair part of red, unlike the arm's orange) and it stands above the ground.
-The brick pixels split into connected regions; each region's top face (its pixels within
-``TOP_FACE_M`` of its highest) is a rectangle seen square on, whose centroid and principal
-axis give the brick's centre and yaw in the plane, and whose extents its footprint.
+This is how the pixel-reading reference is to see (issue 40): nothing but the images and
+the cameras they came from. A pixel is a brick's when its colour is brick red (red well
+above green, and blue a fair part of red, unlike the arm's orange) and it stands above the
+ground. The brick pixels split into connected regions, and a region's top (its pixels
+within ``TOP_FACE_M`` of its highest) into faces where neighbours lie apart in the world.
+A rectangle of the brick's footprint is laid on each face's edges by least squares, leaving
+out edges at an occluder, and gives the brick's centre and yaw. :func:`merged` keeps one
+find per brick of several cameras' finds.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,6 +36,12 @@ ABOVE_GROUND_M = 0.01
 TOP_FACE_M = 0.003
 #: A region smaller than this many pixels is a corner showing past an occluder, not a brick.
 MIN_PIXELS = 200
+#: Neighbouring pixels this far apart in the world (m) are of different faces: a pixel
+#: spans at most 4 mm of a face here, two bricks side by side lie farther apart.
+GAP_M = 0.01
+#: Finds of two cameras this close (m, in the plane) are of one brick; bricks in a pick area
+#: lie 0.24 m apart or more.
+SAME_BRICK_M = 0.05
 
 
 @dataclass(frozen=True)
@@ -69,27 +77,53 @@ def find_bricks(
     seen = []
     for index, box in enumerate(ndimage.find_objects(regions), start=1):
         grown = tuple(slice(max(0, b.start - 2), b.stop + 2) for b in box)
-        found = _fit(points[grown], regions[grown] == index, footprints, pixel_m)
-        if found is not None:
-            seen.append(found)
+        window, region = points[grown], regions[grown] == index
+        for face in _faces(window, region):
+            found = _fit(window, face, footprints, pixel_m)
+            if found is not None:
+                seen.append(found)
     return sorted(seen, key=lambda s: -s.pixels)
+
+
+def merged(finds: Iterable[SeenBrick]) -> list[SeenBrick]:
+    """One find per brick of several cameras' finds: of those within ``SAME_BRICK_M`` of
+    each other, the one that showed the most pixels."""
+    kept: list[SeenBrick] = []
+    for find in sorted(finds, key=lambda f: -f.pixels):
+        if all(math.dist(k.top_centre_m[:2], find.top_centre_m[:2]) >= SAME_BRICK_M for k in kept):
+            kept.append(find)
+    return kept
+
+
+def _faces(points: np.ndarray, region: np.ndarray) -> list[np.ndarray]:
+    """The top faces of a region: its pixels within ``TOP_FACE_M`` of its highest, split
+    where neighbouring pixels lie ``GAP_M`` apart in the world (two bricks that touch in a
+    slanting picture, one behind the other)."""
+    heights = points[:, :, 2]
+    top = region & (heights >= heights[region].max() - TOP_FACE_M)
+    gap = np.zeros_like(top)
+    right = np.linalg.norm(points[:, 1:] - points[:, :-1], axis=2) > GAP_M
+    down = np.linalg.norm(points[1:] - points[:-1], axis=2) > GAP_M
+    gap[:, :-1] |= right
+    gap[:-1] |= down
+    faces, count = ndimage.label(top & ~gap)
+    return [faces == label for label in range(1, count + 1)]
 
 
 def _fit(
     points: np.ndarray,
-    region: np.ndarray,
+    top: np.ndarray,
     footprints: Sequence[tuple[float, float]],
     pixel_m: float,
 ) -> SeenBrick | None:
-    """The brick of one region (a mask over ``points``, an image window of world points),
-    or None if too little of its top face shows. The top face's edges that border something
+    """The brick of one top face (a mask over ``points``, an image window of world points),
+    or None if too little of it shows. The top face's edges that border something
     lower (not an occluder above it) lie on the brick's sides: a rectangle of the footprint
     the visible face fits is laid on them by least squares, the face's pixels kept inside."""
     heights = points[:, :, 2]
-    top_z = float(heights[region].max())
-    top = region & (heights >= top_z - TOP_FACE_M)
     if top.sum() < MIN_PIXELS:
         return None
+    top_z = float(heights[top].max())
     above = ndimage.binary_dilation(heights > top_z + TOP_FACE_M, np.ones((3, 3), dtype=bool))
     edge = top & ~ndimage.binary_erosion(top, np.ones((3, 3), dtype=bool)) & ~above
     edge[[0, -1], :] = edge[:, [0, -1]] = False  # the window's border is the image's, maybe
