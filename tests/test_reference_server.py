@@ -16,6 +16,7 @@ import time
 from collections.abc import Iterator
 from typing import Any
 
+import numpy as np
 import openai
 import pytest
 from conftest import assert_clean_error, cli
@@ -23,7 +24,7 @@ from conftest import assert_clean_error, cli
 from actionreasoning.errors import ConfigError, LLMError
 from actionreasoning.reasoners import guarded_http
 from actionreasoning.reasoners.backend import ServerOptions
-from actionreasoning.reasoners.chat import ChatRequest, StructuredMode
+from actionreasoning.reasoners.chat import ChatRequest, StructuredMode, user_message
 from actionreasoning.reasoners.llm import TOOL_RESULTS
 from actionreasoning.reasoners.openai_chat import OpenAIChat
 from actionreasoning.reasoners.reference_model import UnreadableConversation, reply
@@ -32,6 +33,7 @@ from actionreasoning.reasoners.reference_server import (
     ReferenceServer,
     estimate_tokens,
 )
+from actionreasoning.world.pictures import Picture, PictureKind, depth_png
 
 PROBE = [{"role": "user", "content": 'Answer with the JSON object {"ok": true}.'}]
 PROBE_SCHEMA = {"type": "object", "properties": {"ok": {"type": "boolean"}}, "required": ["ok"]}
@@ -107,6 +109,18 @@ def test_the_probe_comes_back_as_its_json_object_with_estimated_usage(
     assert (usage.prompt_tokens, usage.completion_tokens, usage.total_tokens) == (14, 5, 19)
 
 
+def test_a_message_with_pictures_is_read_by_its_text_and_its_images_counted(
+    server: ReferenceServer,
+) -> None:
+    """The official client sends a probe with two pictures as content parts: the answer is
+    the text's, and each picture adds its estimated tokens (a 640 x 480 PNG: 85 + 2 x 170)."""
+    picture = Picture("pick_side", PictureKind.DEPTH, depth_png(np.ones((480, 640))))
+    message = user_message(PROBE[0]["content"], [picture, picture])
+    completion = client(server).chat.completions.create(model="m", messages=[message])
+    assert json.loads(completion.choices[0].message.content) == {"ok": True}
+    assert completion.usage.prompt_tokens == 14 + 2 * (85 + 2 * 170)
+
+
 def test_our_client_settles_on_json_schema(server: ReferenceServer) -> None:
     chat = OpenAIChat("anything", ServerOptions(base_url=server.url))
     assert chat.negotiate() is StructuredMode.JSON_SCHEMA
@@ -123,6 +137,12 @@ def test_our_client_settles_on_json_schema(server: ReferenceServer) -> None:
         (b'{"messages": [{"content": "hi"}]}', "messages[0] must be an object"),
         (b'{"messages": [{"role": "user", "content": 7}]}', "messages[0].content"),
         (b'{"messages": [], "stream": true}', "'stream' is not supported"),
+        (b'{"messages": [{"role": "user", "content": [7]}]}', "messages[0].content[0] must be"),
+        (
+            b'{"messages": [{"role": "user", "content": [{"type": "image_url", "image_url": '
+            b'"data:"}]}]}',
+            "messages[0].content[0] must be a text part",
+        ),
     ],
 )
 def test_a_malformed_body_gets_400_naming_the_problem(

@@ -322,6 +322,7 @@ def test_a_line_longer_than_any_result_is_refused_with_its_number(
         ("tools", "none"),
         ("llm", "builtin"),
         ("verify", "full"),
+        ("observe", "both"),
     ],
 )
 def test_a_line_of_another_condition_is_refused_by_a_resume_and_by_report(

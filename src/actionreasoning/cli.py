@@ -21,6 +21,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from actionreasoning import __version__
+from actionreasoning.agents.observation import DEFAULT_OBSERVATION, Observation
 from actionreasoning.agents.tiers import DEFAULT_TIER, TIER_HELP, ToolTier
 from actionreasoning.agents.verification import Verification
 from actionreasoning.errors import ActionReasoningError, ConfigError
@@ -291,6 +292,15 @@ VerifyOption = Annotated[
         "single agent (the ablation ladder: docs/agents-and-gates.md).",
     ),
 ]
+ObserveOption = Annotated[
+    Observation,
+    typer.Option(
+        help="What the agents observe of the scene: state (the bricks' measured poses) or "
+        "both (the poses, and with each call the cameras' pictures: overview in colour, "
+        "top-down and pick-side in colour and depth, with the cameras' intrinsics and poses "
+        "in the prompt). Figures of different observations are never pooled.",
+    ),
+]
 AnswerErrorPersistenceOption = Annotated[
     float,
     typer.Option(
@@ -382,6 +392,7 @@ def eval_command(
     reasoning_effort: EffortOption = None,
     answer_errors: AnswerErrorsOption = 0.0,
     verify: VerifyOption = None,
+    observe: ObserveOption = DEFAULT_OBSERVATION,
     answer_error_persistence: AnswerErrorPersistenceOption = 0.0,
     answer_error_kinds: AnswerErrorKindsOption = "all",
     repairs: RepairsOption = 2,
@@ -428,6 +439,8 @@ def eval_command(
         )
         if method is Method.CLASSICAL and tools != DEFAULT_TIER:
             raise ConfigError("--method classical gives no agent tools; drop --tools")
+        if method is Method.CLASSICAL and observe != DEFAULT_OBSERVATION:
+            raise ConfigError("--method classical asks no agent; drop --observe")
         check_rung(method, verify)
         budget = TrialBudget(max_steps=max_steps, max_wall_s=max_trial_s)
         errors = AnswerErrors(
@@ -446,6 +459,7 @@ def eval_command(
             answer_errors=errors,
             # The method's own rung is recorded as none given: one run, however it is spelled.
             verify=None if verify == rung_of(method, None) else verify,
+            observe=observe,
         )
         if method is not Method.CLASSICAL:
             Tolerances.derive().for_goal(conditions.goal)  # joints the gates can work with
@@ -558,6 +572,8 @@ def _title(run: RunConfig) -> str:
         title += f" / tools {config.tools}"
     if config.verify is not None:
         title += f" / verify {config.verify}"
+    if config.observe.pictures:
+        title += f" / observe {config.observe}"
     if config.answer_errors.rate:
         title += f" / answer errors {config.answer_errors.rate:g}"
     if config.answer_errors.persistence:
@@ -745,6 +761,15 @@ def prompt_command(
     physics: PhysicsOption = "paper",
     noise: NoiseOption = "none",
     tools: ToolsOption = DEFAULT_TIER,
+    observe: ObserveOption = DEFAULT_OBSERVATION,
+    pictures: Annotated[
+        str | None,
+        typer.Option(
+            metavar="DIR",
+            help="With --observe both: write the pictures the call carries into this "
+            "directory, one PNG each named as the prompt names it (top_down.depth.png).",
+        ),
+    ] = None,
 ) -> None:
     """Print the prompt agent N is first sent in trial 0 (the built-in reasoner answers
     the agents before it), to read and tune it."""
@@ -753,14 +778,22 @@ def prompt_command(
     from actionreasoning.trial.session import Conditions
 
     try:
-        trial = Conditions.load(pattern, physics, noise, tools=tools).spec(seed, 0)
+        if pictures is not None and not observe.pictures:
+            raise ConfigError("--pictures needs --observe both: a state call carries none")
+        conditions = Conditions.load(pattern, physics, noise, tools=tools, observe=observe)
+        trial = conditions.spec(seed, 0)
+        spec = agent_specs(tools)[agent - 1] if agent else single_agent_spec(tools)
+        prompt, carried = first_prompt(trial, spec.key)
+        if pictures is not None:
+            folder = _path(pictures, "--pictures")
+            folder.mkdir(parents=True, exist_ok=True)
+            for picture in carried:
+                (folder / f"{picture.name}.png").write_bytes(picture.png)
     except ActionReasoningError as error:
         _fail(error)
-    spec = agent_specs(tools)[agent - 1] if agent else single_agent_spec(tools)
-    try:
-        print(printable(first_prompt(trial, spec.key), lines=True), end="")
-    except ActionReasoningError as error:
-        _fail(error)
+    except OSError as error:
+        _fail(ConfigError(f"--pictures {printable(str(pictures))}: {error.strerror}"))
+    print(printable(prompt, lines=True), end="")
 
 
 class Schema(StrEnum):

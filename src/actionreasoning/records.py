@@ -8,7 +8,7 @@ from __future__ import annotations
 from enum import StrEnum
 from typing import Self
 
-from pydantic import BaseModel, ConfigDict, NonNegativeFloat, NonNegativeInt
+from pydantic import BaseModel, ConfigDict, Field, NonNegativeFloat, NonNegativeInt
 
 
 class Described(StrEnum):
@@ -134,6 +134,9 @@ class LLMUsage(BaseModel):
     prompt_tokens: NonNegativeInt = 0
     completion_tokens: NonNegativeInt = 0
     latency_s: NonNegativeFloat = 0.0
+    #: The bytes of the pictures the calls sent (their PNGs, once per completion), when the
+    #: agents observe the scene in pictures; absent when none were sent.
+    image_bytes: NonNegativeInt = Field(0, exclude_if=lambda sent: sent == 0)
 
     def __add__(self, other: LLMUsage) -> LLMUsage:
         return LLMUsage(
@@ -141,4 +144,5 @@ class LLMUsage(BaseModel):
             prompt_tokens=self.prompt_tokens + other.prompt_tokens,
             completion_tokens=self.completion_tokens + other.completion_tokens,
             latency_s=self.latency_s + other.latency_s,
+            image_bytes=self.image_bytes + other.image_bytes,
         )

@@ -15,11 +15,18 @@ from typing import Any
 from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.gates import GateVerdict
 from actionreasoning.agents.memory import TaskMemory
+from actionreasoning.agents.observation import DEFAULT_OBSERVATION, Observation
 from actionreasoning.agents.outputs import AgentAnswer
 from actionreasoning.agents.prompt import render_prompt
 from actionreasoning.agents.reasoner import AgentRequest, Reasoner
 from actionreasoning.agents.spec import AgentSpec
-from actionreasoning.agents.transcript import AgentCall, GateRecord, Outcome, ToolRecord
+from actionreasoning.agents.transcript import (
+    AgentCall,
+    GateRecord,
+    Outcome,
+    PictureRecord,
+    ToolRecord,
+)
 from actionreasoning.agents.view import StateView
 from actionreasoning.agents.world import World
 from actionreasoning.errors import (
@@ -88,8 +95,10 @@ class AgentCaller:
         tolerances: Tolerances,
         result: BuildResult,
         on_call: CallHook | None = None,
+        observation: Observation = DEFAULT_OBSERVATION,
     ) -> None:
         self.world = world
+        self.observation = observation
         self.reasoner = reasoner
         self.tol = tolerances
         self.result = result
@@ -108,7 +117,8 @@ class AgentCaller:
         state = self.world.observe(progress)
         context = self.world.tools(state)
         view = StateView.of(state, memory, spec.scope, spec.robot_extras)
-        prompt = render_prompt(spec, view, memory, self.tol)
+        prompt = render_prompt(spec, view, memory, self.tol, self.observation)
+        pictures = self.world.look() if self.observation.pictures else ()
         tool_calls: list[ToolRecord] = []
         knowledge, gates = f"the knowledge base of {spec.key}", "the gates' measurements"
         call = AgentCall(
@@ -118,6 +128,7 @@ class AgentCaller:
             target=memory.current_target,
             attempt=attempt,
             prompt_chars=len(prompt),
+            pictures=[PictureRecord.of(picture) for picture in pictures],
             answer={},
         )
         self.result.transcript.append(call)
@@ -133,6 +144,7 @@ class AgentCaller:
                     call_tool=partial(_run_tool, spec.tools, knowledge, context, tool_calls),
                     measure=partial(_run_tool, GATE_MEASUREMENTS, gates, context, tool_calls),
                     call=call.call,
+                    pictures=pictures,
                 )
             )
         except LLMError as error:

@@ -51,6 +51,7 @@ from actionreasoning.agents.memory import (
     StepDecision,
     TaskMemory,
 )
+from actionreasoning.agents.observation import DEFAULT_OBSERVATION, Observation
 from actionreasoning.agents.outputs import (
     AgentAnswer,
     DescentDecision,
@@ -179,7 +180,8 @@ class Orchestrator:
     ``tolerances`` are the design thresholds; a build runs under them as widened for the
     world's sensing noise and narrowed for the goal's joints (:class:`Tolerances`). ``tier``
     is the reasoning tier: which tools and formulas the agents get; ``verify`` the rung of
-    verification: which verdicts refuse an answer."""
+    verification: which verdicts refuse an answer; ``observation`` what the agents observe of
+    the scene (the state's poses, the cameras' pictures or both)."""
 
     def __init__(
         self,
@@ -192,6 +194,7 @@ class Orchestrator:
         tier: ToolTier = DEFAULT_TIER,
         verify: Verification = Verification.FULL,
         single_agent: bool = False,
+        observation: Observation = DEFAULT_OBSERVATION,
     ) -> None:
         self.world = world
         self.reasoner = reasoner
@@ -207,7 +210,7 @@ class Orchestrator:
             else {Stage(spec.key): spec for spec in agent_specs(tier)}
         )
         self.result = BuildResult()
-        self.calls = AgentCaller(world, reasoner, self.tol, self.result, on_call)
+        self.calls = AgentCaller(world, reasoner, self.tol, self.result, on_call, observation)
         self.put_down = PutDown(world, self.calls)
         self.memory = TaskMemory()
         #: When the held brick, creeping in the hand faster than v_th, would leave it (state

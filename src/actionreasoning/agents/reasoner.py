@@ -18,6 +18,7 @@ from actionreasoning.agents.view import StateView
 from actionreasoning.records import LLMUsage
 from actionreasoning.tools.base import In, Out, Tool, ToolModel
 from actionreasoning.world.models import WorldState
+from actionreasoning.world.pictures import Picture
 from actionreasoning.world.tolerances import Tolerances
 
 ToolRunner = Callable[[str, Mapping[str, Any]], ToolModel]
@@ -36,6 +37,8 @@ class AgentRequest:
     (the in-process reasoners never call it); both log the call in the transcript.
     ``state`` is the whole measured state, for validating an answer's ids (a reasoner does
     not read it). ``call`` is the index of this call in the trial (its transcript record's).
+    ``pictures`` are the cameras' pictures the call carries (none when the agents observe
+    the state only, ``agents/observation.py``).
     """
 
     spec: AgentSpec
@@ -47,6 +50,7 @@ class AgentRequest:
     call_tool: ToolRunner
     measure: ToolRunner
     call: int = 0
+    pictures: tuple[Picture, ...] = ()
 
 
 @dataclass(frozen=True)

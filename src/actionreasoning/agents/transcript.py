@@ -20,6 +20,7 @@ from actionreasoning.agents.error_kinds import ErrorCategory, check_category
 from actionreasoning.agents.gates import GateVerdict
 from actionreasoning.agents.verification import judged_after_move
 from actionreasoning.records import LLMUsage
+from actionreasoning.world.pictures import Picture
 
 
 class Outcome(StrEnum):
@@ -85,6 +86,20 @@ class ToolRecord(BaseModel):
     error: str | None = None
 
 
+class PictureRecord(BaseModel):
+    """A picture a call carried: which camera and kind (``top_down.depth``), its PNG's size
+    and content hash (a recording stores it under that hash)."""
+
+    name: str
+    bytes: int
+    sha256: str
+
+    @classmethod
+    def of(cls, picture: Picture) -> PictureRecord:
+        """The record of ``picture``."""
+        return cls(name=picture.name, bytes=len(picture.png), sha256=picture.sha256)
+
+
 class AgentCall(BaseModel):
     """One request to a reasoner and everything that followed from its answer."""
 
@@ -96,6 +111,12 @@ class AgentCall(BaseModel):
     prompt_chars: int = Field(
         description="Characters sent to the model for this call, every turn's conversation "
         "counted (the built-in reasoner: the prompt once)."
+    )
+    pictures: list[PictureRecord] = Field(
+        default_factory=list,
+        description="The cameras' pictures the call carried (none when agents observe the "
+        "state only).",
+        exclude_if=lambda pictures: not pictures,
     )
     answer: dict[str, Any]
     tool_calls: list[ToolRecord] = Field(default_factory=list)

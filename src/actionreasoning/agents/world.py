@@ -11,6 +11,7 @@ from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.tools.base import ToolContext
 from actionreasoning.world.models import Progress, Sensing, WorldState
 from actionreasoning.world.motion import Motion
+from actionreasoning.world.pictures import Picture
 
 
 class World(Protocol):
@@ -21,6 +22,10 @@ class World(Protocol):
 
     def observe(self, progress: Progress) -> WorldState:
         """Measure the world now."""
+        ...
+
+    def look(self) -> tuple[Picture, ...]:
+        """The cameras' pictures now (``world/pictures.py``: SHOWN, in its order)."""
         ...
 
     def tools(self, state: WorldState) -> ToolContext:

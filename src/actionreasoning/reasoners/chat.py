@@ -7,13 +7,52 @@ code when the model cannot be reached or answers with something that is not a co
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from typing import Any, Protocol
 
 from actionreasoning.records import LLMUsage
+from actionreasoning.world.pictures import Picture
 
-Message = dict[str, str]
+#: A chat message: ``role`` and ``content``, the content text, or, for a prompt that carries
+#: pictures, OpenAI's list of content parts: the text, then one ``image_url`` part per
+#: picture (a base64 PNG ``data:`` URL).
+Message = dict[str, Any]
+
+
+def user_message(text: str, pictures: Sequence[Picture] = ()) -> Message:
+    """A user message of ``text``, with ``pictures`` as image parts after it if any."""
+    if not pictures:
+        return {"role": "user", "content": text}
+    images = [{"type": "image_url", "image_url": {"url": p.data_url}} for p in pictures]
+    return {"role": "user", "content": [{"type": "text", "text": text}, *images]}
+
+
+def message_text(message: Mapping[str, Any]) -> str:
+    """The text of a message: its content, or its text parts' joined by newlines."""
+    content = message.get("content")
+    if isinstance(content, list):
+        return "\n".join(
+            str(part.get("text", ""))
+            for part in content
+            if isinstance(part, Mapping) and part.get("type") == "text"
+        )
+    return str(content or "")
+
+
+def image_urls(message: Mapping[str, Any]) -> list[str]:
+    """The URLs of a message's image parts, in order."""
+    content = message.get("content")
+    if not isinstance(content, list):
+        return []
+    return [
+        str(part["image_url"].get("url", ""))
+        for part in content
+        if isinstance(part, Mapping)
+        and part.get("type") == "image_url"
+        and isinstance(part.get("image_url"), Mapping)
+    ]
 
 
 class StructuredMode(StrEnum):

@@ -21,7 +21,13 @@ from actionreasoning.agents.prompt import compact_json
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest, Reasoner
 from actionreasoning.agents.validation import OutputError, parse_answer
 from actionreasoning.errors import LLMError, ToolError
-from actionreasoning.reasoners.chat import ChatBackend, ChatRequest, Message
+from actionreasoning.reasoners.chat import (
+    ChatBackend,
+    ChatRequest,
+    Message,
+    message_text,
+    user_message,
+)
 from actionreasoning.records import FailureCode, LLMUsage
 
 #: How a tool turn's results and its last turn are announced to the model.
@@ -54,12 +60,14 @@ class LLMReasoner:
     def decide(self, request: AgentRequest) -> AgentReply:
         """Ask the model until it gives a valid answer, within the turn budgets."""
         schema = request.spec.output_model.model_json_schema()
-        messages: list[Message] = [{"role": "user", "content": request.prompt}]
+        messages: list[Message] = [user_message(request.prompt, request.pictures)]
+        # Every completion is sent the whole conversation, the prompt's pictures included.
+        pictures = LLMUsage(image_bytes=sum(len(picture.png) for picture in request.pictures))
         usage, tool_turns, sent = LLMUsage(), 0, 0
         repairs: list[str] = []
         categories: list[ErrorCategory] = []
         while True:
-            sent += sum(len(message["content"]) for message in messages)
+            sent += sum(len(message_text(message)) for message in messages)
             try:
                 reply = self.backend.complete(
                     ChatRequest(
@@ -74,7 +82,7 @@ class LLMReasoner:
                     usage + error.usage,
                     tuple(categories),
                 ) from None
-            usage += reply.usage
+            usage += reply.usage + pictures
             messages.append({"role": "assistant", "content": reply.content})
             try:
                 answer = parse_answer(reply.content, request.spec, request.state)

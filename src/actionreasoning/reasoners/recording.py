@@ -3,7 +3,10 @@
 A recording is JSON lines: a header ``{"kind": "header", "llm": ..., "mode": ...}`` (with
 ``"sampling": {...}``, the settings that differ from the defaults, if any) and one
 ``{"kind": "exchange", "key": ..., "request": ..., "content": ..., "usage": ...}`` per
-completion, where ``key`` is a hash of the request. Replay serves each key's answers in
+completion, where ``key`` is a hash of the request. A picture a request carried (an image
+part's ``data:`` URL) is stored once, as ``{"kind": "image", "sha256": ..., "url": ...}``
+before the first exchange that sent it, and the exchanges' requests name it
+``sha256:HASH``, the hash of its bytes (as transcripts do). Replay serves each key's answers in
 the order they were recorded, with their recorded usage, so a replayed trial writes the
 same results line as the recorded one, however the answers were sampled; a request that is
 not in the file is an error.
@@ -11,16 +14,24 @@ not in the file is an error.
 
 from __future__ import annotations
 
+import base64
+import binascii
 import hashlib
 import json
 from collections import defaultdict, deque
 from pathlib import Path
-from typing import Any, Literal, TypeVar
+from typing import Annotated, Any, Literal, TypeVar
 
-from pydantic import BaseModel, ValidationError
+from pydantic import BaseModel, Field, TypeAdapter, ValidationError
 
 from actionreasoning.errors import ConfigError
-from actionreasoning.reasoners.chat import ChatBackend, ChatReply, ChatRequest, StructuredMode
+from actionreasoning.reasoners.chat import (
+    ChatBackend,
+    ChatReply,
+    ChatRequest,
+    Message,
+    StructuredMode,
+)
 from actionreasoning.reasoners.sampling import RecordedSampling, Sampling
 from actionreasoning.records import LLMUsage
 from actionreasoning.world.config_files import read_user_file
@@ -50,7 +61,16 @@ class Exchange(BaseModel):
     usage: LLMUsage
 
 
+class StoredImage(BaseModel):
+    """A picture recorded requests carried, stored once: the hash of its bytes, its URL."""
+
+    kind: Literal["image"]
+    sha256: str
+    url: str
+
+
 Record = TypeVar("Record", Header, Exchange)
+_Line = TypeAdapter(Annotated[Exchange | StoredImage, Field(discriminator="kind")])
 
 
 def request_key(request: ChatRequest) -> str:
@@ -84,25 +104,46 @@ class RecordingChat:
                     f"--record {path} holds answers sampled with {header.sampling}, not "
                     f"{sampling}: record into another file"
                 )
+            self._stored = {image.sha256 for image in _read(path)[2]}
         else:
             path.parent.mkdir(parents=True, exist_ok=True)
             self._append(Header(kind="header", llm=backend.label, mode=mode, sampling=sampling))
+            self._stored = set()
 
     def complete(self, request: ChatRequest) -> ChatReply:
         """The backend's reply, recorded."""
         reply = self.backend.complete(request)
+        messages = [self._by_reference(message) for message in request.messages]
         self._append(
             Exchange(
                 kind="exchange",
                 key=request_key(request),
-                request={"messages": request.messages, "name": request.schema_name},
+                request={"messages": messages, "name": request.schema_name},
                 content=reply.content,
                 usage=reply.usage,
             )
         )
         return reply
 
-    def _append(self, record: Header | Exchange) -> None:
+    def _by_reference(self, message: Message) -> Message:
+        """``message`` with each image part's URL replaced by ``sha256:HASH``, the picture
+        stored first if this recording does not hold it yet."""
+        content = message.get("content")
+        if not isinstance(content, list):
+            return message
+        parts = []
+        for part in content:
+            if part.get("type") == "image_url":
+                url = part["image_url"]["url"]
+                digest = image_hash(url)
+                if digest not in self._stored:
+                    self._append(StoredImage(kind="image", sha256=digest, url=url))
+                    self._stored.add(digest)
+                part = {"type": "image_url", "image_url": {"url": f"sha256:{digest}"}}
+            parts.append(part)
+        return {**message, "content": parts}
+
+    def _append(self, record: Header | Exchange | StoredImage) -> None:
         with self.path.open("a", encoding="utf-8") as sink:
             sink.write(record.model_dump_json() + "\n")
 
@@ -111,7 +152,7 @@ class ReplayChat:
     """Serves a recording's answers offline."""
 
     def __init__(self, path: Path) -> None:
-        header, exchanges = _read(path)
+        header, exchanges, _ = _read(path)
         self.path = path
         self.label = header.llm
         self.mode = header.mode
@@ -134,29 +175,57 @@ class ReplayChat:
         return answers.popleft()
 
 
+def image_hash(url: str) -> str:
+    """The SHA-256 of the picture behind an image URL: of its bytes for a base64 ``data:``
+    URL (as transcripts hash pictures), else of the URL's text."""
+    head, _, data = url.partition(";base64,")
+    try:
+        payload = base64.b64decode(data, validate=True) if head.startswith("data:") else b""
+    except binascii.Error:
+        payload = b""
+    return hashlib.sha256(payload or url.encode()).hexdigest()
+
+
 def read_header(path: Path) -> Header:
     """The header of a recording; a file that is not one is a ConfigError."""
     return _read(path, header_only=True)[0]
 
 
-def _read(path: Path, header_only: bool = False) -> tuple[Header, list[Exchange]]:
-    """A recording's header and exchanges; any line that is not one is a ConfigError."""
+def _read(
+    path: Path, header_only: bool = False
+) -> tuple[Header, list[Exchange], list[StoredImage]]:
+    """A recording's header, exchanges and stored pictures; any line that is none of them
+    is a ConfigError."""
     lines = read_user_file(path, "recording", limit=None).splitlines()
     if not lines:
         raise ConfigError(f"{path} is not a recording (no header line)")
     header = _parse(Header, path, lines[0], 1)
     if header_only:
-        return header, []
-    return header, [_parse(Exchange, path, line, n) for n, line in enumerate(lines[1:], start=2)]
+        return header, [], []
+    records = [_parse_line(path, line, n) for n, line in enumerate(lines[1:], start=2)]
+    exchanges = [record for record in records if isinstance(record, Exchange)]
+    images = [record for record in records if isinstance(record, StoredImage)]
+    return header, exchanges, images
 
 
 def _parse(model: type[Record], path: Path, line: bytes, number: int) -> Record:
     try:
         return model.model_validate_json(line)
     except ValidationError as error:
-        first = error.errors()[0]
-        where = ".".join(str(part) for part in first["loc"])
-        raise ConfigError(
-            f"{path} line {number} is not a recording {model.__name__.lower()} "
-            f"({where + ': ' if where else ''}{first['msg']})"
-        ) from None
+        raise _not_a(model.__name__.lower(), path, number, error) from None
+
+
+def _parse_line(path: Path, line: bytes, number: int) -> Exchange | StoredImage:
+    try:
+        return _Line.validate_json(line)
+    except ValidationError as error:
+        raise _not_a("exchange or image", path, number, error) from None
+
+
+def _not_a(what: str, path: Path, number: int, error: ValidationError) -> ConfigError:
+    first = error.errors()[0]
+    where = ".".join(str(part) for part in first["loc"])
+    return ConfigError(
+        f"{path} line {number} is not a recording {what} "
+        f"({where + ': ' if where else ''}{first['msg']})"
+    )

@@ -39,6 +39,7 @@ from actionreasoning.agents.spec import AgentSpec, agent_specs, single_agent_spe
 from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.agents.view import StateView
 from actionreasoning.reasoners import builtin
+from actionreasoning.reasoners.chat import message_text
 from actionreasoning.reasoners.llm import NO_MORE_TOOLS, TOOL_RESULTS
 from actionreasoning.tools.base import ToolModel
 from actionreasoning.tools.registry import TOOLS
@@ -67,12 +68,12 @@ def reply(messages: Sequence[Message]) -> str:
     """The assistant's answer (JSON text) to ``messages``."""
     if not messages:
         raise UnreadableConversation("the conversation has no messages")
-    prompt = _text(messages[0])
+    prompt = message_text(messages[0])
     spec = _spec_of(prompt)
     if spec is None:
         return _literal_answer(messages[-1])
     results = _tool_results(messages)
-    exhausted = NO_MORE_TOOLS in _text(messages[-1])
+    exhausted = NO_MORE_TOOLS in message_text(messages[-1])
 
     def call_tools(calls: Sequence[tuple[str, Mapping[str, Any]]]) -> list[ToolModel]:
         missing = [(name, args) for name, args in calls if _key(name, args) not in results]
@@ -116,10 +117,6 @@ def reply(messages: Sequence[Message]) -> str:
             f"the prompt does not say enough to answer: {error!r}"
         ) from None
     return answer.model_dump_json(exclude_defaults=True)
-
-
-def _text(message: Message) -> str:
-    return str(message.get("content") or "")
 
 
 def _spec_of(prompt: str) -> AgentSpec | None:
@@ -168,11 +165,11 @@ def _tool_results(messages: Sequence[Message]) -> dict[str, dict[str, Any]]:
     what came back for it (``result`` or ``error``)."""
     results: dict[str, dict[str, Any]] = {}
     for asked, answered in itertools.pairwise(messages[1:]):
-        text = _text(answered)
+        text = message_text(answered)
         if asked.get("role") != "assistant" or not text.startswith(TOOL_RESULTS):
             continue
         try:
-            calls = parse_json(_text(asked)).get("tool_calls", [])
+            calls = parse_json(message_text(asked)).get("tool_calls", [])
             outcomes = parse_json(text[len(TOOL_RESULTS) :].split("\n", 1)[0])
             for call, outcome in zip(calls, outcomes, strict=False):
                 results[_key(call["name"], call.get("arguments", {}))] = outcome
@@ -196,7 +193,7 @@ def _first(error: ValidationError) -> str:
 
 def _literal_answer(message: Message) -> str:
     """For a message that is no agent's prompt: the first JSON object written in it."""
-    text = _text(message)
+    text = message_text(message)
     decoder = json.JSONDecoder()
     for start, char in enumerate(text):
         if char != "{":

@@ -14,16 +14,21 @@ Clients that connect and then stall are bounded by
 the requests handled at once and on the connections waiting, one stderr line per dropped
 client.
 
-Token usage is an estimate (:func:`estimate_tokens`): there is no tokenizer behind the model.
-The server binds a loopback address only and uses nothing but the standard library.
+Token usage is an estimate (:func:`estimate_tokens`, and :func:`image_tokens` for image
+parts): there is no tokenizer behind the model. The server binds a loopback address only;
+its HTTP is the standard library's.
 """
 
 from __future__ import annotations
 
+import base64
+import binascii
 import ipaddress
 import json
+import math
 import re
 import socket
+import struct
 import sys
 import time
 import traceback
@@ -33,6 +38,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from actionreasoning.errors import ConfigError
+from actionreasoning.reasoners.chat import image_urls, message_text
 from actionreasoning.reasoners.guarded_http import GuardedHandler, GuardedHTTPServer
 from actionreasoning.reasoners.reference_model import Message, UnreadableConversation, reply
 
@@ -205,7 +211,12 @@ def _completion(body: dict[str, Any]) -> dict[str, Any]:
         traceback.print_exc(file=sys.stderr)
         line = f"{type(error).__name__}: {error}".splitlines()[0][:300]
         raise _RequestError(500, f"the reference model failed ({line})", "server_error") from None
-    prompt_tokens = sum(estimate_tokens(m["content"] or "") + TOKENS_PER_MESSAGE for m in messages)
+    prompt_tokens = sum(
+        estimate_tokens(message_text(m))
+        + sum(image_tokens(url) for url in image_urls(m))
+        + TOKENS_PER_MESSAGE
+        for m in messages
+    )
     completion_tokens = estimate_tokens(content)
     return {
         "id": f"chatcmpl-{uuid.uuid4().hex}",
@@ -228,13 +239,68 @@ def _completion(body: dict[str, Any]) -> dict[str, Any]:
 
 
 def _messages(value: object) -> list[Message]:
-    """``messages`` checked: a list of objects with a string role and a string (or null)
-    content."""
+    """``messages`` checked: a list of objects with a string role and a content that is a
+    string, null, or a list of text and image_url parts."""
     if not isinstance(value, list):
         raise _RequestError(400, "'messages' must be a list of {role, content} objects")
     for index, message in enumerate(value):
         if not isinstance(message, dict) or not isinstance(message.get("role"), str):
             raise _RequestError(400, f"messages[{index}] must be an object with a string 'role'")
-        if not isinstance(message.get("content"), str | None):
-            raise _RequestError(400, f"messages[{index}].content must be a string")
+        content = message.get("content")
+        if isinstance(content, list):
+            for number, part in enumerate(content):
+                if not _is_part(part):
+                    raise _RequestError(
+                        400,
+                        f"messages[{index}].content[{number}] must be a text part "
+                        '{"type": "text", "text": ...} or an image part '
+                        '{"type": "image_url", "image_url": {"url": ...}}',
+                    )
+        elif not isinstance(content, str | None):
+            raise _RequestError(
+                400, f"messages[{index}].content must be a string or a list of parts"
+            )
     return value
+
+
+def _is_part(part: object) -> bool:
+    if not isinstance(part, dict):
+        return False
+    if part.get("type") == "text":
+        return isinstance(part.get("text"), str)
+    image = part.get("image_url")
+    return (
+        part.get("type") == "image_url"
+        and isinstance(image, dict)
+        and isinstance(image.get("url"), str)
+    )
+
+
+def image_tokens(url: str) -> int:
+    """An estimate of an image part's prompt tokens, as OpenAI counts a high-detail image:
+    85, and 170 per 512-pixel tile of the image scaled to fit 2048 x 2048 and then to a
+    shortest side of at most 768. The size is read from a PNG data URL's header; an image
+    of unknown size counts as one tile."""
+    size = png_size(url)
+    if size is None:
+        return 85 + 170
+    width, height = size
+    scale = min(1.0, 2048 / max(width, height))
+    scale *= min(1.0, 768 / (min(width, height) * scale))
+    tiles = math.ceil(width * scale / 512) * math.ceil(height * scale / 512)
+    return 85 + 170 * tiles
+
+
+def png_size(url: str) -> tuple[int, int] | None:
+    """Width and height of a base64 PNG ``data:`` URL, from its header (None: not one)."""
+    prefix = "data:image/png;base64,"
+    if not url.startswith(prefix):
+        return None
+    try:
+        head = base64.b64decode(url[len(prefix) : len(prefix) + 32], validate=True)
+    except binascii.Error:
+        return None
+    if len(head) < 24 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
+        return None
+    width, height = struct.unpack(">II", head[16:24])
+    return (width, height) if width and height else None

@@ -22,6 +22,7 @@ from typing import IO, Any
 from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
 
 from actionreasoning.agents.answer_errors import AnswerErrors
+from actionreasoning.agents.observation import DEFAULT_OBSERVATION
 from actionreasoning.agents.tiers import BEFORE_TIERS
 from actionreasoning.errors import ConfigError, StorageError
 from actionreasoning.runs.layout import RunDir
@@ -98,6 +99,11 @@ class RunManifest(BaseModel):
         """The reasoning tier its agents ran in."""
         return str(self.config.tools)
 
+    @property
+    def observation(self) -> str:
+        """What its agents observed of the scene."""
+        return str(self.config.observe)
+
     def fields(self) -> dict[str, Any]:
         """Every recorded value, nested ones dotted and those of the config by their path
         in it (``tolerances.c_min_m``); the hash, which only sums them up, left out."""
@@ -140,6 +146,11 @@ class EarlierManifest(BaseModel):
     def tier(self) -> str:
         """Tiers did not exist yet: the agents had today's solve tools."""
         return BEFORE_TIERS
+
+    @property
+    def observation(self) -> str:
+        """Pictures did not exist yet: the agents observed the state."""
+        return str(DEFAULT_OBSERVATION)
 
     def fields(self) -> dict[str, Any]:
         """What it recorded, by the names a :class:`RunManifest` gives the same values."""
@@ -198,6 +209,11 @@ class RecordedManifest(BaseModel):
     def tier(self) -> str:
         """The reasoning tier; solve where it was recorded before tiers existed."""
         return str(self.config.get("tools", BEFORE_TIERS))
+
+    @property
+    def observation(self) -> str:
+        """What the agents observed; the state where none is recorded."""
+        return str(self.config.get("observe", DEFAULT_OBSERVATION))
 
     def fields(self) -> dict[str, Any]:
         """Every recorded value, named as a :class:`RunManifest` names them."""
@@ -292,7 +308,8 @@ def check_lines(
 ) -> None:
     """Refuse, in one line naming the line and the field, a results line (of ``path``) that
     differs from run.json (``stored``) in anything run.json fixes that a line records:
-    method, pattern, seed, backend, physics, noise, tier and rung of verification. `report`
+    method, pattern, seed, backend, physics, noise, tier, observation and rung of
+    verification. `report`
     and a resume share it, so that no trial of another condition is pooled. (A line records
     what answer errors did, not their rate, so it is not checked against the rate.)"""
     expected: dict[str, Any] = {
@@ -303,6 +320,7 @@ def check_lines(
         "physics": manifest.physics_name,
         "noise": manifest.noise_name,
         "tools": manifest.tier,
+        "observe": manifest.observation,
     }
     if isinstance(manifest, RunManifest):
         rung = rung_of(Method(manifest.method), manifest.config.verify)

@@ -87,6 +87,9 @@ class RunSummary(Provenance):
     noise: NoiseLevel | None = None
     #: The reasoning tier; None in summaries written before tiers existed (solve).
     tools: str | None = None
+    #: What the agents observed (agents/observation.py); absent when the state, as in
+    #: summaries written before pictures existed.
+    observe: str = Field("state", exclude_if=lambda shown: shown == "state")
     #: The rung of verification (agents/verification.py); None for the classical script and
     #: in summaries written before rungs existed.
     verify: str | None = None
@@ -203,6 +206,7 @@ def summarize(
         physics=physics,
         noise=noise,
         tools=tools,
+        observe=first.observe,
         verify=first.verify,
         seed=first.seed,
         trials=len(results),
@@ -288,6 +292,7 @@ def summary_markdown(summary: RunSummary) -> str:
         + (f" under {summary.physics.name} physics" if summary.physics else "")
         + (f", noise {summary.noise.name}" if summary.noise else "")
         + (f", tools {summary.tools}" if summary.tools and summary.llm != "none" else "")
+        + (f", observe {summary.observe}" if summary.observe != "state" else "")
         + (f", verify {summary.verify}" if summary.verify else "")
         + (f", answer errors {summary.answer_errors.rate:g}" if summary.answer_errors else "")
         + (

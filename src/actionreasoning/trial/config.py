@@ -13,6 +13,7 @@ from typing import Annotated
 from pydantic import BaseModel, ConfigDict, Field, field_serializer, model_validator
 
 from actionreasoning.agents.answer_errors import AnswerErrors
+from actionreasoning.agents.observation import DEFAULT_OBSERVATION, Observation
 from actionreasoning.agents.orchestrator import Budgets
 from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
 from actionreasoning.agents.verification import Verification
@@ -55,8 +56,10 @@ class Backend(BaseModel):
 class TrialConfig(BaseModel):
     """The scene, physics, perturbations, gate tolerances, budgets, controller and safety
     limits, success rule, reasoning backend, answer errors, reasoning tier (``tools``:
-    which tools the agents get, :mod:`~actionreasoning.agents.tiers`) and rung of
-    verification (``verify``) of every trial of a run.
+    which tools the agents get, :mod:`~actionreasoning.agents.tiers`), rung of
+    verification (``verify``) and what the agents observe (``observe``: the state's poses,
+    the cameras' pictures or both, :mod:`~actionreasoning.agents.observation`) of every
+    trial of a run.
 
     ``llm`` is None for the classical script, which asks no reasoner. Of a backend only
     what defines it is recorded (:class:`Backend`): where its server is and how patiently
@@ -84,6 +87,10 @@ class TrialConfig(BaseModel):
     #: None: the method's own (``rung_of``). Left out of run.json when None, so runs from
     #: before rungs existed resume.
     verify: Annotated[Verification | None, Field(exclude_if=lambda rung: rung is None)] = None
+    #: Left out of run.json when ``state``, so runs from before pictures existed resume.
+    observe: Annotated[Observation, Field(exclude_if=lambda shown: shown is Observation.STATE)] = (
+        DEFAULT_OBSERVATION
+    )
 
     @model_validator(mode="after")
     def _budget_covers_a_trial(self) -> TrialConfig:

@@ -1,5 +1,5 @@
-"""The prompt an agent is really sent: trial 0 run with the built-in reasoner until the
-agent is first asked."""
+"""The prompt an agent is really sent, and the pictures with it: trial 0 run with the
+built-in reasoner until the agent is first asked."""
 
 from __future__ import annotations
 
@@ -13,14 +13,15 @@ from actionreasoning.errors import ActionReasoningError
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.trial.runner import TrialSpec, trial_world
 from actionreasoning.trial.sim_world import SimWorld
+from actionreasoning.world.pictures import Picture
 
 
 class _Caught(Exception):
-    """Raised with the prompt once the agent asked for is asked."""
+    """Raised with the request once the agent asked for is asked."""
 
-    def __init__(self, prompt: str) -> None:
+    def __init__(self, request: AgentRequest) -> None:
         super().__init__("prompt caught")
-        self.prompt = prompt
+        self.request = request
 
 
 @dataclass
@@ -32,12 +33,13 @@ class _Catcher:
 
     def decide(self, request: AgentRequest) -> AgentReply:
         if request.spec.key == self.agent:
-            raise _Caught(request.prompt)
+            raise _Caught(request)
         return BuiltinReasoner().decide(request)
 
 
-def first_prompt(spec: TrialSpec, agent: AgentKey) -> str:
-    """The prompt ``agent`` gets first in ``spec``'s trial."""
+def first_prompt(spec: TrialSpec, agent: AgentKey) -> tuple[str, tuple[Picture, ...]]:
+    """The prompt ``agent`` gets first in ``spec``'s trial, and the pictures it carries
+    (none unless the agents observe pictures)."""
     with trial_world(spec) as world:
         sim = SimWorld(world.controller, spec.goal, world.sensor)
         catcher, config = _Catcher(agent), spec.config
@@ -51,11 +53,12 @@ def first_prompt(spec: TrialSpec, agent: AgentKey) -> str:
             if agent == SINGLE_AGENT
             else config.verify or Verification.FULL,
             single_agent=agent == SINGLE_AGENT,
+            observation=config.observe,
         )
         try:
             result = runner.build(spec.goal)
         except _Caught as caught:
-            return caught.prompt
+            return caught.request.prompt, caught.request.pictures
     failure = result.failure
     why = f"the build stopped first ({failure.reason}: {failure.detail})" if failure else "done"
     raise ActionReasoningError(f"agent {agent} is never asked in trial 0: {why}")

@@ -273,6 +273,9 @@ class TrialResult(Provenance):
     #: The reasoning tier (agents/tiers.py). Lines written before tiers existed ran with
     #: today's "solve" tools.
     tools: str = BEFORE_TIERS
+    #: What the agents observed (agents/observation.py); absent when ``state``, as in lines
+    #: written before pictures existed.
+    observe: str = Field("state", exclude_if=lambda shown: shown == "state")
     #: The rung of verification (agents/verification.py); None in lines written before
     #: rungs existed (agents: full; single agent: none) and for the classical script.
     verify: str | None = None

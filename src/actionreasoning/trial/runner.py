@@ -250,6 +250,7 @@ def run_agents(
         tier=config.tools,
         verify=spec.rung or Verification.FULL,
         single_agent=spec.method is Method.SINGLE_AGENT,
+        observation=config.observe,
     )
     return runner.build(spec.goal)
 
@@ -311,6 +312,7 @@ def measure(
         physics=config.physics.name,
         noise=config.noise.name,
         tools=config.tools,
+        observe=config.observe,
         verify=spec.rung,
         seed=spec.run_seed,
         trial=spec.trial,

@@ -34,6 +34,7 @@ from pydantic import BaseModel, Field
 
 from actionreasoning.agents.answer_errors import AnswerErrors
 from actionreasoning.agents.error_kinds import ErrorCategory
+from actionreasoning.agents.observation import DEFAULT_OBSERVATION, load_observation
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest, ToolRunner
 from actionreasoning.agents.tiers import DEFAULT_TIER, load_tier
 from actionreasoning.agents.transcript import AgentCall
@@ -135,7 +136,8 @@ class Turn(BaseModel):
 class Conditions:
     """What ``eval`` runs a pattern under, loaded as the command loads it (a pattern name
     or file, a physics profile, a noise level, the trial's budget, the reasoning tier, and
-    for eval's own trials the reasoning backend and its answer errors)."""
+    for eval's own trials the reasoning backend, its answer errors, the rung of
+    verification and what the agents observe)."""
 
     pattern_name: str
     goal: GoalPattern
@@ -153,6 +155,7 @@ class Conditions:
         llm: LLMConfig | None = LLMConfig(),
         answer_errors: AnswerErrors = AnswerErrors(),
         verify: Verification | None = None,
+        observe: str = DEFAULT_OBSERVATION,
     ) -> Conditions:
         """The conditions named as on the command line; a bad name or file is refused."""
         check_file_name(pattern, "pattern", PatternError)
@@ -166,6 +169,7 @@ class Conditions:
             answer_errors=answer_errors,
             tools=load_tier(tools),
             verify=verify,
+            observe=load_observation(observe),
         )
         return cls(pattern_name=pattern, goal=load_pattern(pattern, config.scene), config=config)
 

@@ -5,10 +5,12 @@ from __future__ import annotations
 from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
 from actionreasoning.sim.collision import CollisionChecker
+from actionreasoning.sim.eyes import capture
 from actionreasoning.sim.perceive import Sensor
 from actionreasoning.tools.base import ToolContext
 from actionreasoning.world.models import GoalPattern, Pose, Progress, WorldState
 from actionreasoning.world.motion import Motion
+from actionreasoning.world.pictures import SHOWN, Picture, PictureKind, colour_png, depth_png
 
 
 class SimWorld:
@@ -26,6 +28,18 @@ class SimWorld:
         budget is checked here)."""
         self.controller.scene.check_wall_time()
         return self.sensor.perceive(self.goal, progress)
+
+    def look(self) -> tuple[Picture, ...]:
+        """The cameras' pictures now, rendered by TinyRenderer (the scene is not stepped)."""
+        pictures = []
+        for camera, kinds in SHOWN:
+            seen = capture(self.controller.scene.client, camera)
+            for kind in kinds:
+                png = (
+                    colour_png(seen.rgb) if kind is PictureKind.COLOUR else depth_png(seen.depth_m)
+                )
+                pictures.append(Picture(camera.name, kind, png))
+        return tuple(pictures)
 
     def tools(self, state: WorldState) -> ToolContext:
         """Tools on the kinematic copy of the arm, for a measured state."""

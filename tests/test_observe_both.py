@@ -1,0 +1,92 @@
+"""``eval --observe both``: every agent call carries the cameras' pictures, through the real
+chat path (the prompt-only reference model over HTTP), counted as image bytes beside the
+tokens, named in the transcripts, recorded once each and replayed byte for byte; looking
+changes nothing in the trial, and a resume refuses another observation."""
+
+from __future__ import annotations
+
+import json
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from conftest import SMALL_PATTERN, assert_clean_error, cli
+
+from actionreasoning.reasoners.reference_server import ReferenceServer
+from actionreasoning.world.pictures import SHOWN
+
+pytestmark = pytest.mark.slow
+NAMES = [f"{camera.name}.{kind}" for camera, kinds in SHOWN for kind in kinds]
+
+
+@pytest.fixture(scope="module")
+def server() -> Iterator[ReferenceServer]:
+    running = ReferenceServer(port=0)
+    thread = threading.Thread(target=running.serve_forever, args=(0.05,), daemon=True)
+    thread.start()
+    yield running
+    running.shutdown()
+    running.server_close()
+
+
+@pytest.fixture(scope="module")
+def pattern(tmp_path_factory: pytest.TempPathFactory) -> str:
+    path = tmp_path_factory.mktemp("pattern") / "small.json"
+    path.write_text(json.dumps(SMALL_PATTERN))
+    return str(path)
+
+
+def run(out: Path, pattern: str, *options: str) -> dict[str, object]:
+    """One trial of eval (seed 3) with ``options``; its results line."""
+    args = ("eval", "--pattern", pattern, "--seed", "3", "--trials", "1", "--out", str(out))
+    result = cli(*args, *options)
+    assert result.returncode == 0, result.stderr
+    line: dict[str, object] = json.loads((out / "results.jsonl").read_text())
+    return line
+
+
+def test_pictures_go_over_http_counted_named_recorded_and_replayed(
+    server: ReferenceServer, pattern: str, tmp_path: Path
+) -> None:
+    record = tmp_path / "recording.jsonl"
+    http = ("--llm", "openai:reference", "--base-url", server.url)
+    line = run(
+        tmp_path / "http", pattern, *http, "--observe", "both", "--record", str(record),
+        "--transcripts",
+    )  # fmt: skip
+    assert line["success"] and line["observe"] == "both"
+    transcript = tmp_path / "http" / "transcripts" / "trial_000.jsonl"
+    calls = [json.loads(text) for text in transcript.read_text().splitlines()]
+    assert calls and all([p["name"] for p in call["pictures"]] == NAMES for call in calls)
+    # Each completion is sent the prompt's pictures again: bytes x completions, per brick.
+    sent = [sum(p["bytes"] for p in call["pictures"]) * call["usage"]["calls"] for call in calls]
+    usage = line["llm_usage"]
+    assert isinstance(usage, dict) and usage["image_bytes"] == sum(sent) > 0
+    bricks = line["bricks"]
+    assert isinstance(bricks, list)
+    assert sum(brick["llm_usage"]["image_bytes"] for brick in bricks) == usage["image_bytes"]
+    # Each picture is stored once, under the hash the transcripts name it by.
+    stored = [json.loads(text) for text in record.read_text().splitlines()]
+    hashes = [r["sha256"] for r in stored if r["kind"] == "image"]
+    named = {p["sha256"] for call in calls for p in call["pictures"]}
+    assert len(hashes) == len(set(hashes)) and set(hashes) == named
+    run(tmp_path / "replay", pattern, "--llm", f"replay:{record}", "--observe", "both")
+    lines = [(tmp_path / name / "results.jsonl").read_bytes() for name in ("http", "replay")]
+    assert lines[0] == lines[1]
+
+
+def test_looking_changes_nothing_and_a_resume_keeps_the_observation(
+    pattern: str, tmp_path: Path
+) -> None:
+    """The built-in reasoner reads the state either way: rendering the pictures leaves the
+    trial as it was, to the bit, and only the line's ``observe`` tells the runs apart."""
+    state = run(tmp_path / "state", pattern)
+    both = run(tmp_path / "both", pattern, "--observe", "both")
+    assert "observe" not in state and both.pop("observe") == "both"
+    assert both == state
+    resumed = cli(
+        "eval", "--pattern", pattern, "--seed", "3", "--trials", "2",
+        "--out", str(tmp_path / "both"),
+    )  # fmt: skip
+    assert_clean_error(resumed, "holds a different run", "observe")
