@@ -27,6 +27,7 @@ from actionreasoning.gym_env.env import INFO_TYPES, BrickStackEnv
 from actionreasoning.gym_env.observation import MAX_ACTION_CHARS
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.trial.rules import Method
+from actionreasoning.world.pictures import SHOWN
 from actionreasoning.world.scenarios import NOISE, PHYSICS, Scenario
 from actionreasoning.world.scene_spec import FINGERTIPS_BEYOND_TCP_M, SceneSpec
 
@@ -361,3 +362,26 @@ def test_the_action_space_admits_every_action_the_env_accepts_and_nothing_it_ref
         _, _, _, _, info = env.step(action)  # type: ignore[arg-type]
         assert info["refusal"]["code"] == "invalid_action", info["refusal"]
         assert detail in info["refusal"]["detail"] and info["agent"] == "pre_grasp"
+
+
+def test_with_pictures_each_observation_holds_them_inside_its_space() -> None:
+    """observe="both": Gymnasium's checker passes; the pictures the waiting agent's call
+    carries are arrays of the Dict space (depth in metres: the far ground corner 1.8 m below
+    the top-down camera), and stay there after an answer a gate refuses as invalid."""
+    made = gymnasium.make(ENV_ID, observe="both")
+    try:
+        check_env(made.unwrapped)
+        shown, info = made.reset(seed=1)
+        assert made.observation_space.contains(shown)
+        names = [f"{camera.name}.{kind}" for camera, kinds in SHOWN for kind in kinds]
+        assert list(shown["pictures"]) == names and "## Cameras" in info["prompt"]
+        depth = shown["pictures"]["top_down.depth"]
+        assert depth.dtype == np.float32 and depth[3, 3] == pytest.approx(1.8, abs=2e-3)
+        after, _, _, _, refused = made.step(answer(brick_id=99))
+        assert refused["refusal"]["code"] == "invalid_answer"
+        assert made.observation_space.contains(after)
+        assert np.array_equal(after["pictures"]["top_down.depth"], depth)
+    finally:
+        made.close()
+    with pytest.raises(ConfigError, match="observe 'eyes': not one of state, both"):
+        gymnasium.make(ENV_ID, observe="eyes")

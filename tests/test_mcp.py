@@ -8,6 +8,7 @@ without its text), and nothing but protocol messages on stdout."""
 
 from __future__ import annotations
 
+import base64
 import dataclasses
 import functools
 import json
@@ -42,6 +43,8 @@ from actionreasoning.tools.base import ToolModel
 from actionreasoning.tools.registry import GATE_MEASUREMENTS, TOOLS, tool_schema
 from actionreasoning.trial.rules import Method
 from actionreasoning.trial.session import Conditions, TrialSession
+from actionreasoning.world.cameras import TOP_DOWN
+from actionreasoning.world.pictures import SHOWN, read_depth
 from actionreasoning.world.scene_spec import FINGERTIPS_BEYOND_TCP_M
 
 COMMAND = [sys.executable, "-m", "actionreasoning", "mcp"]
@@ -104,7 +107,8 @@ def test_the_tools_are_listed_with_their_schemas(tmp_path: Path) -> None:
             assert tool.description.startswith(tool_schema(tool.name).description)
     start = next(tool for tool in tools if tool.name == "start_trial")
     assert set(start.input_schema["properties"]) == {
-        "pattern", "physics", "noise", "tools", "seed", "trial", "max_trial_s", "answer_errors",
+        "pattern", "physics", "noise", "tools", "observe", "seed", "trial", "max_trial_s",
+        "answer_errors",
     }  # fmt: skip
 
 
@@ -654,3 +658,34 @@ def test_without_the_sdk_the_command_says_which_extra_in_one_line() -> None:
         timeout=120,
     )
     assert_clean_error(done, "MCP SDK", "actionreasoning[mcp]")
+
+
+def test_with_pictures_the_turn_comes_with_them_as_png_image_content(
+    tmp_path: Path, one_brick: Path
+) -> None:
+    """observe "both": start_trial and read_state return the waiting agent's pictures after
+    their JSON, as the turn names them; the depth picture decodes to the camera's size and
+    the prompt-only reference model answers the prompt that comes with them."""
+    names = [f"{camera.name}.{kind}" for camera, kinds in SHOWN for kind in kinds]
+
+    async def scenario(client: ClientSession) -> None:
+        start = await client.call_tool(
+            "start_trial",
+            {"pattern": str(one_brick), "seed": 3, "observe": "both", "tools": "none"},
+        )
+        data = start.structured_content
+        assert not start.is_error and data["trial"]["observe"] == "both"
+        assert data["turn"]["pictures"] == names and "## Cameras" in data["turn"]["prompt"]
+        images = start.content[1:]
+        assert [image.mime_type for image in images] == ["image/png"] * len(names)
+        depth = read_depth(base64.b64decode(images[names.index("top_down.depth")].data))
+        assert depth.shape == (TOP_DOWN.height, TOP_DOWN.width)
+        text = reference_model.reply([{"role": "user", "content": data["turn"]["prompt"]}])
+        judged, refused = await call(client, "submit_answer", answer=text)
+        assert not refused and judged["call"]["outcome"] == "accepted", judged
+        read = await client.call_tool("read_state", {})
+        assert read.structured_content["turn"]["agent"] == "descent"
+        assert len(read.content) == 1 + len(names)
+        assert [image.data for image in read.content[1:]] != [image.data for image in images]
+
+    run(scenario, tmp_path)

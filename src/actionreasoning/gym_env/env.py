@@ -6,7 +6,8 @@ one action for the agent that waits: a tool call (one of its tools, or one of th
 measurements) or an answer, as JSON text (``actions.py``), validated as a language model's
 answer is and, if valid, gated and executed by the same controller. The observation is the
 measured state the waiting agent is given (``observation.py``); the reward counts bricks
-placed (``reward.py``).
+placed (``reward.py``). With ``observe="both"``, each call also carries the cameras'
+pictures: the observation adds them under ``pictures`` (a Dict space of arrays).
 
 Seeds: ``reset(seed=s, options={"trial": k})`` is trial k of ``eval --seed s`` under the
 same pattern and conditions (k defaults to 0); ``reset()`` goes on with the next trial of
@@ -21,6 +22,7 @@ import gymnasium
 import numpy as np
 
 from actionreasoning.agents.answer_errors import AnswerErrors
+from actionreasoning.agents.observation import DEFAULT_OBSERVATION
 from actionreasoning.agents.tiers import DEFAULT_TIER
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.errors import ConfigError
@@ -29,6 +31,7 @@ from actionreasoning.gym_env.observation import (
     action_space,
     observation,
     observation_space,
+    pictures,
 )
 from actionreasoning.gym_env.reward import PlacedReward
 from actionreasoning.records import FailureCode
@@ -78,6 +81,7 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
         max_trial_s: float = TrialBudget().max_wall_s,
         tools: str = DEFAULT_TIER.value,
         answer_errors: float = 0.0,
+        observe: str = DEFAULT_OBSERVATION.value,
     ) -> None:
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ConfigError(f"render_mode {render_mode!r}: use 'rgb_array' or None")
@@ -94,14 +98,20 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
             TrialBudget(max_wall_s=max_trial_s),
             tools,
             answer_errors=_answer_errors(answer_errors),
+            observe=observe,
         )
         Tolerances.derive().for_goal(self.conditions.goal)  # joints the gates work with
-        self.observation_space = observation_space(len(self.conditions.goal.targets))
+        self.with_pictures = self.conditions.config.observe.pictures
+        self.observation_space = observation_space(
+            len(self.conditions.goal.targets), self.with_pictures
+        )
         self.action_space = action_space()
         self.session: TrialSession | None = None
         self._run_seed: int | None = None
         self._trial = -1
         self._state: WorldState | None = None
+        #: The pictures the last question carried, shown on once the trial has ended.
+        self._pictures: dict[str, np.ndarray] = {}
         self._reward = PlacedReward()
 
     # --- Gymnasium's API ----------------------------------------------------------------
@@ -137,6 +147,7 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
             why = "" if failure is None else f": {failure.reason} ({failure.detail})"
             raise SessionError(f"trial {trial} ended before an agent asked{why}")
         self._state = request.state
+        self._pictures = pictures(request.pictures) if self.with_pictures else {}
         return self._observation(), self._info()
 
     def step(self, action: str) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
@@ -158,6 +169,7 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
         request = session.request
         if request is not None:
             self._state = request.state
+            self._pictures = pictures(request.pictures) if self.with_pictures else {}
         reward = self._reward.step(session)
         terminated, truncated = self._ends()
         return self._observation(), reward, terminated, truncated, self._info(**info)
@@ -187,7 +199,8 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
     def _observation(self) -> dict[str, Any]:
         assert self._state is not None and self.session is not None
         request = self.session.request
-        return observation(self._state, None if request is None else str(request.spec.key))
+        shown = observation(self._state, None if request is None else str(request.spec.key))
+        return shown | ({"pictures": self._pictures} if self.with_pictures else {})
 
     def _ends(self) -> tuple[bool, bool]:
         """(terminated, truncated) in Gymnasium's sense."""

@@ -1,11 +1,13 @@
-"""The environment's spaces: the measured world state as arrays plus its JSON text, and an
-action as JSON text."""
+"""The environment's spaces: the measured world state as arrays plus its JSON text (and,
+when the agents observe pictures, the cameras' pictures as arrays), and an action as JSON
+text."""
 
 from __future__ import annotations
 
 import json
 import re
 import string
+from collections.abc import Sequence
 from functools import cached_property
 from typing import Any
 
@@ -15,6 +17,14 @@ from gymnasium import spaces
 from actionreasoning.agents.spec import agent_specs
 from actionreasoning.agents.validation import MAX_ANSWER_CHARS
 from actionreasoning.world.models import BrickStatus, Pose, WorldState
+from actionreasoning.world.pictures import (
+    DEPTH_UNIT_M,
+    SHOWN,
+    Picture,
+    PictureKind,
+    read_colour,
+    read_depth,
+)
 
 #: The agents in pipeline order; the observation's ``agent`` is an index into it, and
 #: ``len(AGENTS)`` once no agent waits (the trial has ended).
@@ -116,12 +126,45 @@ def action_space() -> ActionText:
     return ActionText(max_length=MAX_ACTION_CHARS)
 
 
-def observation_space(bricks: int) -> spaces.Dict:
-    """The measured state of a scene with ``bricks`` bricks (one per target)."""
+#: The deepest a depth picture holds (m): its 16-bit counts' range.
+MAX_DEPTH_M = float(np.iinfo(np.uint16).max * DEPTH_UNIT_M)
+
+
+def pictures_space() -> spaces.Dict:
+    """The cameras' pictures, by name (``top_down.depth``): colour as height x width x 3
+    uint8, depth as height x width float32 metres along the optical axis, 0 no reading."""
+    boxes: dict[str, spaces.Space[Any]] = {}
+    for camera, kinds in SHOWN:
+        for kind in kinds:
+            name = f"{camera.name}.{kind}"
+            size = (camera.height, camera.width)
+            if kind is PictureKind.COLOUR:
+                boxes[name] = spaces.Box(0, 255, shape=(*size, 3), dtype=np.uint8)
+            else:
+                boxes[name] = spaces.Box(0.0, MAX_DEPTH_M, shape=size, dtype=np.float32)
+    return spaces.Dict(boxes)
+
+
+def pictures(carried: Sequence[Picture]) -> dict[str, np.ndarray]:
+    """The pictures a call carried as :func:`pictures_space` holds them."""
+    return {
+        picture.name: (
+            read_colour(picture.png)
+            if picture.kind is PictureKind.COLOUR
+            else np.nan_to_num(read_depth(picture.png), nan=0.0)
+        )
+        for picture in carried
+    }
+
+
+def observation_space(bricks: int, with_pictures: bool = False) -> spaces.Dict:
+    """The measured state of a scene with ``bricks`` bricks (one per target), and the
+    cameras' pictures if ``with_pictures``."""
 
     def real(*shape: int) -> spaces.Box:
         return spaces.Box(-BOUND, BOUND, shape=shape, dtype=np.float64)
 
+    extra: dict[str, spaces.Space[Any]] = {"pictures": pictures_space()} if with_pictures else {}
     return spaces.Dict(
         {
             "agent": spaces.Discrete(len(AGENTS) + 1),
@@ -137,6 +180,7 @@ def observation_space(bricks: int) -> spaces.Dict:
             "placed": spaces.MultiBinary(bricks),
             "target_poses": real(bricks, 7),
             "state": spaces.Text(max_length=10_000 + 5_000 * bricks, min_length=2, charset=CHARSET),
+            **extra,
         }
     )
 

@@ -26,6 +26,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from pydantic_core import to_json
 
 from actionreasoning.agents.answer_errors import AnswerErrors
+from actionreasoning.agents.observation import DEFAULT_OBSERVATION, Observation
 from actionreasoning.agents.prompt import state_blocks
 from actionreasoning.agents.spec import single_agent_spec
 from actionreasoning.agents.tiers import DEFAULT_TIER, TIER_HELP, ToolTier
@@ -52,6 +53,7 @@ from actionreasoning.trial.session import (
     TrialSession,
 )
 from actionreasoning.world.budget import TrialBudget
+from actionreasoning.world.pictures import Picture
 from actionreasoning.world.scenarios import NOISE, PATTERNS, PHYSICS
 from actionreasoning.world.tolerances import Tolerances
 
@@ -87,6 +89,15 @@ class StartTrial(_Arguments):
         description="The reasoning tier: "
         + "; ".join(f"'{tier}': {text}" for tier, text in TIER_HELP.items())
         + ".",
+    )
+    observe: str = Field(
+        DEFAULT_OBSERVATION.value,
+        description="What the agents observe, as eval's --observe: 'state', the bricks' "
+        "measured poses; 'both', the poses and the cameras' pictures, which start_trial and "
+        "read_state return as PNG image content after their JSON, in the order the "
+        "prompt's Cameras section names them.",
+        json_schema_extra={"enum": list(Observation)},
+        exclude_if=lambda shown: shown == DEFAULT_OBSERVATION,
     )
     seed: int = Field(0, ge=0, description="The run seed, as eval's --seed.")
     trial: int = Field(0, ge=0, description="The trial's index in that run.")
@@ -141,15 +152,21 @@ class ToolEntry:
 @dataclass(frozen=True)
 class Reply:
     """What a call gives back: JSON data (non-finite numbers as null, as in results.jsonl),
-    and whether the call was refused."""
+    whether the call was refused, and the pictures the waiting agent's call carries."""
 
     data: dict[str, Any]
     refused: bool
+    pictures: tuple[Picture, ...] = ()
 
     @classmethod
-    def of(cls, data: BaseModel | Mapping[str, Any], refused: bool = False) -> Reply:
+    def of(
+        cls,
+        data: BaseModel | Mapping[str, Any],
+        refused: bool = False,
+        pictures: tuple[Picture, ...] = (),
+    ) -> Reply:
         """``data`` (models in it too) as JSON data."""
-        return cls(json.loads(to_json(data)), refused)
+        return cls(json.loads(to_json(data)), refused, pictures)
 
     @classmethod
     def refusal(cls, code: RefusalCode, detail: str) -> Reply:
@@ -222,7 +239,13 @@ class Door:
             budget = TrialBudget(max_wall_s=start.max_trial_s)
             errors = AnswerErrors(rate=start.answer_errors + 0.0)  # -0 is 0, as eval's
             conditions = Conditions.load(
-                start.pattern, start.physics, start.noise, budget, start.tools, answer_errors=errors
+                start.pattern,
+                start.physics,
+                start.noise,
+                budget,
+                start.tools,
+                answer_errors=errors,
+                observe=start.observe,
             )
             Tolerances.derive().for_goal(conditions.goal)  # joints the gates work with
             spec = conditions.spec(start.seed, start.trial)
@@ -233,13 +256,14 @@ class Door:
         trial = self._trial = TrialConditions.model_validate(
             start.model_dump(exclude={"max_trial_s"}) | {"pattern": spec.pattern_name}
         )
-        return Reply.of(Started(**dict(self._view(session, trial)), previous_result=previous))
+        started = Started(**dict(self._view(session, trial)), previous_result=previous)
+        return Reply.of(started, pictures=_pictures(session))
 
     def _state(self) -> Reply:
         session, trial = self._session, self._trial
         if session is None or trial is None:
             return _no_trial()
-        return Reply.of(self._view(session, trial))
+        return Reply.of(self._view(session, trial), pictures=_pictures(session))
 
     def _tool(self, name: str, arguments: dict[str, Any]) -> Reply:
         session = self._session
@@ -311,7 +335,14 @@ def _turn(session: TrialSession) -> AgentTurn | None:
     if turn is None or request is None:
         return None
     state, memory = state_blocks(request.spec, request.view, request.memory)
-    return AgentTurn(**{**dict(turn), "state": state, "memory": memory})
+    pictures = [picture.name for picture in request.pictures]
+    return AgentTurn(**{**dict(turn), "state": state, "memory": memory, "pictures": pictures})
+
+
+def _pictures(session: TrialSession) -> tuple[Picture, ...]:
+    """The pictures the waiting agent's call carries (none once the trial has ended)."""
+    request = session.request
+    return () if request is None else request.pictures
 
 
 def _description(model: type[BaseModel]) -> str:

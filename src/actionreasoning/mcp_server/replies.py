@@ -64,6 +64,7 @@ class TrialConditions(_Reply):
     physics: str
     noise: str
     tools: str
+    observe: str = Field("state", exclude_if=lambda shown: shown == "state")
     seed: int
     trial: int
     answer_errors: float = Field(0.0, exclude_if=lambda rate: rate == 0)
@@ -86,6 +87,12 @@ class AgentTurn(_Reply):
     measurements: list[ToolSchema]
     answer_schema: dict[str, Any]
     feedback: str
+    pictures: list[str] = Field(
+        default_factory=list,
+        description="With observe 'both': the pictures the call carries, in the order of the "
+        "image content that follows the JSON (top_down.depth: 16-bit PNG, 0.1 mm a count).",
+        exclude_if=lambda names: not names,
+    )
 
 
 class StateRead(_Reply):

@@ -6,7 +6,8 @@ descriptor 1 at stderr, so nothing the simulator or a library prints can reach t
 Every call runs in a worker thread (a trial's answer moves the arm for seconds), after
 every call that arrived before it (:mod:`arrivals`), and comes back as a tool result: its
 JSON as text and as structured content, of the output schema its tool is listed with,
-``isError`` set when it was refused. A refusal is never a protocol error.
+``isError`` set when it was refused, and the waiting agent's pictures as PNG image content
+after the text when the trial observes them. A refusal is never a protocol error.
 
 The SDK reads stdin through :mod:`wire`, which answers every line the SDK would drop
 (not JSON, not a JSON-RPC message, over ``MAX_MESSAGE_BYTES``) with a JSON-RPC error.
@@ -14,6 +15,7 @@ The SDK reads stdin through :mod:`wire`, which answers every line the SDK would 
 
 from __future__ import annotations
 
+import base64
 import json
 from typing import Any
 
@@ -26,6 +28,7 @@ from actionreasoning import __version__
 from actionreasoning.mcp_server.arrivals import Arrivals
 from actionreasoning.mcp_server.door import Door
 from actionreasoning.mcp_server.wire import stdio
+from actionreasoning.world.pictures import MEDIA_TYPE
 
 INSTRUCTIONS = """\
 Build a brick pattern with a robot arm by answering its six gated agents (pre_grasp,
@@ -64,8 +67,12 @@ def build(door: Door, arrivals: Arrivals) -> Server[Any]:
         async with arrivals.turn(ctx.request_id) as sent:
             name, arguments = sent or (params.name, params.arguments)
             reply = await anyio.to_thread.run_sync(door.call, name, arguments)
+        images = [
+            types.ImageContent(data=base64.b64encode(p.png).decode(), mime_type=MEDIA_TYPE)
+            for p in reply.pictures
+        ]
         return types.CallToolResult(
-            content=[types.TextContent(text=json.dumps(reply.data))],
+            content=[types.TextContent(text=json.dumps(reply.data)), *images],
             structured_content=reply.data,
             is_error=reply.refused,
         )
