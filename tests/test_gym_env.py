@@ -383,5 +383,5 @@ def test_with_pictures_each_observation_holds_them_inside_its_space() -> None:
         assert np.array_equal(after["pictures"]["top_down.depth"], depth)
     finally:
         made.close()
-    with pytest.raises(ConfigError, match="observe 'eyes': not one of state, both"):
+    with pytest.raises(ConfigError, match="observe 'eyes': not one of state, image, both"):
         gymnasium.make(ENV_ID, observe="eyes")

@@ -119,12 +119,13 @@ def test_a_prompt_reader_turns_a_depth_pixel_into_the_brick_it_shows(scene: Scen
     centre (from above, the waiting arm hides it) is that point. A state prompt has no such
     section."""
     state = scene_state(scene)
-    spec = agent_specs()[0]
+    spec, both = agent_specs()[0], agent_specs(observation=Observation.BOTH)[0]
     view = StateView.of(state, TaskMemory(), spec.scope)
-    shown = render_prompt(spec, view, TaskMemory(), Tolerances(), Observation.BOTH)
+    shown = render_prompt(both, view, TaskMemory(), Tolerances())
     plain = render_prompt(spec, view, TaskMemory(), Tolerances())
     assert "## Cameras" not in plain
-    assert shown.replace(f"## Cameras\n{cameras_text()}\n\n", "") == plain  # all it adds
+    section = f"## Cameras\n{cameras_text(Observation.BOTH)}\n\n"
+    assert shown.replace(section, "") == plain  # all it adds
     names = [f"{camera.name}.{kind}" for camera, kinds in SHOWN for kind in kinds]
     assert f"in this order: {', '.join(names)}." in shown
     cameras = {str(c["name"]): c for c in prompt_cameras(shown)}

@@ -295,10 +295,12 @@ VerifyOption = Annotated[
 ObserveOption = Annotated[
     Observation,
     typer.Option(
-        help="What the agents observe of the scene: state (the bricks' measured poses) or "
-        "both (the poses, and with each call the cameras' pictures: overview in colour, "
+        help="What the agents observe of the scene: state (the bricks' measured poses), "
+        "image (no brick poses: with each call the cameras' pictures, overview in colour, "
         "top-down and pick-side in colour and depth, with the cameras' intrinsics and poses "
-        "in the prompt). Figures of different observations are never pooled.",
+        "in the prompt; agent 1 names its brick by where it lies; tools check or none) or "
+        "both (the poses and the pictures). Figures of different observations are never "
+        "pooled.",
     ),
 ]
 AnswerErrorPersistenceOption = Annotated[
@@ -441,6 +443,10 @@ def eval_command(
             raise ConfigError("--method classical gives no agent tools; drop --tools")
         if method is Method.CLASSICAL and observe != DEFAULT_OBSERVATION:
             raise ConfigError("--method classical asks no agent; drop --observe")
+        if method is Method.SINGLE_AGENT and not observe.poses:
+            raise ConfigError(
+                "--method single-agent names its brick by id: observe state or both, not image"
+            )
         check_rung(method, verify)
         budget = TrialBudget(max_steps=max_steps, max_wall_s=max_trial_s)
         errors = AnswerErrors(

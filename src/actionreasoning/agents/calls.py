@@ -15,7 +15,6 @@ from typing import Any
 from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.gates import GateVerdict
 from actionreasoning.agents.memory import TaskMemory
-from actionreasoning.agents.observation import DEFAULT_OBSERVATION, Observation
 from actionreasoning.agents.outputs import AgentAnswer
 from actionreasoning.agents.prompt import render_prompt
 from actionreasoning.agents.reasoner import AgentRequest, Reasoner
@@ -95,10 +94,8 @@ class AgentCaller:
         tolerances: Tolerances,
         result: BuildResult,
         on_call: CallHook | None = None,
-        observation: Observation = DEFAULT_OBSERVATION,
     ) -> None:
         self.world = world
-        self.observation = observation
         self.reasoner = reasoner
         self.tol = tolerances
         self.result = result
@@ -116,9 +113,10 @@ class AgentCaller:
         )
         state = self.world.observe(progress)
         context = self.world.tools(state)
-        view = StateView.of(state, memory, spec.scope, spec.robot_extras)
-        prompt = render_prompt(spec, view, memory, self.tol, self.observation)
-        pictures = self.world.look() if self.observation.pictures else ()
+        shown = spec.observation
+        view = StateView.of(state, memory, spec.scope, spec.robot_extras, shown.poses)
+        prompt = render_prompt(spec, view, memory, self.tol)
+        pictures = self.world.look() if shown.pictures else ()
         tool_calls: list[ToolRecord] = []
         knowledge, gates = f"the knowledge base of {spec.key}", "the gates' measurements"
         call = AgentCall(

@@ -61,6 +61,7 @@ CHECK_CATEGORIES: Final[Mapping[str, ErrorCategory]] = MappingProxyType(
         "answer_complete": _C.SCHEMA,
         "target_buildable": _C.WRONG_CHOICE,
         "brick_free": _C.WRONG_CHOICE,
+        "brick_under_approach": _C.HALLUCINATED_ID,
         "brick_fits_target": _C.WRONG_CHOICE,
         "grip_offset_m": _C.MISALIGNMENT,
         "grip_yaw_deg": _C.MISALIGNMENT,

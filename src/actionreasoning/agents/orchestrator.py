@@ -59,6 +59,7 @@ from actionreasoning.agents.outputs import (
     LiftDecision,
     PlacementDecision,
     PreGraspDecision,
+    PreGraspSeenDecision,
     RegraspRequest,
     ReleaseDecision,
     SingleAgentAnswer,
@@ -97,6 +98,7 @@ from actionreasoning.world.models import (
     Pose,
     Progress,
     WorldState,
+    footprint_holds,
 )
 from actionreasoning.world.motion import CARRY_SPEED_MPS, Motion
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M, RETREAT_M, WORKSPACE
@@ -205,12 +207,12 @@ class Orchestrator:
         self.verify = verify
         self.single_agent = single_agent
         self.specs: dict[Stage, AgentSpec] = (
-            dict.fromkeys(AGENT_STAGES, single_agent_spec(tier))
+            dict.fromkeys(AGENT_STAGES, single_agent_spec(tier, observation))
             if single_agent
-            else {Stage(spec.key): spec for spec in agent_specs(tier)}
+            else {Stage(spec.key): spec for spec in agent_specs(tier, observation)}
         )
         self.result = BuildResult()
-        self.calls = AgentCaller(world, reasoner, self.tol, self.result, on_call, observation)
+        self.calls = AgentCaller(world, reasoner, self.tol, self.result, on_call)
         self.put_down = PutDown(world, self.calls)
         self.memory = TaskMemory()
         #: When the held brick, creeping in the hand faster than v_th, would leave it (state
@@ -243,8 +245,11 @@ class Orchestrator:
                 }
             )
             self._check_bricks_left(supports)
+            seen = not self.specs[Stage.PRE_GRASP].observation.poses
             brick, target = self._stage(
-                Stage.PRE_GRASP, PreGraspDecision.of, partial(self._pre_grasp, supports=supports)
+                Stage.PRE_GRASP,
+                PreGraspSeenDecision.of if seen else PreGraspDecision.of,
+                partial(self._pre_grasp, supports=supports),
             )
             self._stage(Stage.DESCENT, DescentDecision.of, partial(self._descent, brick=brick))
             grasp_pose = self._stage(Stage.GRASP, GraspAnswer.of, partial(self._grasp, brick=brick))
@@ -529,10 +534,15 @@ class Orchestrator:
 
     # --- the agents' acts ---------------------------------------------------------------
     def _pre_grasp(
-        self, answer: PreGraspDecision, state: WorldState, supports: Mapping[int, tuple[int, ...]]
+        self,
+        answer: PreGraspDecision | PreGraspSeenDecision,
+        state: WorldState,
+        supports: Mapping[int, tuple[int, ...]],
     ) -> tuple[int, int]:
         key = Stage.PRE_GRASP
         self._check_placed(state, supports)
+        if isinstance(answer, PreGraspSeenDecision):
+            answer = self._named(answer, state)
         self._gate(
             self._choice(answer.brick_id, answer.target_index, state, supports),
             key,
@@ -549,6 +559,28 @@ class Orchestrator:
         )
         self.world.move(waypoint)
         return brick.id, answer.target_index
+
+    def _named(self, answer: PreGraspSeenDecision, state: WorldState) -> PreGraspDecision:
+        """The image tier's Ag1 answer with the brick it names by where it lies: the highest
+        brick not yet placed whose measured footprint holds the approach pose's (x, y). An
+        approach over no such brick names nothing and is refused, as a brick id that names
+        nothing is, whatever the rung. The call is recorded as about that brick."""
+        x, y = answer.waypoint.position_m[:2]
+        used = {p.brick_id for p in self.memory.placed}
+        under = [
+            b
+            for b in state.bricks
+            if b.id not in used and b.status is not BrickStatus.QUEUED and footprint_holds(b, x, y)
+        ]
+        if not under:
+            verdict = GateVerdict(
+                f"{Stage.PRE_GRASP}_choice",
+                (Check("brick_under_approach", 0.0, 1.0, at_most=False),),
+            ).noted(f"no brick but placed ones lies under the approach pose ({x:.3f}, {y:.3f}) m")
+            self._refuse(verdict, Stage.PRE_GRASP)
+        brick = max(under, key=lambda b: b.pose.position_m[2])
+        self.result.transcript[-1].brick = brick.id
+        return PreGraspDecision(brick_id=brick.id, **dict(answer))
 
     def _choice(
         self, brick: int, target: int, state: WorldState, supports: Mapping[int, tuple[int, ...]]

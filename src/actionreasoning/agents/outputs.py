@@ -128,6 +128,21 @@ class PreGraspDecision(PreGraspAnswer, Decision):
     waypoint: WaypointProposal
 
 
+class PreGraspSeenAnswer(AgentAnswer):
+    """Agent 1 in the image tier: which target next, and the approach pose above the brick
+    for it, which names the brick: the one under the approach pose."""
+
+    target_index: Index | None = None
+    waypoint: WaypointProposal | None = None
+
+
+class PreGraspSeenDecision(PreGraspSeenAnswer, Decision):
+    """Agent 1's decision in the image tier: the target and the approach pose."""
+
+    target_index: Index
+    waypoint: WaypointProposal
+
+
 class DescentAnswer(AgentAnswer):
     """Agent 2: the gripper opening and the grasp pose to descend to."""
 
@@ -281,6 +296,7 @@ def single_agent_decision(answer: AgentAnswer) -> AgentAnswer:
 #: decides what its step's agent decides.
 DECISIONS: Final[Mapping[type[AgentAnswer], Callable[[AgentAnswer], AgentAnswer]]] = {
     PreGraspAnswer: PreGraspDecision.of,
+    PreGraspSeenAnswer: PreGraspSeenDecision.of,
     DescentAnswer: DescentDecision.of,
     GraspAnswer: GraspAnswer.of,
     LiftAnswer: LiftDecision.of,

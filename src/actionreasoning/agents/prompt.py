@@ -18,7 +18,7 @@ from jinja2 import Environment, PackageLoader, StrictUndefined
 
 from actionreasoning.agents.knowledge import formula_text
 from actionreasoning.agents.memory import TaskMemory
-from actionreasoning.agents.observation import DEFAULT_OBSERVATION, Observation
+from actionreasoning.agents.observation import Observation
 from actionreasoning.agents.schema_text import describe_fields
 from actionreasoning.agents.spec import AgentSpec
 from actionreasoning.agents.tiers import TIER_HELP
@@ -116,27 +116,23 @@ def state_blocks(
     return shown_json(state), shown_json(shown)
 
 
-def cameras_text() -> str:
-    """The Cameras section of a prompt whose call carries pictures: which, in which order,
-    how depth is encoded, each camera's intrinsics and pose, and how a pixel and its depth
-    give a world point."""
+def cameras_text(observation: Observation) -> str:
+    """The Cameras section of a prompt whose call carries pictures: what the agent observes,
+    which pictures in which order, how depth is encoded, each camera's intrinsics and pose,
+    and how a pixel and its depth give a world point."""
     cameras = [
         camera.model_dump(mode="json") | {"pictures": list(kinds)} for camera, kinds in SHOWN
     ]
     names = [f"{camera.name}.{kind}" for camera, kinds in SHOWN for kind in kinds]
     template = _ENVIRONMENT.get_template("cameras.md.j2")
-    return template.render(names=names, cameras_json=compact_json(cameras))
+    return template.render(observation=observation, names=names, cameras_json=compact_json(cameras))
 
 
 def render_prompt(
-    spec: AgentSpec,
-    view: StateView,
-    memory: TaskMemory,
-    tolerances: Tolerances,
-    observation: Observation = DEFAULT_OBSERVATION,
+    spec: AgentSpec, view: StateView, memory: TaskMemory, tolerances: Tolerances
 ) -> str:
     """The full prompt of agent ``spec`` for this view of the state and this memory; with a
-    Cameras section if ``observation`` sends pictures."""
+    Cameras section if the agent observes pictures."""
     template = _ENVIRONMENT.get_template("agent.md.j2")
     state, shown_memory = state_blocks(spec, view, memory)
     tools = [
@@ -155,7 +151,7 @@ def render_prompt(
         role=spec.role,
         gate=spec.gate,
         state_json=compact_json(state),
-        cameras=cameras_text() if observation.pictures else "",
+        cameras=cameras_text(spec.observation) if spec.observation.pictures else "",
         memory_json=compact_json(shown_memory),
         thresholds=thresholds_text(tolerances, spec.thresholds),
         tier=spec.tier,

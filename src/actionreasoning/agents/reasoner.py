@@ -11,6 +11,7 @@ from pydantic import BaseModel
 from actionreasoning.agents.answer_errors import AnswerCorruption
 from actionreasoning.agents.error_kinds import ErrorCategory
 from actionreasoning.agents.memory import TaskMemory
+from actionreasoning.agents.observation import DEFAULT_OBSERVATION, Observation
 from actionreasoning.agents.outputs import AgentAnswer
 from actionreasoning.agents.spec import AgentKey, AgentSpec
 from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
@@ -60,7 +61,8 @@ class Briefing:
 
     ``tier`` is the reasoning tier the prompt is written for; ``call_tools``, if given,
     runs the calls of one turn together (a model lists them in one answer), else they run
-    one by one through ``call_tool``."""
+    one by one through ``call_tool``. ``observation`` is what the prompt shows of the scene,
+    ``pictures`` the pictures that came with it."""
 
     agent: AgentKey
     view: StateView
@@ -69,6 +71,8 @@ class Briefing:
     call_tool: ToolRunner
     tier: ToolTier = DEFAULT_TIER
     call_tools: BatchRunner | None = None
+    observation: Observation = DEFAULT_OBSERVATION
+    pictures: tuple[Picture, ...] = ()
 
     def use(self, tool: Tool[In, Out], arguments: In) -> Out:
         """Run one of the agent's tools as a language model calls it: by name, with the

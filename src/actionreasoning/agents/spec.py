@@ -9,7 +9,7 @@ ablation (number 0, ``prompts/single_agent.yaml``) holds all six roles, without 
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cache
 from importlib import resources
 from typing import Any, Final, Literal
@@ -18,10 +18,11 @@ import yaml
 
 from actionreasoning.agents import outputs
 from actionreasoning.agents.knowledge import FORMULAS
+from actionreasoning.agents.observation import DEFAULT_OBSERVATION, Observation
 from actionreasoning.agents.outputs import AgentAnswer, SingleAgentAnswer
 from actionreasoning.agents.tiers import DEFAULT_TIER, TIERS, ToolTier
 from actionreasoning.agents.view import Scope
-from actionreasoning.tools.registry import TOOLS
+from actionreasoning.tools.registry import POSE_TOOLS, TOOLS
 from actionreasoning.world.stages import Stage
 from actionreasoning.world.tolerances import Tolerances
 
@@ -40,7 +41,8 @@ class AgentSpec:
     shown, ``thresholds`` the gate thresholds it reads and ``frames`` whether its prompt
     explains the brick and tool frames, ``robot_extras`` the robot fields beyond the tool
     pose and opening it is shown.
-    ``tier`` is the reasoning tier, ``formulas`` the knowledge base's formulas it is given.
+    ``tier`` is the reasoning tier, ``formulas`` the knowledge base's formulas it is given,
+    ``observation`` what it observes of the scene (``observation.py``).
     """
 
     number: int
@@ -58,12 +60,33 @@ class AgentSpec:
     feedback: tuple[str, ...] = ()
     tier: ToolTier = DEFAULT_TIER
     formulas: tuple[str, ...] = ()
+    observation: Observation = DEFAULT_OBSERVATION
+
+
+#: In the image tier, an answer model that names a brick by id is answered without it.
+_SEEN_OUTPUTS: dict[type[AgentAnswer], type[AgentAnswer]] = {
+    outputs.PreGraspAnswer: outputs.PreGraspSeenAnswer
+}
 
 
 @cache
-def agent_specs(tier: ToolTier = DEFAULT_TIER) -> tuple[AgentSpec, ...]:
-    """The six agents in pipeline order, as the reasoning tier ``tier`` gives them."""
-    return parse_agents(_text("agents.yaml"), tier)
+def agent_specs(
+    tier: ToolTier = DEFAULT_TIER, observation: Observation = DEFAULT_OBSERVATION
+) -> tuple[AgentSpec, ...]:
+    """The six agents in pipeline order, as the reasoning tier ``tier`` gives them, observing
+    ``observation``: in ``image`` without the tools that give a brick's pose, and agent 1
+    naming its brick by where it lies (``outputs.PreGraspSeenAnswer``)."""
+    specs = parse_agents(_text("agents.yaml"), tier)
+    if not observation.poses:
+        specs = tuple(
+            replace(
+                spec,
+                tools=tuple(name for name in spec.tools if name not in POSE_TOOLS),
+                output_model=_SEEN_OUTPUTS.get(spec.output_model, spec.output_model),
+            )
+            for spec in specs
+        )
+    return tuple(replace(spec, observation=observation) for spec in specs)
 
 
 def _text(name: str) -> str:
@@ -151,11 +174,16 @@ def parse_agents(text: str, tier: ToolTier = DEFAULT_TIER) -> tuple[AgentSpec, .
 
 
 @cache
-def single_agent_spec(tier: ToolTier = DEFAULT_TIER) -> AgentSpec:
+def single_agent_spec(
+    tier: ToolTier = DEFAULT_TIER, observation: Observation = DEFAULT_OBSERVATION
+) -> AgentSpec:
     """The single-agent ablation: the six agents merged into one (``prompts/single_agent.yaml``
     says what it is): their roles, and their thinking chains in ``tier``, each under its
     stage's name; their tools, formulas and thresholds; no gate, and no steps that correct
-    by a gate's refusals, since none refuses it."""
+    by a gate's refusals, since none refuses it. It observes the state, or the state and
+    the pictures (``observation``); it names its brick by id, so never pictures alone."""
+    if not observation.poses:
+        raise ValueError("the single agent names its brick by id: it observes the state")
     entry = yaml.safe_load(_text("single_agent.yaml"))
     specs = agent_specs(tier)
     roles = "\n".join(f"- {spec.key}: {spec.role}" for spec in specs)
@@ -179,4 +207,5 @@ def single_agent_spec(tier: ToolTier = DEFAULT_TIER) -> AgentSpec:
         output_model=SingleAgentAnswer,
         tier=tier,
         formulas=union(name for spec in specs for name in spec.formulas),
+        observation=observation,
     )

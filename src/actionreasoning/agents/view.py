@@ -122,10 +122,18 @@ class StateView(_View):
 
     @classmethod
     def of(
-        cls, state: WorldState, memory: TaskMemory, scope: Scope, extras: tuple[str, ...] = ()
+        cls,
+        state: WorldState,
+        memory: TaskMemory,
+        scope: Scope,
+        extras: tuple[str, ...] = (),
+        poses: bool = True,
     ) -> StateView:
         """The view of ``state`` an agent of ``scope`` is shown (see :class:`Scope`), with
-        the robot fields ``extras`` (pad_forces_n, ready_pose) if it needs them."""
+        the robot fields ``extras`` (pad_forces_n, ready_pose) if it needs them. Without
+        ``poses`` (the image tier) it shows no brick, and each target with the size of brick
+        it takes, agents 1 and 0 every target, built or not: the goal, which no picture
+        shows, and where the built bricks stand."""
         robot = state.robot
         supports = target_supports(state.goal)
         built = {p.target_index for p in memory.placed}
@@ -135,11 +143,11 @@ class StateView(_View):
                 index=t.index,
                 pose=t.pose,
                 rests_on=supports[t.index],
-                size_m=t.size_m if len(state.goal.sizes) > 1 else None,
+                size_m=t.size_m if len(state.goal.sizes) > 1 or not poses else None,
             )
             for t in state.goal.targets
             if (
-                t.index not in built
+                t.index not in built or not poses
                 if scope in (Scope.PICK, Scope.ALL)
                 else t.index == memory.current_target
             )
@@ -149,7 +157,7 @@ class StateView(_View):
             centres += [t.pose.position_m for t in targets]
 
         def shown(brick: BrickState) -> bool:
-            if brick.status is BrickStatus.QUEUED:
+            if brick.status is BrickStatus.QUEUED or not poses:
                 return False
             if scope is Scope.ALL:
                 return True

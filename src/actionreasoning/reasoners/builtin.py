@@ -13,7 +13,7 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from itertools import islice, takewhile
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -26,6 +26,7 @@ from actionreasoning.agents.outputs import (
     LiftDecision,
     PlacementDecision,
     PreGraspDecision,
+    PreGraspSeenDecision,
     RegraspRequest,
     ReleaseDecision,
     SingleAgentAnswer,
@@ -35,6 +36,7 @@ from actionreasoning.agents.reasoner import AgentReply, AgentRequest, Briefing
 from actionreasoning.agents.spec import SINGLE_AGENT, AgentKey
 from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.agents.view import BrickView, TargetView
+from actionreasoning.reasoners.sight import corrected, is_seen, seen_view
 from actionreasoning.tools import formulas
 from actionreasoning.tools.collision import COLLISION, CollisionQuery
 from actionreasoning.tools.grasp_plan import (
@@ -77,13 +79,25 @@ class BuiltinReasoner:
             tolerances=request.tolerances,
             call_tool=request.call_tool,
             tier=request.spec.tier,
+            observation=request.spec.observation,
+            pictures=request.pictures,
         )
         return AgentReply(answer=answer(briefing))
 
 
 def answer(briefing: Briefing) -> AgentAnswer:
-    """The policy's answer to one agent's briefing."""
-    return POLICIES[briefing.agent](briefing)
+    """The policy's answer to one agent's briefing; in the image tier, on the bricks its
+    pictures show (``sight.py``), agent 1 naming its brick by where it lies."""
+    if briefing.observation.poses:
+        return POLICIES[briefing.agent](briefing)
+    seen = seen_view(briefing.view, briefing.memory, briefing.pictures)
+    decided = POLICIES[briefing.agent](replace(briefing, view=seen))
+    if not isinstance(decided, PreGraspDecision):
+        return decided
+    # The gate's refusals of approaches over the brick chosen measured where it lies.
+    seen = corrected(seen, decided.brick_id, briefing.memory)
+    decided = _pre_grasp(replace(briefing, view=seen))
+    return PreGraspSeenDecision(**decided.model_dump(exclude={"brick_id"}))
 
 
 @dataclass(frozen=True)
@@ -137,7 +151,7 @@ def _pre_grasp(briefing: Briefing) -> PreGraspDecision:
         brick_id=best.brick.id,
         target_index=target.index,
         waypoint=_proposal(best.approach),
-        rationale=f"target {target.index} next; brick {best.brick.id} free; grasp yaw "
+        rationale=f"target {target.index} next; {_named(best.brick)} free; grasp yaw "
         f"{best.yaw_deg:.1f} turns the wrist least"
         + (f" of the grasps sigma_1 has not refused ({refused} refused)" if refused else ""),
     )
@@ -207,7 +221,7 @@ def _usable_checked(briefing: Briefing, target: TargetView, grasp: _Grasp) -> bo
                 pose=approach,
                 path="joint",
                 gripper_opening_m=briefing.view.robot.gripper_width_m,
-                ignore_brick_id=brick.id,
+                **_left_out(brick),
             ),
         ),
         (
@@ -217,7 +231,7 @@ def _usable_checked(briefing: Briefing, target: TargetView, grasp: _Grasp) -> bo
                 start_pose=approach,
                 path="linear",
                 gripper_opening_m=_descent_opening(brick),
-                ignore_brick_id=brick.id,
+                **_left_out(brick),
             ),
         ),
         (REACHABILITY, ReachQuery(pose=place)),
@@ -229,6 +243,14 @@ def _usable_checked(briefing: Briefing, target: TargetView, grasp: _Grasp) -> bo
         and to_approach.clearance_m >= tol.c_min_m
         and tol.clear(descent.clearance_m)
     )
+
+
+def _left_out(brick: BrickView) -> dict[str, Any]:
+    """The collision check's argument that leaves ``brick`` out: its id, or, for a brick
+    found in the pictures, whose id the scene does not know, its centre."""
+    if is_seen(brick.id):
+        return {"ignore_brick_at_m": brick.pose.position_m[:2]}
+    return {"ignore_brick_id": brick.id}
 
 
 def _usable_unchecked(briefing: Briefing, target: TargetView, grasp: _Grasp) -> bool:
@@ -499,6 +521,14 @@ POLICIES: dict[AgentKey, Callable[[Briefing], AgentAnswer]] = {
     **{Stage(stage): policy for stage, policy in STAGE_POLICIES.items()},
     SINGLE_AGENT: _single_agent,
 }
+
+
+def _named(brick: BrickView) -> str:
+    """How a rationale names ``brick``: by id, or, found in the pictures, by where it lies."""
+    if is_seen(brick.id):
+        x, y, _ = brick.pose.position_m
+        return f"the brick at ({x:.3f}, {y:.3f}) m"
+    return f"brick {brick.id}"
 
 
 def _descent_opening(brick: BrickView) -> float:

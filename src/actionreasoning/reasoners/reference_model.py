@@ -2,7 +2,8 @@
 
 It is what a perfect reader of our prompts would answer. It never sees the simulator or
 any object of the run: everything it knows is parsed from the messages a chat server
-receives. From the first message, the agent's prompt, it reads which agent it is, the
+receives; in the image tier, the bricks too are read from the prompt's pictures alone
+(``sight.py``). From the first message, the agent's prompt, it reads which agent it is, the
 state S_t, the memory M_t and the thresholds; from its own earlier answers and the
 ``Tool results`` messages after them, what each tool call returned. It then runs the
 built-in policy on that :class:`Briefing`, in the reasoning tier the prompt names, whose
@@ -16,6 +17,8 @@ field) cannot be answered: :class:`UnreadableConversation` says which.
 
 from __future__ import annotations
 
+import base64
+import binascii
 import itertools
 import json
 import math
@@ -27,6 +30,7 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from actionreasoning.agents.memory import TaskMemory
+from actionreasoning.agents.observation import Observation
 from actionreasoning.agents.outputs import AgentAnswer, ToolCall
 from actionreasoning.agents.prompt import (
     MEMORY_HEADING,
@@ -39,17 +43,22 @@ from actionreasoning.agents.spec import AgentSpec, agent_specs, single_agent_spe
 from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.agents.view import StateView
 from actionreasoning.reasoners import builtin
-from actionreasoning.reasoners.chat import message_text
+from actionreasoning.reasoners.chat import image_urls, message_text
 from actionreasoning.reasoners.llm import NO_MORE_TOOLS, TOOL_RESULTS
 from actionreasoning.tools.base import ToolModel
 from actionreasoning.tools.registry import TOOLS
 from actionreasoning.world.json_text import JSONTextError, parse_json
+from actionreasoning.world.pictures import MEDIA_TYPE, Picture, PictureKind
 from actionreasoning.world.tolerances import Tolerances
 
 Message = Mapping[str, Any]
 _AGENT_HEADING = re.compile(r"# Agent ([1-6]) of 6: ")
 _SINGLE_HEADING = "# Single agent"
 _TIER_LINE = re.compile(r"^Reasoning tier: (solve|check|none) ", re.M)
+_OBSERVATION_LINE = re.compile(r"^Observation: (image|both) ", re.M)
+_PICTURES_LINE = re.compile(
+    r"^This call carries \d+ pictures of the scene now, in this order: (.+)\.$", re.M
+)
 
 
 class UnreadableConversation(ValueError):
@@ -105,6 +114,8 @@ def reply(messages: Sequence[Message]) -> str:
         call_tool=lambda name, arguments: call_tools([(name, arguments)])[0],
         tier=spec.tier,
         call_tools=call_tools,
+        observation=spec.observation,
+        pictures=_pictures(messages[0], prompt) if spec.observation.pictures else (),
     )
     try:
         answer: AgentAnswer = builtin.answer(briefing)
@@ -129,7 +140,38 @@ def _spec_of(prompt: str) -> AgentSpec | None:
     if named is None:
         raise UnreadableConversation("the prompt names no reasoning tier")
     tier = ToolTier(named.group(1))
-    return single_agent_spec(tier) if found is None else agent_specs(tier)[int(found.group(1)) - 1]
+    seen = _OBSERVATION_LINE.search(prompt)
+    observation = Observation.STATE if seen is None else Observation(seen.group(1))
+    if found is None:
+        if not observation.poses:
+            raise UnreadableConversation("the single agent observes the state: not image")
+        return single_agent_spec(tier, observation)
+    return agent_specs(tier, observation)[int(found.group(1)) - 1]
+
+
+def _pictures(message: Message, prompt: str) -> tuple[Picture, ...]:
+    """The pictures of the prompt's message, named as its Cameras section lists them."""
+    listed = _PICTURES_LINE.search(prompt)
+    if listed is None:
+        raise UnreadableConversation("the prompt does not say which pictures it carries")
+    names, urls = listed.group(1).split(", "), image_urls(message)
+    if len(urls) != len(names):
+        raise UnreadableConversation(
+            f"the prompt names {len(names)} pictures and its message carries {len(urls)}"
+        )
+    pictures = []
+    for name, url in zip(names, urls, strict=True):
+        camera, _, kind = name.partition(".")
+        head, _, data = url.partition(",")
+        if head != f"data:{MEDIA_TYPE};base64" or kind not in PictureKind.__members__.values():
+            raise UnreadableConversation(f"picture {name[:40]!r} is no base64 PNG data URL")
+        try:
+            pictures.append(
+                Picture(camera, PictureKind(kind), base64.b64decode(data, validate=True))
+            )
+        except binascii.Error:
+            raise UnreadableConversation(f"picture {name[:40]!r} is not valid base64") from None
+    return tuple(pictures)
 
 
 def _block(prompt: str, heading: str, model: type[BaseModel]) -> Any:

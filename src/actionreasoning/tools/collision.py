@@ -23,7 +23,13 @@ from actionreasoning.world.clearance import (
     SEARCH_DISTANCE_M,
     Clearance,
 )
-from actionreasoning.world.models import BrickState, BrickStatus, Pose, WorldState
+from actionreasoning.world.models import (
+    BrickState,
+    BrickStatus,
+    Pose,
+    WorldState,
+    footprint_holds,
+)
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M
 
 
@@ -40,6 +46,11 @@ class CollisionQuery(ToolModel):
     gripper_opening_m: float = Field(GRIPPER_GAP_M[1], ge=GRIPPER_GAP_M[0], le=GRIPPER_GAP_M[1])
     ignore_brick_id: int | None = Field(
         None, ge=0, description="A brick left out (the one being grasped or released)."
+    )
+    ignore_brick_at_m: tuple[float, float] | None = Field(
+        None,
+        description="A point (x, y) on the ground (m): the brick whose footprint holds it is "
+        "left out, as by ignore_brick_id, for a brick known by where it lies.",
     )
     held_roll_turn_deg: float = Field(
         0.0,
@@ -60,6 +71,15 @@ class CollisionReport(ToolModel):
     )
     closest: str = Field(description="The two things at that distance.")
     poses_checked: int
+
+
+def _left_out(state: WorldState, query: CollisionQuery) -> int | None:
+    """The brick the query leaves out: by id, or the one under its point."""
+    if query.ignore_brick_at_m is None:
+        return query.ignore_brick_id
+    x, y = query.ignore_brick_at_m
+    under = [b for b in state.bricks if footprint_holds(b, x, y)]
+    return max(under, key=lambda b: b.pose.position_m[2]).id if under else None
 
 
 def _obstacles(state: WorldState, ignore: int | None) -> tuple[list[Box], BrickState | None]:
@@ -99,7 +119,7 @@ def _held_box(state: WorldState, held: BrickState, tool_pose: Pose, roll_turn_de
 
 def collision_check(context: ToolContext, query: CollisionQuery) -> CollisionReport:
     """Clearance of arm, gripper and held brick from the ground and the other bricks."""
-    obstacles, held = _obstacles(context.state, query.ignore_brick_id)
+    obstacles, held = _obstacles(context.state, _left_out(context.state, query))
     worst = Clearance(math.inf, "")
     try:
         configurations = _configurations(context, query)

@@ -35,6 +35,10 @@ TOOLS: Mapping[str, Tool] = {
     )
 }
 
+#: The tools whose results give a brick's pose (or a pose computed from it), which no agent
+#: that observes the scene in pictures gets (agents/observation.py).
+POSE_TOOLS: frozenset[str] = frozenset({GRASP_OPTIONS.name, HELD_POSE.name, PLACEMENT_POSE.name})
+
 #: The gates' measurements, in no agent's knowledge base. An agent answered from outside
 #: (MCP, Gymnasium) may run them whichever it is: they only read the measured world, and
 #: every gate verdict reports the values they give.

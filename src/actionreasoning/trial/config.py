@@ -107,6 +107,16 @@ class TrialConfig(BaseModel):
             )
         return self
 
+    @model_validator(mode="after")
+    def _pictures_need_a_tier_without_poses(self) -> TrialConfig:
+        """Refuse the image tier with the solve tools: they read the bricks' poses."""
+        if not self.observe.poses and self.tools is ToolTier.SOLVE:
+            raise ConfigError(
+                f"--observe {self.observe} shows no brick's pose, and the solve tier's tools "
+                "read them: use --tools check or none"
+            )
+        return self
+
     @field_serializer("llm")
     def _backend(self, llm: LLMConfig | None) -> Backend | None:
         if llm is None:

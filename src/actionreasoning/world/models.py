@@ -8,12 +8,13 @@ origin is the arm's base on the ground with z up.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from enum import StrEnum
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from actionreasoning.world.geometry import QuatXYZW, Vec3, top_down_quat
+from actionreasoning.world.geometry import QuatXYZW, Vec3, quat_yaw, top_down_quat
 from actionreasoning.world.physics import GRIP_FORCE_N, PAD_FRICTION
 
 
@@ -169,6 +170,15 @@ class Sensing(_Model):
     force_rel_std: float = Field(0.0, description="Relative noise (std) of the pad forces.")
     mass_tolerance: float = Field(0.0, description="A brick's mass is within +- this share.")
     friction_tolerance: float = Field(0.0, description="Its friction is within +- this share.")
+
+
+def footprint_holds(brick: BrickState, x: float, y: float) -> bool:
+    """Whether ``brick``'s footprint, as measured, holds the point (x, y) on the ground."""
+    cx, cy, _ = brick.pose.position_m
+    yaw = quat_yaw(brick.pose.quat_xyzw)
+    along = (x - cx) * math.cos(yaw) + (y - cy) * math.sin(yaw)
+    across = -(x - cx) * math.sin(yaw) + (y - cy) * math.cos(yaw)
+    return abs(along) <= brick.size_m[0] / 2.0 and abs(across) <= brick.size_m[1] / 2.0
 
 
 class WorldState(_Model):

@@ -1,0 +1,109 @@
+"""The image tier's eyes for the built-in policy (reasoners/sight.py): from real rendered
+pictures alone, the free bricks where they lie, none on a built target, and a held brick's
+roll in the hand and offset between the pads."""
+
+from __future__ import annotations
+
+import math
+
+import pybullet as p
+import pytest
+
+from actionreasoning.agents.memory import PlacedBrick, StepDecision, TaskMemory
+from actionreasoning.agents.outputs import WaypointProposal
+from actionreasoning.agents.view import RobotView, StateView, TargetView
+from actionreasoning.reasoners.sight import SEEN_ID_BASE, is_seen, seen_view
+from actionreasoning.sim.eyes import capture
+from actionreasoning.sim.scene import Scene
+from actionreasoning.tools import formulas
+from actionreasoning.world.geometry import quat_yaw, rotation_deg, top_down_quat, yaw_quat
+from actionreasoning.world.models import BrickStatus, Pose
+from actionreasoning.world.pictures import SHOWN, Picture, PictureKind, colour_png, depth_png
+from actionreasoning.world.stages import Stage
+
+SIZE = (0.2, 0.095, 0.06)
+
+
+def pictures(scene: Scene) -> tuple[Picture, ...]:
+    """The image tier's pictures of ``scene`` now, as an agent call carries them."""
+    shown = []
+    for camera, kinds in SHOWN:
+        seen = capture(scene.client, camera)
+        for kind in kinds:
+            png = colour_png(seen.rgb) if kind is PictureKind.COLOUR else depth_png(seen.depth_m)
+            shown.append(Picture(camera.name, kind, png))
+    return tuple(shown)
+
+
+def image_view(tool: Pose, targets: tuple[TargetView, ...]) -> StateView:
+    """An image-tier state block: the robot and the targets, no brick."""
+    return StateView(
+        robot=RobotView(tool_pose=tool, gripper_width_m=0.14), bricks=(), targets=targets
+    )
+
+
+def target(index: int, position: tuple[float, float, float]) -> TargetView:
+    pose = Pose(position_m=position, quat_xyzw=yaw_quat(0.0))
+    return TargetView(index=index, pose=pose, rests_on=(), size_m=SIZE)
+
+
+def test_the_free_bricks_are_found_where_they_lie_and_a_built_one_is_left_out(
+    scene: Scene,
+) -> None:
+    """Six bricks in the pick area; one target far off and one under brick 2's own centre,
+    built: brick 2 is the brick placed there, and is left out."""
+    under, _ = scene.brick_pose(2)
+    targets = (target(0, (0.6, 0.2, 0.03)), target(1, under))
+    memory = TaskMemory(placed=(PlacedBrick(brick_id=2, target_index=1),))
+    view = seen_view(
+        image_view(Pose(position_m=(0.45, -0.25, 0.4)), targets), memory, pictures(scene)
+    )
+    assert all(is_seen(b.id) and b.id >= SEEN_ID_BASE for b in view.bricks)
+    assert all(b.status is BrickStatus.IN_PICK_AREA and b.size_m == SIZE for b in view.bricks)
+    for brick in range(len(scene.bricks)):
+        position, quat = scene.brick_pose(brick)
+        near = [b for b in view.bricks if math.dist(b.pose.position_m[:2], position[:2]) < 0.05]
+        if brick == 2:
+            assert near == []
+            continue
+        assert len(near) == 1, brick
+        assert math.dist(near[0].pose.position_m, position) < 0.004
+        turn = (quat_yaw(near[0].pose.quat_xyzw) - quat_yaw(quat) + math.pi / 2) % math.pi
+        assert abs(math.degrees(turn - math.pi / 2)) < 1.0
+
+
+@pytest.mark.parametrize(
+    ("roll_deg", "along_m", "up_m"), [(0.0, 0.0, 0.0), (17.0, 0.012, 0.004), (-38.0, -0.008, 0.01)]
+)
+def test_a_held_brick_is_seen_rolled_and_shifted_as_it_sits_in_the_hand(
+    scene: Scene, roll_deg: float, along_m: float, up_m: float
+) -> None:
+    """Brick 0 put in the open hand of the arm at its ready pose, rolled about the pads'
+    axis and shifted along its length and in height: after the grasp, the brick the view
+    shows is there, within a millimetre and half a degree."""
+    position, quat = scene.tcp_pose()
+    tool = Pose(position_m=position, quat_xyzw=quat)
+    square = formulas.in_hand(
+        Pose(position_m=(0, 0, 0), quat_xyzw=top_down_quat(0.0)),
+        Pose(position_m=(0, 0, 0), quat_xyzw=yaw_quat(0.0)),
+    )[1]
+    held = formulas.carried(
+        tool, (along_m, 0.0, up_m), formulas.rolled_in_hand((0, 0, 0), square, roll_deg)[1]
+    )
+    p.resetBasePositionAndOrientation(
+        scene.bricks[0], held.position_m, held.quat_xyzw, physicsClientId=scene.client
+    )
+    approach = WaypointProposal(position_m=position, quat_xyzw=quat)
+    memory = TaskMemory(
+        current_brick=0,
+        current_target=0,
+        this_brick=(
+            StepDecision(agent=Stage.PRE_GRASP, target_index=0, waypoint=approach, passed=True),
+            StepDecision(agent=Stage.GRASP, close=True, passed=True),
+        ),
+    )
+    view = seen_view(image_view(tool, (target(0, (0.6, 0.2, 0.03)),)), memory, pictures(scene))
+    brick = view.brick(0)
+    assert brick.status is BrickStatus.GRASPED
+    assert math.dist(brick.pose.position_m, held.position_m) < 0.001
+    assert rotation_deg(brick.pose.quat_xyzw, held.quat_xyzw) < 0.5
