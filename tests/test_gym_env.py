@@ -24,7 +24,7 @@ from actionreasoning.agents.answer_errors import CorruptionKind
 from actionreasoning.errors import ActionReasoningError, ConfigError
 from actionreasoning.gym_env import ENV_ID, MAX_EPISODE_STEPS, SCENARIOS, scenario_id
 from actionreasoning.gym_env.env import INFO_TYPES, BrickStackEnv
-from actionreasoning.gym_env.observation import MAX_ACTION_CHARS
+from actionreasoning.gym_env.observation import BRICK_KEYS, MAX_ACTION_CHARS
 from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.trial.rules import Method
 from actionreasoning.world.pictures import SHOWN
@@ -385,3 +385,28 @@ def test_with_pictures_each_observation_holds_them_inside_its_space() -> None:
         made.close()
     with pytest.raises(ConfigError, match="observe 'eyes': not one of state, image, both"):
         gymnasium.make(ENV_ID, observe="eyes")
+
+
+def test_in_the_image_tier_no_brick_pose_is_observed_and_answers_name_bricks_by_place() -> None:
+    """observe="image": the observation has the pictures but no brick array, and its state
+    text no brick; an answer naming a brick by id is refused as a schema error (agent 1
+    names none), and an approach over no brick is refused as naming nothing."""
+    made = gymnasium.make(ENV_ID, observe="image")
+    try:
+        shown, info = made.reset(seed=1)
+        assert made.observation_space.contains(shown)
+        assert "pictures" in shown and not set(BRICK_KEYS) & set(shown)
+        assert "bricks" not in json.loads(shown["state"]) and "Observation: image" in info["prompt"]
+        assert "alignment_errors" not in info["prompt"]
+        by_id = answer(waypoint={"position_m": [0.4, -0.3, 0.2], "quat_xyzw": [1, 0, 0, 0]})
+        _, _, _, _, refused = made.step(by_id)
+        assert refused["refusal"]["code"] == "invalid_answer"
+        assert "brick_id" in refused["refusal"]["detail"]
+        nothing = {"position_m": [0.3, 0.3, 0.2], "quat_xyzw": [1, 0, 0, 0]}
+        action = json.dumps({"answer": {"target_index": 0, "waypoint": nothing}})
+        _, _, _, _, judged = made.step(action)
+        call = json.loads(judged["call"])
+        assert (call["outcome"], call["category"]) == ("refused", "hallucinated_id")
+        assert call["feedback"].startswith("pre_grasp_choice failed: brick_under_approach = 0")
+    finally:
+        made.close()

@@ -7,7 +7,7 @@ from __future__ import annotations
 import json
 import re
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -20,16 +20,20 @@ from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.agents.transcript import AgentCall
 from actionreasoning.control.waypoint import WaypointController
 from actionreasoning.reasoners.builtin import BuiltinReasoner
-from actionreasoning.reasoners.chat import ChatReply, ChatRequest
+from actionreasoning.reasoners.chat import ChatReply, ChatRequest, user_message
 from actionreasoning.reasoners.llm import LLMLimits, LLMReasoner
 from actionreasoning.reasoners.reference_model import UnreadableConversation, reply
 from actionreasoning.reasoners.reference_server import ReferenceServer
 from actionreasoning.records import LLMUsage
+from actionreasoning.trial.first_prompt import first_prompt
 from actionreasoning.trial.rules import Method
 from actionreasoning.trial.runner import TrialSpec, trial_world
+from actionreasoning.trial.session import Conditions
 from actionreasoning.trial.sim_world import SimWorld
 from actionreasoning.world.patterns import load_pattern
+from actionreasoning.world.pictures import Picture
 from actionreasoning.world.scene_spec import SceneSpec
+from actionreasoning.world.stages import Stage
 
 ONE_BRICK = {**SMALL_PATTERN, "name": "one", "bricks": SMALL_PATTERN["bricks"][:1]}
 
@@ -225,3 +229,39 @@ def test_over_http_it_builds_a_brick_with_tool_calls_and_usage(
     assert [c.tool_turns for c in calls] == turns.get(tier, [0] * 7)
     assert [t.name for c in calls for t in c.tool_calls] == TOOL_CALLS[tier]
     assert all(c.usage.prompt_tokens > 0 and not c.fallback for c in calls)
+
+
+@pytest.fixture(scope="module")
+def image_prompt() -> tuple[str, tuple[Picture, ...]]:
+    """Agent 1's first image-tier prompt (no tools) of pyramid trial 0 and its pictures."""
+    conditions = Conditions.load("pyramid", tools="none", observe="image")
+    return first_prompt(conditions.spec(0, 0), Stage.PRE_GRASP)
+
+
+def test_an_image_prompt_is_answered_from_its_pictures_naming_no_brick(
+    image_prompt: tuple[str, tuple[Picture, ...]],
+) -> None:
+    prompt, pictures = image_prompt
+    assert '"bricks"' not in prompt and "Observation: image" in prompt
+    answer = json.loads(reply([user_message(prompt, pictures)]))
+    assert "brick_id" not in answer and answer["target_index"] == 0
+    assert len(answer["waypoint"]["position_m"]) == 3
+
+
+@pytest.mark.parametrize(
+    ("broken", "reason"),
+    [
+        (lambda ps: (), "names 5 pictures and its message carries 0"),
+        (lambda ps: ps[:4], "names 5 pictures and its message carries 4"),
+        (lambda ps: (*ps[:4], Picture("pick_side", ps[4].kind, b"not a png")), "pick_side.depth"),
+    ],
+    ids=["none", "one short", "not a png"],
+)
+def test_an_image_prompt_without_its_pictures_cannot_be_answered(
+    image_prompt: tuple[str, tuple[Picture, ...]],
+    broken: Callable[[tuple[Picture, ...]], tuple[Picture, ...]],
+    reason: str,
+) -> None:
+    prompt, pictures = image_prompt
+    with pytest.raises(UnreadableConversation, match=re.escape(reason)):
+        reply([user_message(prompt, broken(pictures))])

@@ -73,23 +73,22 @@ def test_the_free_bricks_are_found_where_they_lie_and_a_built_one_is_left_out(
 
 
 @pytest.mark.parametrize(
-    ("roll_deg", "along_m", "up_m"), [(0.0, 0.0, 0.0), (17.0, 0.012, 0.004), (-38.0, -0.008, 0.01)]
+    ("roll_deg", "offset_m"),
+    [(0.0, (0.0, 0.0, 0.0)), (17.0, (0.012, 0.0015, 0.004)), (-38.0, (-0.008, -0.002, 0.01))],
 )
 def test_a_held_brick_is_seen_rolled_and_shifted_as_it_sits_in_the_hand(
-    scene: Scene, roll_deg: float, along_m: float, up_m: float
+    scene: Scene, roll_deg: float, offset_m: tuple[float, float, float]
 ) -> None:
     """Brick 0 put in the open hand of the arm at its ready pose, rolled about the pads'
-    axis and shifted along its length and in height: after the grasp, the brick the view
-    shows is there, within a millimetre and half a degree."""
+    axis and shifted in the hand: after the grasp, the brick the view shows is there,
+    within a millimetre and half a degree."""
     position, quat = scene.tcp_pose()
     tool = Pose(position_m=position, quat_xyzw=quat)
     square = formulas.in_hand(
         Pose(position_m=(0, 0, 0), quat_xyzw=top_down_quat(0.0)),
         Pose(position_m=(0, 0, 0), quat_xyzw=yaw_quat(0.0)),
     )[1]
-    held = formulas.carried(
-        tool, (along_m, 0.0, up_m), formulas.rolled_in_hand((0, 0, 0), square, roll_deg)[1]
-    )
+    held = formulas.carried(tool, offset_m, formulas.rolled_in_hand((0, 0, 0), square, roll_deg)[1])
     p.resetBasePositionAndOrientation(
         scene.bricks[0], held.position_m, held.quat_xyzw, physicsClientId=scene.client
     )

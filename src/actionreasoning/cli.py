@@ -772,7 +772,7 @@ def prompt_command(
         str | None,
         typer.Option(
             metavar="DIR",
-            help="With --observe both: write the pictures the call carries into this "
+            help="With --observe image or both: write the pictures the call carries into this "
             "directory, one PNG each named as the prompt names it (top_down.depth.png).",
         ),
     ] = None,
@@ -785,7 +785,7 @@ def prompt_command(
 
     try:
         if pictures is not None and not observe.pictures:
-            raise ConfigError("--pictures needs --observe both: a state call carries none")
+            raise ConfigError("--pictures needs --observe image or both: a state call carries none")
         conditions = Conditions.load(pattern, physics, noise, tools=tools, observe=observe)
         trial = conditions.spec(seed, 0)
         spec = agent_specs(tools)[agent - 1] if agent else single_agent_spec(tools)

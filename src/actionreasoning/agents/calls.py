@@ -37,7 +37,7 @@ from actionreasoning.errors import (
 )
 from actionreasoning.records import Failure, FailureCode, LLMUsage
 from actionreasoning.tools.base import In, Out, Tool, ToolContext, ToolModel
-from actionreasoning.tools.registry import GATE_MEASUREMENTS, call_tool
+from actionreasoning.tools.registry import call_tool, measurements
 from actionreasoning.world.models import Progress, WorldState
 from actionreasoning.world.tolerances import Tolerances
 
@@ -140,7 +140,9 @@ class AgentCaller:
                     memory=memory,
                     tolerances=self.tol,
                     call_tool=partial(_run_tool, spec.tools, knowledge, context, tool_calls),
-                    measure=partial(_run_tool, GATE_MEASUREMENTS, gates, context, tool_calls),
+                    measure=partial(
+                        _run_tool, measurements(shown.poses), gates, context, tool_calls
+                    ),
                     call=call.call,
                     pictures=pictures,
                 )

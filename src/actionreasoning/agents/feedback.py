@@ -9,6 +9,8 @@ the tool) to where it should have been.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from pydantic import BaseModel, ConfigDict, Field
 
 #: Errors are shown to 0.01 mm and 0.001 deg: what the gates compare.
@@ -95,3 +97,14 @@ def _fmt(value: object) -> str:
     if isinstance(value, tuple | list):
         return "(" + ", ".join(f"{v:.4g}" for v in value) + ")"
     return str(value)
+
+
+#: Gates whose refusal put the brick down to be grasped again.
+PUT_DOWN_GATES = ("sigma4_lift", "placement_regrasp")
+
+
+def since_put_down(refusals: Sequence[Refusal]) -> Sequence[Refusal]:
+    """The refusals since the brick was last put down to be grasped again (all of them if
+    it never was): those of its present grasp."""
+    put_down = [i for i, r in enumerate(refusals) if r.gate in PUT_DOWN_GATES]
+    return refusals[put_down[-1] + 1 :] if put_down else refusals

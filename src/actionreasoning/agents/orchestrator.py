@@ -73,7 +73,7 @@ from actionreasoning.agents.put_down import PutDown
 from actionreasoning.agents.reasoner import Reasoner
 from actionreasoning.agents.spec import AgentSpec, agent_specs, single_agent_spec
 from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
-from actionreasoning.agents.transcript import Outcome
+from actionreasoning.agents.transcript import Outcome, Perceived
 from actionreasoning.agents.validation import OutputError, check_answer, complete
 from actionreasoning.agents.verification import Verification
 from actionreasoning.agents.view import target_supports
@@ -91,8 +91,9 @@ from actionreasoning.tools.geometry import (
     alignment_of,
 )
 from actionreasoning.tools.placement import PLACEMENT_POSE, SEAT_CLEARANCE_M, PlacementQuery
-from actionreasoning.world.geometry import Vec3, rotation_deg, round_floats
+from actionreasoning.world.geometry import Vec3, quat_yaw, rotation_deg, round_floats, wrap_angle
 from actionreasoning.world.models import (
+    BrickState,
     BrickStatus,
     GoalPattern,
     Pose,
@@ -543,6 +544,7 @@ class Orchestrator:
         self._check_placed(state, supports)
         if isinstance(answer, PreGraspSeenDecision):
             answer = self._named(answer, state)
+        self._perceived(Stage.PRE_GRASP, answer.waypoint, state.brick(answer.brick_id))
         self._gate(
             self._choice(answer.brick_id, answer.target_index, state, supports),
             key,
@@ -582,6 +584,17 @@ class Orchestrator:
         self.result.transcript[-1].brick = brick.id
         return PreGraspDecision(brick_id=brick.id, **dict(answer))
 
+    def _perceived(self, key: Stage, waypoint: WaypointProposal, brick: BrickState) -> None:
+        """With pictures, record how far the answer's pose of its brick (over its centre, at
+        its yaw) was from the brick as measured."""
+        if not self.specs[key].observation.pictures:
+            return
+        yaw = wrap_angle(2.0 * (quat_yaw(waypoint.quat_xyzw) - quat_yaw(brick.pose.quat_xyzw)))
+        self.result.transcript[-1].perceived = Perceived(
+            centre_offset_cm=100.0 * math.dist(waypoint.position_m[:2], brick.pose.position_m[:2]),
+            yaw_error_deg=abs(math.degrees(yaw)) / 2.0,
+        )
+
     def _choice(
         self, brick: int, target: int, state: WorldState, supports: Mapping[int, tuple[int, ...]]
     ) -> GateVerdict:
@@ -619,6 +632,7 @@ class Orchestrator:
         key = Stage.DESCENT
         waypoint = _checked(key, answer.waypoint, path="linear")
         held = state.brick(brick)
+        self._perceived(key, waypoint, held)
         tool = state.robot.ee_pose
         path = self._clearance(
             state, waypoint, start=tool, opening=answer.gripper_opening_m, ignore=brick

@@ -111,7 +111,9 @@ def state_blocks(
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """The state S_t and the memory M_t as agent ``spec``'s prompt shows them, as JSON data
     (:func:`shown_json`): the prompt writes them, the MCP server's read_state returns them."""
-    state = view.model_dump(mode="json", exclude_none=True)
+    state = view.model_dump(
+        mode="json", exclude_none=True, exclude=None if spec.observation.poses else {"bricks"}
+    )
     shown = memory.model_dump(mode="json", exclude_defaults=True, exclude=_unread(spec))
     return shown_json(state), shown_json(shown)
 

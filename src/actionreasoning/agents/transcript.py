@@ -100,6 +100,15 @@ class PictureRecord(BaseModel):
         return cls(name=picture.name, bytes=len(picture.png), sha256=picture.sha256)
 
 
+class Perceived(BaseModel):
+    """How far an answer's pose of a brick (an approach over it, a grasp pose on it) was from
+    the brick as measured: its centre in the plane (cm), and its yaw (deg; a brick's yaw is
+    defined to a half turn, the grasp's is the brick's)."""
+
+    centre_offset_cm: float
+    yaw_error_deg: float
+
+
 class AgentCall(BaseModel):
     """One request to a reasoner and everything that followed from its answer."""
 
@@ -137,6 +146,11 @@ class AgentCall(BaseModel):
     tool_turns: int = 0
     fallback: bool = Field(False, description="Answered by the built-in reasoner instead.")
     usage: LLMUsage = LLMUsage()
+    perceived: Perceived | None = Field(
+        None,
+        description="With pictures: how far the answer's pose of its brick was from it.",
+        exclude_if=lambda perceived: perceived is None,
+    )
     corruption: AnswerCorruption | None = Field(
         None,
         description="What eval --answer-errors changed in the reasoner's answer (its original "

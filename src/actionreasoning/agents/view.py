@@ -99,7 +99,9 @@ class StateView(_View):
     """The state block of a prompt."""
 
     robot: RobotView
-    bricks: tuple[BrickView, ...]
+    bricks: tuple[BrickView, ...] = Field(
+        (), description="The bricks as measured; absent in the image tier, which shows none."
+    )
     targets: tuple[TargetView, ...]
     sensing: Sensing | None = Field(None, description="Sensor noise; absent when exact.")
     supply: Supply | None = Field(

@@ -7,7 +7,8 @@ measurements) or an answer, as JSON text (``actions.py``), validated as a langua
 answer is and, if valid, gated and executed by the same controller. The observation is the
 measured state the waiting agent is given (``observation.py``); the reward counts bricks
 placed (``reward.py``). With ``observe="both"``, each call also carries the cameras'
-pictures: the observation adds them under ``pictures`` (a Dict space of arrays).
+pictures: the observation adds them under ``pictures`` (a Dict space of arrays); with
+``observe="image"`` it has the pictures and no brick's pose.
 
 Seeds: ``reset(seed=s, options={"trial": k})`` is trial k of ``eval --seed s`` under the
 same pattern and conditions (k defaults to 0); ``reset()`` goes on with the next trial of
@@ -101,10 +102,9 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
             observe=observe,
         )
         Tolerances.derive().for_goal(self.conditions.goal)  # joints the gates work with
-        self.with_pictures = self.conditions.config.observe.pictures
-        self.observation_space = observation_space(
-            len(self.conditions.goal.targets), self.with_pictures
-        )
+        self.observe = self.conditions.config.observe
+        self.with_pictures = self.observe.pictures
+        self.observation_space = observation_space(len(self.conditions.goal.targets), self.observe)
         self.action_space = action_space()
         self.session: TrialSession | None = None
         self._run_seed: int | None = None
@@ -199,7 +199,8 @@ class BrickStackEnv(gymnasium.Env[dict[str, Any], str]):
     def _observation(self) -> dict[str, Any]:
         assert self._state is not None and self.session is not None
         request = self.session.request
-        shown = observation(self._state, None if request is None else str(request.spec.key))
+        agent = None if request is None else str(request.spec.key)
+        shown = observation(self._state, agent, self.observe)
         return shown | ({"pictures": self._pictures} if self.with_pictures else {})
 
     def _ends(self) -> tuple[bool, bool]:

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from actionreasoning.agents.observation import DEFAULT_OBSERVATION, Observation
 from actionreasoning.agents.spec import agent_specs
 from actionreasoning.agents.validation import MAX_ANSWER_CHARS
 from actionreasoning.world.models import BrickStatus, Pose, WorldState
@@ -157,16 +158,23 @@ def pictures(carried: Sequence[Picture]) -> dict[str, np.ndarray]:
     }
 
 
-def observation_space(bricks: int, with_pictures: bool = False) -> spaces.Dict:
+#: The observation's arrays of the bricks' poses and states, which an agent that observes
+#: the scene in pictures alone is not given.
+BRICK_KEYS = ("brick_poses", "brick_velocities", "brick_sizes", "brick_status", "placed")
+
+
+def observation_space(bricks: int, observe: Observation = DEFAULT_OBSERVATION) -> spaces.Dict:
     """The measured state of a scene with ``bricks`` bricks (one per target), and the
-    cameras' pictures if ``with_pictures``."""
+    cameras' pictures if ``observe`` sends them; without the bricks' arrays (BRICK_KEYS)
+    if it shows no brick's pose."""
 
     def real(*shape: int) -> spaces.Box:
         return spaces.Box(-BOUND, BOUND, shape=shape, dtype=np.float64)
 
-    extra: dict[str, spaces.Space[Any]] = {"pictures": pictures_space()} if with_pictures else {}
-    return spaces.Dict(
-        {
+    extra: dict[str, spaces.Space[Any]] = {"pictures": pictures_space()} if observe.pictures else {}
+    shown = {
+        key: space
+        for key, space in {
             "agent": spaces.Discrete(len(AGENTS) + 1),
             "time_s": real(1),
             "tool_pose": real(7),
@@ -181,18 +189,24 @@ def observation_space(bricks: int, with_pictures: bool = False) -> spaces.Dict:
             "target_poses": real(bricks, 7),
             "state": spaces.Text(max_length=10_000 + 5_000 * bricks, min_length=2, charset=CHARSET),
             **extra,
-        }
-    )
+        }.items()
+        if observe.poses or key not in BRICK_KEYS
+    }
+    return spaces.Dict(shown)
 
 
-def observation(state: WorldState, agent: str | None) -> dict[str, Any]:
-    """The observation of ``state`` with ``agent`` waiting (None: none waits)."""
+def observation(
+    state: WorldState, agent: str | None, observe: Observation = DEFAULT_OBSERVATION
+) -> dict[str, Any]:
+    """The observation of ``state`` with ``agent`` waiting (None: none waits), as much of it
+    as ``observe`` shows: no brick's pose in the image tier (its ``state`` text leaves out
+    the bricks), and no pictures (``pictures`` adds them)."""
     robot, bricks, placed = state.robot, state.bricks, set(state.progress.placed_ids)
 
     def array(rows: Any) -> np.ndarray:
         return np.array(rows, dtype=np.float64)
 
-    return {
+    shown = {
         "agent": AGENTS.index(agent) if agent is not None else len(AGENTS),
         "time_s": array([state.time_s]),
         "tool_pose": array(_pose(robot.ee_pose)),
@@ -207,8 +221,12 @@ def observation(state: WorldState, agent: str | None) -> dict[str, Any]:
         "brick_status": np.array([STATUSES.index(b.status) for b in bricks], dtype=np.int64),
         "placed": np.array([b.id in placed for b in bricks], dtype=np.int8),
         "target_poses": array([_pose(t.pose) for t in state.goal.targets]),
-        "state": json.dumps(state.model_dump(mode="json"), separators=(",", ":")),
+        "state": json.dumps(
+            state.model_dump(mode="json", exclude=None if observe.poses else {"bricks"}),
+            separators=(",", ":"),
+        ),
     }
+    return {key: value for key, value in shown.items() if observe.poses or key not in BRICK_KEYS}
 
 
 def _pose(pose: Pose) -> tuple[float, ...]:

@@ -18,6 +18,7 @@ from typing import Any, Literal
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from actionreasoning.agents.feedback import since_put_down
 from actionreasoning.agents.memory import PlacementPhase, TaskMemory
 from actionreasoning.agents.outputs import (
     AgentAnswer,
@@ -59,8 +60,6 @@ RELEASE_SIDE_M = 0.005
 #: The descent opens this much wider than the brick (two centimetres a side), at most the
 #: gripper's full opening: room for the pads past the side walls beyond what sigma_2 needs.
 DESCENT_SLACK_M = 0.04
-#: Gates whose refusal put the brick down to be grasped again.
-PUT_DOWN_GATES = ("sigma4_lift", "placement_regrasp")
 #: Checks of sigma_4 that fail when the brick slips in the grip.
 SLIP_CHECKS = ("relative_speed_mps", "friction_margin_n", "normal_force_n")
 
@@ -369,6 +368,8 @@ def _placement(briefing: Briefing) -> PlacementDecision | RegraspRequest:
             "it again",
         )
     slot = _corrected(briefing, plan.pose, dx, dy, turn)
+    if not briefing.observation.poses:
+        slot = _plan_corrected(briefing, slot)
     note = (
         f"; shifted by ({1000 * dx:+.1f}, {1000 * dy:+.1f}) mm and turned by {turn:+.2f} deg: "
         f"the sum of the {misses} seated misses sigma_5 measured"
@@ -450,11 +451,10 @@ def _misses(briefing: Briefing) -> tuple[float, float, float, int]:
     """The summed offset (x, y) and yaw error of the set-downs sigma_5 refused since the
     brick was last grasped that seated the brick (within eps_perp and eps_tilt: a brick
     that did not seat missed for that reason, not by an offset), and how many."""
-    tol, refusals = briefing.tolerances, briefing.memory.refusals
-    put_down = [i for i, r in enumerate(refusals) if r.gate in PUT_DOWN_GATES]
+    tol = briefing.tolerances
     seated = [
         r.measured
-        for r in refusals[put_down[-1] + 1 if put_down else 0 :]
+        for r in since_put_down(briefing.memory.refusals)
         if r.gate == "sigma5_placement"
         and abs(r.measured.d_perp_m or 0.0) <= tol.eps_perp_m
         and (r.measured.tilt_deg or 0.0) <= tol.eps_tilt_deg
@@ -465,6 +465,30 @@ def _misses(briefing: Briefing) -> tuple[float, float, float, int]:
         sum(m.e_theta_deg or 0.0 for m in seated),
         len(seated),
     )
+
+
+def _plan_corrected(briefing: Briefing, slot: Pose) -> Pose:
+    """In the image tier, where the held brick is seen, not measured: ``slot`` corrected by
+    the placement plan's refusals in a row (the last ones). Each predicted the brick, as it
+    truly sits in the hand, landing off its target by (e_x, e_y) (wanted minus landing),
+    turned by e_theta and d_perp above it, from a slot corrected by those before it: their
+    sum is what this slot needs. A landing turned more than a quarter turn is the brick's
+    ends told apart (``sight.py``), not a miss."""
+    misses = [
+        r.measured
+        for r in takewhile(
+            lambda r: r.gate == f"{Stage.PLACEMENT}_plan", reversed(briefing.memory.refusals)
+        )
+        if abs(r.measured.e_theta_deg or 0.0) <= 90.0
+    ]
+    if not misses:
+        return slot
+    dx, dy = sum(m.e_x_m or 0.0 for m in misses), sum(m.e_y_m or 0.0 for m in misses)
+    turn = sum(m.e_theta_deg or 0.0 for m in misses)
+    moved = _corrected(briefing, slot, dx, dy, turn)
+    x, y, z = moved.position_m
+    down = sum(m.d_perp_m or 0.0 for m in misses)
+    return Pose(position_m=(x, y, z - down), quat_xyzw=moved.quat_xyzw)
 
 
 def _corrected(briefing: Briefing, slot: Pose, dx: float, dy: float, turn: float) -> Pose:

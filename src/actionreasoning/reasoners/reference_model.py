@@ -48,7 +48,7 @@ from actionreasoning.reasoners.llm import NO_MORE_TOOLS, TOOL_RESULTS
 from actionreasoning.tools.base import ToolModel
 from actionreasoning.tools.registry import TOOLS
 from actionreasoning.world.json_text import JSONTextError, parse_json
-from actionreasoning.world.pictures import MEDIA_TYPE, Picture, PictureKind
+from actionreasoning.world.pictures import MEDIA_TYPE, PNG_SIGNATURE, Picture, PictureKind
 from actionreasoning.world.tolerances import Tolerances
 
 Message = Mapping[str, Any]
@@ -115,7 +115,7 @@ def reply(messages: Sequence[Message]) -> str:
         tier=spec.tier,
         call_tools=call_tools,
         observation=spec.observation,
-        pictures=_pictures(messages[0], prompt) if spec.observation.pictures else (),
+        pictures=() if spec.observation.poses else _pictures(messages[0], prompt),
     )
     try:
         answer: AgentAnswer = builtin.answer(briefing)
@@ -123,6 +123,8 @@ def reply(messages: Sequence[Message]) -> str:
         answer = spec.output_model(tool_calls=need.calls, rationale=f"measure with {need} first")
     except UnreadableConversation:
         raise
+    except OSError as error:  # a picture whose PNG does not decode
+        raise UnreadableConversation(f"a picture cannot be read: {error}") from None
     except (KeyError, ValueError, StopIteration) as error:
         raise UnreadableConversation(
             f"the prompt does not say enough to answer: {error!r}"
@@ -166,11 +168,12 @@ def _pictures(message: Message, prompt: str) -> tuple[Picture, ...]:
         if head != f"data:{MEDIA_TYPE};base64" or kind not in PictureKind.__members__.values():
             raise UnreadableConversation(f"picture {name[:40]!r} is no base64 PNG data URL")
         try:
-            pictures.append(
-                Picture(camera, PictureKind(kind), base64.b64decode(data, validate=True))
-            )
+            png = base64.b64decode(data, validate=True)
         except binascii.Error:
             raise UnreadableConversation(f"picture {name[:40]!r} is not valid base64") from None
+        if not png.startswith(PNG_SIGNATURE):
+            raise UnreadableConversation(f"picture {name[:40]!r} is no PNG")
+        pictures.append(Picture(camera, PictureKind(kind), png))
     return tuple(pictures)
 
 

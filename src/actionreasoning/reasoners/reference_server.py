@@ -41,6 +41,7 @@ from actionreasoning.errors import ConfigError
 from actionreasoning.reasoners.chat import image_urls, message_text
 from actionreasoning.reasoners.guarded_http import GuardedHandler, GuardedHTTPServer
 from actionreasoning.reasoners.reference_model import Message, UnreadableConversation, reply
+from actionreasoning.world.pictures import PNG_SIGNATURE
 
 MODEL_ID = "reference"
 #: A larger request body is refused with 413 before it is read.
@@ -300,7 +301,7 @@ def png_size(url: str) -> tuple[int, int] | None:
         head = base64.b64decode(url[len(prefix) : len(prefix) + 32], validate=True)
     except binascii.Error:
         return None
-    if len(head) < 24 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
+    if len(head) < 24 or not head.startswith(PNG_SIGNATURE) or head[12:16] != b"IHDR":
         return None
     width, height = struct.unpack(">II", head[16:24])
     return (width, height) if width and height else None

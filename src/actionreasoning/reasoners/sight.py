@@ -11,13 +11,14 @@ one in from the pictures and the memory alone:
   left out, as the state block leaves out placed bricks. Found bricks are numbered from
   :data:`SEEN_ID_BASE`, ids no brick of the scene has: the policy never sends them back,
   since agent 1 names its brick by where it lies.
-- **The current brick** (memory.current_brick, once agent 1 has chosen it) is where that
-  choice put it until it is grasped: centred under this brick's pre-grasp waypoint, turned
-  as the tool is there (the pads close across its width), its height that of the top face
-  the pictures show there (the ground's, if they show none). Held, it sits centred between
-  the pads, level in the hand but for the roll the gates measured (memory.roll_watch): the
-  closing pads centre it across its width and square it to them, and agent 1 put its
-  centre under the tool.
+- **The current brick** (memory.current_brick, once this cycle's agent 1 has chosen it)
+  lies under the tool until it is grasped: agent 1 moved the tool over its centre, agent 2
+  down to it, turned as the tool is (the pads close across its width); shifted by what the
+  refusals of a descent in a row measured of it; its height that of the top face the
+  pictures show there (the ground's, if they show none). Held, it sits between the pads,
+  squared to them (closing, they square it), rolled about their axis and shifted as its
+  points in the depth pictures lie, the roll as the gates measured it over the slot once
+  they have; turned half round where the placement plan's refusals say.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
+from actionreasoning.agents.feedback import since_put_down
 from actionreasoning.agents.memory import StepDecision, TaskMemory
 from actionreasoning.agents.view import BrickView, StateView, TargetView
 from actionreasoning.reasoners.brick_finder import (
@@ -70,10 +72,7 @@ def seen_view(view: StateView, memory: TaskMemory, pictures: Sequence[Picture]) 
         if not any(_on(find, target) for target in built)
         and (current is None or _apart(find, current.pose.position_m))
     ]
-    bricks = [
-        _brick(SEEN_ID_BASE + number, find, sizes, BrickStatus.IN_PICK_AREA)
-        for number, find in enumerate(free)
-    ]
+    bricks = [_brick(SEEN_ID_BASE + number, find, sizes) for number, find in enumerate(free)]
     return view.model_copy(update={"bricks": (*([current] if current else []), *bricks)})
 
 
@@ -87,12 +86,12 @@ def _finds(pictures: Sequence[Picture], sizes: Sequence[Vec3]) -> list[SeenBrick
     return merged(finds)
 
 
-def _brick(brick_id: int, find: SeenBrick, sizes: Sequence[Vec3], status: BrickStatus) -> BrickView:
-    """A find as a brick of the size whose footprint it was fitted with, lying flat."""
+def _brick(brick_id: int, find: SeenBrick, sizes: Sequence[Vec3]) -> BrickView:
+    """A find as a free brick of the size whose footprint it was fitted with, lying flat."""
     size = next(s for s in sizes if (s[0], s[1]) == (find.length_m, find.width_m))
     x, y, top = find.top_centre_m
     pose = Pose(position_m=(x, y, top - size[2] / 2.0), quat_xyzw=yaw_quat(find.yaw_rad))
-    return BrickView(id=brick_id, size_m=size, pose=pose, status=status)
+    return BrickView(id=brick_id, size_m=size, pose=pose, status=BrickStatus.IN_PICK_AREA)
 
 
 def _built(view: StateView, memory: TaskMemory) -> list[TargetView]:
@@ -130,10 +129,10 @@ def _current(
     tool = view.robot.tool_pose
     if _decision(memory, Stage.GRASP) is not None:
         watch = memory.roll_watch
-        roll, along, up = _held_seen(tool, size, pictures, watch.now_deg if watch else None)
+        roll, offset = _held_seen(tool, size, pictures, watch.now_deg if watch else None)
         square = _TURNED if _turned_round(memory) else _SQUARE
         quat = formulas.rolled_in_hand((0.0, 0.0, 0.0), square, roll)[1]
-        pose = _landing_corrected(formulas.carried(tool, (along, 0.0, up), quat), memory)
+        pose = formulas.carried(tool, offset, quat)
         return BrickView(
             id=memory.current_brick, size_m=size, pose=pose, status=BrickStatus.GRASPED
         )
@@ -158,9 +157,7 @@ _TURNED = formulas.in_hand(
     Pose(position_m=(0.0, 0.0, 0.0), quat_xyzw=top_down_quat(0.0)),
     Pose(position_m=(0.0, 0.0, 0.0), quat_xyzw=yaw_quat(math.pi)),
 )[1]
-#: Gates whose refusal put the brick down to be grasped again, and those that measure how
-#: the held brick would land turned (or landed).
-_PUT_DOWN_GATES = ("sigma4_lift", "placement_regrasp")
+#: Gates that measure how the held brick would land turned (or landed).
 _LANDING_GATES = (f"{Stage.PLACEMENT}_plan", "sigma5_placement")
 
 
@@ -171,11 +168,10 @@ def _turned_round(memory: TaskMemory) -> bool:
     grasped whose gate measured its landing turned more than a quarter turn says the
     guess was wrong (the gates measure the brick's own frame): an odd number of them,
     turned."""
-    refusals = memory.refusals
-    put_down = [i for i, r in enumerate(refusals) if r.gate in _PUT_DOWN_GATES]
-    since = refusals[put_down[-1] + 1 :] if put_down else refusals
     wrong = sum(
-        1 for r in since if r.gate in _LANDING_GATES and abs(r.measured.e_theta_deg or 0.0) > 90.0
+        1
+        for r in since_put_down(memory.refusals)
+        if r.gate in _LANDING_GATES and abs(r.measured.e_theta_deg or 0.0) > 90.0
     )
     return wrong % 2 == 1
 
@@ -190,14 +186,13 @@ _ROLLS_TRIED = np.arange(-90.0, 90.1, 5.0)
 
 def _held_seen(
     tool: Pose, size_m: Vec3, pictures: Sequence[Picture], roll_deg: float | None = None
-) -> tuple[float, float, float]:
+) -> tuple[float, Vec3]:
     """The held brick's roll about the pads' axis (deg, as the gates measure it) and its
-    centre's offset (m) along the tool's x axis and in height, from its points in the depth
-    pictures: the box of its size, between the pads and squared to them, so rolled and
-    shifted that its visible points lie on its surface (robust least squares; a point off
-    it is the gripper's or another brick's). With ``roll_deg`` (the gates' measurement)
-    the roll is that and only the offsets are fitted. Zero offsets (and roll, unless
-    given) if too few of its points show."""
+    centre's offset (m) in the tool frame, from its points in the depth pictures: the box of
+    its size, squared to the pads, so rolled and shifted that its visible points lie on its
+    surface (robust least squares; a point off it is the gripper's or another brick's).
+    With ``roll_deg`` (the gates' measurement) the roll is that and only the offset is
+    fitted. No offset (and no roll, unless given) if too few of its points show."""
     points = []
     for colour, depth in _depth_pairs(pictures):
         camera = CAMERAS[depth.camera]
@@ -210,25 +205,26 @@ def _held_seen(
         points.append(world[near])
     held = np.concatenate(points) if points else np.empty((0, 3))
     if len(held) < MIN_PIXELS:
-        return roll_deg or 0.0, 0.0, 0.0
+        return roll_deg or 0.0, (0.0, 0.0, 0.0)
     in_tool = Rotation.from_quat(tool.quat_xyzw).inv().apply(held - np.asarray(tool.position_m))
     half = np.asarray(size_m) / 2.0
 
     def off_surface(params: np.ndarray) -> np.ndarray:
-        roll, along, up = params if roll_deg is None else (roll_deg, *params)
+        roll, *offset = params if roll_deg is None else (roll_deg, *params)
         turn = Rotation.from_euler("y", roll, degrees=True)
-        outside = np.abs(turn.inv().apply(in_tool - (along, 0.0, up))) - half
+        outside = np.abs(turn.inv().apply(in_tool - offset)) - half
         return np.linalg.norm(np.maximum(outside, 0.0), axis=1) + np.minimum(
             outside.max(axis=1), 0.0
         )
 
-    starts = [(0.0, 0.0)] if roll_deg is not None else [(r, 0.0, 0.0) for r in _ROLLS_TRIED]
+    still = (0.0, 0.0, 0.0)
+    starts = [still] if roll_deg is not None else [(r, *still) for r in _ROLLS_TRIED]
     fits = [least_squares(off_surface, x0, loss="soft_l1", f_scale=0.002) for x0 in starts]
     best = min(fits, key=lambda fit: fit.cost).x
-    roll, along, up = best if roll_deg is None else (roll_deg, *best)
+    roll, x, y, z = best if roll_deg is None else (roll_deg, *best)
     # A box rolled half round is the same box: the roll within a quarter turn, as the gates
     # measure it (formulas.roll_in_hand_deg).
-    return (float(roll) + 90.0) % 180.0 - 90.0, float(along), float(up)
+    return (float(roll) + 90.0) % 180.0 - 90.0, (float(x), float(y), float(z))
 
 
 def _depth_pairs(pictures: Sequence[Picture]) -> list[tuple[Picture, Picture]]:
@@ -265,29 +261,6 @@ def _corrected(pose: Pose, memory: TaskMemory, gate: str) -> Pose:
     turn = sum(r.measured.e_theta_deg or 0.0 for r in trailing)
     yaw = quat_yaw(pose.quat_xyzw) + math.radians(turn)
     return Pose(position_m=(x + dx, y + dy, z), quat_xyzw=yaw_quat(yaw))
-
-
-def _landing_corrected(pose: Pose, memory: TaskMemory) -> Pose:
-    """The held brick's ``pose`` as seen, corrected by the placement plan's refusals in a
-    row (the last ones): each predicted the brick, as it truly sits in the hand, landing off
-    its target by (e_x, e_y) (wanted minus landing) and d_perp above it, from a slot made
-    for the brick as seen (corrected by those before it), so the brick sits that much the
-    other way from where it was seen. A landing turned more than a quarter turn is the
-    brick turned round (``_turned_round``), not a yaw to correct."""
-    trailing = list(
-        takewhile(lambda r: r.gate == f"{Stage.PLACEMENT}_plan", reversed(memory.refusals))
-    )
-    x, y, z = pose.position_m
-    dx = -sum(r.measured.e_x_m or 0.0 for r in trailing)
-    dy = -sum(r.measured.e_y_m or 0.0 for r in trailing)
-    dz = sum(r.measured.d_perp_m or 0.0 for r in trailing)
-    turn = -sum(
-        r.measured.e_theta_deg or 0.0
-        for r in trailing
-        if abs(r.measured.e_theta_deg or 0.0) <= 90.0
-    )
-    spin = Rotation.from_euler("z", turn, degrees=True) * Rotation.from_quat(pose.quat_xyzw)
-    return Pose(position_m=(x + dx, y + dy, z + dz), quat_xyzw=tuple(spin.as_quat()))
 
 
 def _decision(memory: TaskMemory, stage: Stage) -> StepDecision | None:

@@ -29,6 +29,7 @@ from actionreasoning.report.plots import (
     course_errors,
     error_distributions,
     llm_cost,
+    perception_errors,
     refusal_categories,
     success_rates,
 )
@@ -116,6 +117,11 @@ def build_report(
     cost = llm_cost(groups, out / "llm_cost.png")
     if cost is not None:
         report.plots.append((cost, "LLM tokens per brick and latency per call, by agent"))
+    seen = perception_errors(groups, out / "perception.png")
+    if seen is not None:
+        report.plots.append(
+            (seen, "Perception: how far the answers' poses of bricks were from them, by agent")
+        )
     refused = refusal_categories(groups, out / REFUSALS_PLOT)
     if refused is not None:
         report.plots.append((refused, "Refused and failed answers per agent, by error category"))

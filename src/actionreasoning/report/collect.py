@@ -85,15 +85,16 @@ def pattern_title(pattern: str) -> str:
 
 
 def method_label(manifest: AnyManifest, verify: str | None = None) -> str:
-    """How a row names a method: with its reasoning backend and tier where it has one, and
-    its rung of verification (``verify``, of its results lines) where not the method's
-    default; its physics profile and, where there are any, its noise level and answer error
-    rate (with its persistence)."""
+    """How a row names a method: with its reasoning backend and tier where it has one, what
+    its agents observed where not the state, and its rung of verification (``verify``, of
+    its results lines) where not the method's default; its physics profile and, where there
+    are any, its noise level and answer error rate (with its persistence)."""
     rung = "" if verify in (None, DEFAULT_VERIFY.get(manifest.method)) else f", verify {verify}"
+    seen = "" if manifest.observation == "state" else f", observe {manifest.observation}"
     name = (
         manifest.method
         if manifest.llm == "none"
-        else f"{manifest.method} ({manifest.llm}, tools {manifest.tier}{rung})"
+        else f"{manifest.method} ({manifest.llm}, tools {manifest.tier}{seen}{rung})"
     )
     noise = "" if manifest.noise_name == "none" else f", noise {manifest.noise_name}"
     rate, persistence = manifest.answer_errors.rate, manifest.answer_errors.persistence

@@ -10,8 +10,9 @@ grows by the legend's height.
 from __future__ import annotations
 
 import textwrap
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 from matplotlib import colormaps
@@ -26,7 +27,7 @@ from actionreasoning.records import LLMUsage
 from actionreasoning.report.collect import Group, labels, patterns
 from actionreasoning.runs.statistics import wilson
 from actionreasoning.runs.summary import categories_in
-from actionreasoning.trial.results import sum_refusals
+from actionreasoning.trial.results import PerceptionErrors, sum_refusals
 
 #: (per-brick field, axis title, scale)
 BRICK_METRICS = (
@@ -276,6 +277,33 @@ def _limits(axis: Axes, limits: Sequence[float], top: float, unit: str) -> None:
             )
 
 
+Row = TypeVar("Row")
+
+
+def _agent_bars(
+    rows: Mapping[str, Mapping[str, Row]], inches_per_agent: float
+) -> tuple[
+    Figure,
+    tuple[Axes, Axes],
+    list[str],
+    list[tuple[str, Mapping[str, Row], tuple[float, float, float, float], np.ndarray]],
+]:
+    """Two panels of bars by agent, a bar per method side by side: the figure, its panels,
+    the agents (in the order first met) and, per method, its label, row, colour and the
+    bars' x positions (the agents' at 0, 1, ...)."""
+    agents = list(dict.fromkeys(a for row in rows.values() for a in row))
+    figure = _figure(max(6.0, inches_per_agent * len(agents) * 2), 3.8)
+    left, right = figure.subplots(1, 2)
+    width, x = 0.8 / len(rows), np.arange(len(agents))
+    bars = [
+        (label, row, colour, x + (r - (len(rows) - 1) / 2) * width)
+        for r, ((label, row), colour) in enumerate(
+            zip(rows.items(), _colours(len(rows)), strict=True)
+        )
+    ]
+    return figure, (left, right), agents, bars
+
+
 def llm_cost(groups: Sequence[Group], path: Path) -> Path | None:
     """Tokens per brick and latency per call of every agent, for methods that called a model."""
     figure = llm_cost_figure(groups)
@@ -295,18 +323,12 @@ def llm_cost_figure(groups: Sequence[Group]) -> Figure | None:
             bricks[group.label] = bricks.get(group.label, 0) + len(result.bricks)
     if not usage:
         return None
-    agents = list(dict.fromkeys(a for row in usage.values() for a in row))
-    figure = _figure(max(6.0, 1.3 * len(agents) * 2), 3.8)
-    tokens, latency = figure.subplots(1, 2)
-    width = 0.8 / len(usage)
-    x = np.arange(len(agents))
-    for r, ((label, row), colour) in enumerate(
-        zip(usage.items(), _colours(len(usage)), strict=True)
-    ):
-        shift = x + (r - (len(usage) - 1) / 2) * width
+    figure, (tokens, latency), agents, bars = _agent_bars(usage, 1.3)
+    x, width = np.arange(len(agents)), 0.8 / len(usage)
+    for label, method, colour, shift in bars:
         per_brick = max(bricks[label], 1)
-        prompt = [row.get(a, LLMUsage()).prompt_tokens / per_brick for a in agents]
-        completion = [row.get(a, LLMUsage()).completion_tokens / per_brick for a in agents]
+        prompt = [method.get(a, LLMUsage()).prompt_tokens / per_brick for a in agents]
+        completion = [method.get(a, LLMUsage()).completion_tokens / per_brick for a in agents]
         tokens.bar(shift, prompt, width * 0.95, color=colour, alpha=0.55, label=f"{label} prompt")
         tokens.bar(
             shift,
@@ -316,7 +338,7 @@ def llm_cost_figure(groups: Sequence[Group]) -> Figure | None:
             color=colour,
             label=f"{label} completion",
         )
-        calls = [row.get(a, LLMUsage()) for a in agents]
+        calls = [method.get(a, LLMUsage()) for a in agents]
         per_call = [u.latency_s / u.calls if u.calls else 0.0 for u in calls]
         latency.bar(shift, per_call, width * 0.95, color=colour)
     for axis, title in ((tokens, "tokens per brick"), (latency, "latency per call (s)")):
@@ -324,6 +346,47 @@ def llm_cost_figure(groups: Sequence[Group]) -> Figure | None:
         axis.set_title(title)
         axis.grid(axis="y", alpha=0.3)
     handles, names = tokens.get_legend_handles_labels()
+    _legend_below(figure, handles, names)
+    return figure
+
+
+def perception_errors(groups: Sequence[Group], path: Path) -> Path | None:
+    """Bars: how far each agent's answers' poses of bricks were from them (mean, a tick at
+    the largest), in the plane and in yaw, a bar per method that saw pictures. None if no
+    method did."""
+    figure = perception_figure(groups)
+    return None if figure is None else _save(figure, path)
+
+
+def perception_figure(groups: Sequence[Group]) -> Figure | None:
+    """The figure of :func:`perception_errors`; None if no method saw pictures."""
+    errors: dict[str, dict[str, PerceptionErrors]] = {}
+    for group in groups:
+        for result in group.results:
+            for agent, seen in result.perception.items():
+                row = errors.setdefault(group.label, {})
+                row[agent] = row.get(agent, PerceptionErrors()) + seen
+    if not errors:
+        return None
+    figure, (offset, yaw), agents, bars = _agent_bars(errors, 1.6)
+    x, width = np.arange(len(agents)), 0.8 / len(errors)
+    for label, method, colour, shift in bars:
+        each = [method.get(a, PerceptionErrors()) for a in agents]
+        for axis, mean, most in (
+            (
+                offset,
+                [e.centre_offset_cm_mean for e in each],
+                [e.centre_offset_cm_max for e in each],
+            ),
+            (yaw, [e.yaw_error_deg_mean for e in each], [e.yaw_error_deg_max for e in each]),
+        ):
+            axis.bar(shift, mean, width * 0.95, color=colour, label=label)
+            axis.scatter(shift, most, marker="_", s=200, color="black", zorder=3)
+    for axis, title in ((offset, "centre offset (cm)"), (yaw, "yaw error (°)")):
+        axis.set_xticks(x, [a.replace("_", " ") for a in agents])
+        axis.set_title(f"{title}: mean, — largest")
+        axis.grid(axis="y", alpha=0.3)
+    handles, names = offset.get_legend_handles_labels()
     _legend_below(figure, handles, names)
     return figure
 

@@ -39,6 +39,7 @@ from actionreasoning.trial.provenance import Provenance
 from actionreasoning.trial.results import (
     AnswerErrorCounts,
     LLMUsage,
+    PerceptionErrors,
     Refusals,
     TrialResult,
     sum_refusals,
@@ -139,6 +140,11 @@ class RunSummary(Provenance):
     cycle_time: CycleTime | None = None
     #: None in summaries written before it was computed.
     leaderboard: Leaderboard | None = None
+    #: With pictures: per agent, how far its answers' poses of bricks were from them, over
+    #: every trial; absent without pictures.
+    perception: dict[str, PerceptionErrors] = Field(
+        default_factory=dict, exclude_if=lambda errors: not errors
+    )
 
 
 def failure_classes(failures: Mapping[FailureCode, int]) -> dict[FailureClass, int]:
@@ -243,6 +249,7 @@ def summarize(
         ),
         cycle_time=None if physics is None else cycle_time(results, physics.time_step_s),
         leaderboard=leaderboard(results),
+        perception=_perception(results),
     )
 
 
@@ -321,6 +328,7 @@ def summary_markdown(summary: RunSummary) -> str:
         ),
         "",
         *_leaderboard_lines(summary),
+        *_perception_lines(summary),
         _bricks_line(summary),
         f"Success rule: {summary.success_rule}.",
         "",
@@ -420,6 +428,35 @@ def _leaderboard_lines(summary: RunSummary) -> list[str]:
             "",
         ]
     return lines
+
+
+def _perception(results: Sequence[TrialResult]) -> dict[str, PerceptionErrors]:
+    """Each agent's perception errors over every trial."""
+    errors: dict[str, PerceptionErrors] = {}
+    for result in results:
+        for agent, seen in result.perception.items():
+            errors[agent] = errors.get(agent, PerceptionErrors()) + seen
+    return errors
+
+
+def _perception_lines(summary: RunSummary) -> list[str]:
+    """With pictures: how far each agent's answers' poses of bricks were from them."""
+    if not summary.perception:
+        return []
+    return [
+        "Perception: how far the answers that named a brick's pose (an approach over it, a "
+        "grasp pose on it) were from the brick as measured, in the plane and in yaw:",
+        "",
+        "| Agent | Answers | Centre offset (cm) mean | max | Yaw error (°) mean | max |",
+        "|---|---|---|---|---|---|",
+        *(
+            f"| `{agent}` | {e.answers} | {e.centre_offset_cm_mean:.3f} | "
+            f"{e.centre_offset_cm_max:.3f} | {e.yaw_error_deg_mean:.3f} | "
+            f"{e.yaw_error_deg_max:.3f} |"
+            for agent, e in summary.perception.items()
+        ),
+        "",
+    ]
 
 
 def _course_lines(summary: RunSummary) -> list[str]:
@@ -627,13 +664,14 @@ def _llm_lines(summary: RunSummary) -> list[str]:
         f"({own / max(summary.decisions, 1):.0%} the model's own).",
         "",
         "| Agent | Calls | Prompt tokens / brick | Completion tokens / brick "
-        "| Latency / call (s) |",
-        "|---|---|---|---|---|",
+        "| Latency / call (s) |" + (" Image bytes / brick |" if u.image_bytes else ""),
+        "|---|---|---|---|---|" + ("---|" if u.image_bytes else ""),
     ]
     for agent, a in summary.llm_usage_by_agent.items():
         lines.append(
             f"| {agent} | {a.calls} | {a.prompt_tokens / bricks:.0f} | "
             f"{a.completion_tokens / bricks:.0f} | {a.latency_s / max(a.calls, 1):.2f} |"
+            + (f" {a.image_bytes / bricks:,.0f} |" if u.image_bytes else "")
         )
     return lines
 

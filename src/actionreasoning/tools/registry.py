@@ -35,14 +35,23 @@ TOOLS: Mapping[str, Tool] = {
     )
 }
 
-#: The tools whose results give a brick's pose (or a pose computed from it), which no agent
-#: that observes the scene in pictures gets (agents/observation.py).
-POSE_TOOLS: frozenset[str] = frozenset({GRASP_OPTIONS.name, HELD_POSE.name, PLACEMENT_POSE.name})
+#: The tools whose results give a brick's pose (or a pose computed from it, or its offset
+#: from a target), which no agent that observes the scene in pictures gets
+#: (agents/observation.py).
+POSE_TOOLS: frozenset[str] = frozenset(
+    {GRASP_OPTIONS.name, HELD_POSE.name, PLACEMENT_POSE.name, ALIGNMENT.name}
+)
 
 #: The gates' measurements, in no agent's knowledge base. An agent answered from outside
 #: (MCP, Gymnasium) may run them whichever it is: they only read the measured world, and
 #: every gate verdict reports the values they give.
 GATE_MEASUREMENTS: tuple[str, ...] = (SLIP.name, ALIGNMENT.name, REACHABILITY.name)
+
+
+def measurements(poses: bool) -> tuple[str, ...]:
+    """The gates' measurements an outside agent may run: all of them, or, if it is shown
+    no brick's pose, those that give none."""
+    return tuple(name for name in GATE_MEASUREMENTS if poses or name not in POSE_TOOLS)
 
 
 class ToolSchema(BaseModel):

@@ -12,7 +12,7 @@ from collections import Counter
 from collections.abc import Collection, Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Annotated, Any, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field, NonNegativeInt, PositiveFloat
+from pydantic import BaseModel, ConfigDict, Field, NonNegativeFloat, NonNegativeInt, PositiveFloat
 
 from actionreasoning.agents.answer_errors import Caught, CorruptionKind
 from actionreasoning.agents.catches import catch_of
@@ -186,6 +186,35 @@ class AnswerErrorCounts(_Record):
         )
 
 
+class PerceptionErrors(_Record):
+    """An agent's answers that named a brick's pose, with pictures (``--observe image`` or
+    ``both``): how many, and how far they were from the bricks as measured, the centre in
+    the plane (cm) and the yaw (deg), summed and at most. Errors add up with ``+``."""
+
+    answers: NonNegativeInt = 0
+    centre_offset_cm_sum: NonNegativeFloat = 0.0
+    centre_offset_cm_max: NonNegativeFloat = 0.0
+    yaw_error_deg_sum: NonNegativeFloat = 0.0
+    yaw_error_deg_max: NonNegativeFloat = 0.0
+
+    def __add__(self, other: PerceptionErrors) -> PerceptionErrors:
+        return PerceptionErrors(
+            answers=self.answers + other.answers,
+            centre_offset_cm_sum=self.centre_offset_cm_sum + other.centre_offset_cm_sum,
+            centre_offset_cm_max=max(self.centre_offset_cm_max, other.centre_offset_cm_max),
+            yaw_error_deg_sum=self.yaw_error_deg_sum + other.yaw_error_deg_sum,
+            yaw_error_deg_max=max(self.yaw_error_deg_max, other.yaw_error_deg_max),
+        )
+
+    @property
+    def centre_offset_cm_mean(self) -> float:
+        return self.centre_offset_cm_sum / self.answers if self.answers else 0.0
+
+    @property
+    def yaw_error_deg_mean(self) -> float:
+        return self.yaw_error_deg_sum / self.answers if self.answers else 0.0
+
+
 class FirstAttempts(_Record):
     """An agent's first answers (calls of attempt 1: one a request, so one a brick, two for
     the placement agent, which also is asked again after a raise): how many it was asked
@@ -304,6 +333,11 @@ class TrialResult(Provenance):
     #: absent where no agent was asked (classical) and in lines written before it existed.
     first_attempts: dict[str, FirstAttempts] = Field(
         default_factory=dict, exclude_if=lambda counts: not counts
+    )
+    #: With pictures: per agent, how far its answers' poses of bricks were from them;
+    #: absent without pictures.
+    perception: dict[str, PerceptionErrors] = Field(
+        default_factory=dict, exclude_if=lambda errors: not errors
     )
     #: Answers nobody corrupted that an enforced pre-move check, sigma_1 or sigma_6 refused,
     #: by ``gate:check`` (agents/catches.py); absent when there were none.

@@ -33,6 +33,7 @@ from actionreasoning.trial.results import (
     Failure,
     FirstAttempts,
     LLMUsage,
+    PerceptionErrors,
     PlacementMetrics,
     TrialResult,
     refusals_of,
@@ -346,6 +347,7 @@ def measure(
         else None,
         refusals=refusals_of(outcome.transcript),
         first_attempts=first_attempts_of(outcome.transcript),
+        perception=perception_of(outcome.transcript),
         premove_refusals=premove_refusals(outcome.transcript),
         sim_steps=scene.ticks,
     )
@@ -377,6 +379,22 @@ def first_attempts_of(transcript: Sequence[AgentCall]) -> dict[str, FirstAttempt
                 asked=1, accepted=int(accepted)
             )
     return counts
+
+
+def perception_of(transcript: Sequence[AgentCall]) -> dict[str, PerceptionErrors]:
+    """Each agent's perception errors, over its answers that named a brick's pose."""
+    errors: dict[str, PerceptionErrors] = {}
+    for call in transcript:
+        if call.perceived is not None:
+            seen = call.perceived
+            errors[call.agent] = errors.get(call.agent, PerceptionErrors()) + PerceptionErrors(
+                answers=1,
+                centre_offset_cm_sum=seen.centre_offset_cm,
+                centre_offset_cm_max=seen.centre_offset_cm,
+                yaw_error_deg_sum=seen.yaw_error_deg,
+                yaw_error_deg_max=seen.yaw_error_deg,
+            )
+    return errors
 
 
 def misplaced(bricks: Sequence[BrickResult], rule: SuccessRule) -> Failure:

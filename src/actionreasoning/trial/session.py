@@ -52,7 +52,12 @@ from actionreasoning.records import FailureCode
 from actionreasoning.sim.camera import overview, render
 from actionreasoning.sim.scene import Scene
 from actionreasoning.tools.base import ToolModel
-from actionreasoning.tools.registry import GATE_MEASUREMENTS, ToolSchema, tool_schema
+from actionreasoning.tools.registry import (
+    GATE_MEASUREMENTS,
+    ToolSchema,
+    measurements,
+    tool_schema,
+)
 from actionreasoning.trial.config import TrialConfig
 from actionreasoning.trial.placed import PlacedCount
 from actionreasoning.trial.results import TrialResult
@@ -291,7 +296,9 @@ class TrialSession:
             prompt=request.prompt,
             state=request.state,
             tools=[tool_schema(name) for name in request.spec.tools],
-            measurements=[tool_schema(name) for name in GATE_MEASUREMENTS],
+            measurements=[
+                tool_schema(name) for name in measurements(request.spec.observation.poses)
+            ],
             answer_schema=request.spec.output_model.model_json_schema(),
             feedback=request.memory.last_feedback,
         )

@@ -24,6 +24,7 @@ from actionreasoning.world.cameras import OVERVIEW, PICK_SIDE, TOP_DOWN, Camera
 DEPTH_UNIT_M = 1e-4
 _MAX_COUNT = np.iinfo(np.uint16).max
 MEDIA_TYPE = "image/png"
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
 class PictureKind(StrEnum):

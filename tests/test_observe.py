@@ -1,7 +1,8 @@
-"""``eval --observe both``: every agent call carries the cameras' pictures, through the real
-chat path (the prompt-only reference model over HTTP), counted as image bytes beside the
-tokens, named in the transcripts, recorded once each and replayed byte for byte; looking
-changes nothing in the trial, and a resume refuses another observation."""
+"""``eval --observe both|image``: every agent call carries the cameras' pictures, through
+the real chat path (the prompt-only reference model over HTTP), counted as image bytes
+beside the tokens, named in the transcripts, recorded once each and replayed byte for byte;
+looking changes nothing in the trial, and a resume refuses another observation. In the
+image tier the reference builds from the pictures alone."""
 
 from __future__ import annotations
 
@@ -80,13 +81,38 @@ def test_looking_changes_nothing_and_a_resume_keeps_the_observation(
     pattern: str, tmp_path: Path
 ) -> None:
     """The built-in reasoner reads the state either way: rendering the pictures leaves the
-    trial as it was, to the bit, and only the line's ``observe`` tells the runs apart."""
+    trial as it was, to the bit; only the line's ``observe`` and ``perception`` (how far
+    the answers' poses of bricks were from them, measured with pictures) tell them apart."""
     state = run(tmp_path / "state", pattern)
     both = run(tmp_path / "both", pattern, "--observe", "both")
     assert "observe" not in state and both.pop("observe") == "both"
+    assert "perception" not in state and set(both.pop("perception")) == {"pre_grasp", "descent"}
     assert both == state
     resumed = cli(
         "eval", "--pattern", pattern, "--seed", "3", "--trials", "2",
         "--out", str(tmp_path / "both"),
     )  # fmt: skip
     assert_clean_error(resumed, "holds a different run", "observe")
+
+
+@pytest.mark.parametrize("tools", ["check", "none"])
+def test_the_reference_builds_from_the_pictures_alone_over_http(
+    server: ReferenceServer, pattern: str, tmp_path: Path, tools: str
+) -> None:
+    """observe "image": the prompt-only reference model reads the bricks from the pictures
+    its requests carry (the state block shows none) and builds the pattern with no
+    fallback; agent 1 names no brick id, and the line records how far the answers' poses
+    of bricks were from them."""
+    http = ("--llm", "openai:reference", "--base-url", server.url, "--tools", tools)
+    line = run(tmp_path / "image", pattern, *http, "--observe", "image", "--transcripts")
+    assert line["success"] and line["observe"] == "image" and line["fallback_decisions"] == 0
+    transcript = tmp_path / "image" / "transcripts" / "trial_000.jsonl"
+    calls = [json.loads(text) for text in transcript.read_text().splitlines()]
+    first = [call for call in calls if call["agent"] == "pre_grasp"]
+    assert first and all("brick_id" not in call["answer"] for call in first)
+    assert all(call["brick"] is not None for call in first)  # named by where it lies
+    perception = line["perception"]
+    assert isinstance(perception, dict) and set(perception) == {"pre_grasp", "descent"}
+    for errors in perception.values():
+        assert errors["answers"] >= 3 and errors["centre_offset_cm_max"] < 0.5
+        assert errors["yaw_error_deg_max"] < 0.5
