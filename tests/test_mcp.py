@@ -32,6 +32,7 @@ from mcp import ClientSession
 from mcp.client.stdio import StdioServerParameters, stdio_client
 
 from actionreasoning.agents.answer_errors import CorruptionKind
+from actionreasoning.agents.observation import Observation
 from actionreasoning.agents.prompt import MEMORY_HEADING, STATE_HEADING, compact_json
 from actionreasoning.agents.spec import single_agent_spec
 from actionreasoning.agents.tiers import ToolTier
@@ -96,7 +97,9 @@ def test_the_tools_are_listed_with_their_schemas(tmp_path: Path) -> None:
         tools.extend((await client.list_tools()).tools)
 
     run(scenario, tmp_path)
-    knowledge = list(dict.fromkeys(n for t in ToolTier for n in single_agent_spec(t).tools))
+    shown = (Observation.STATE, Observation.BOTH)
+    specs = [single_agent_spec(t, o) for t in ToolTier for o in shown]
+    knowledge = list(dict.fromkeys(n for spec in specs for n in spec.tools))
     registry = list(dict.fromkeys(knowledge + list(GATE_MEASUREMENTS)))
     assert [tool.name for tool in tools] == DOOR_TOOLS + registry
     assert sorted(registry) == sorted(TOOLS)  # every tool, once each

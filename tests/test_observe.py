@@ -102,9 +102,10 @@ def test_the_reference_builds_from_the_pictures_alone_over_http(
     """observe "image": the prompt-only reference model reads the bricks from the pictures
     its requests carry (the state block shows none) and builds the pattern with no
     fallback; agent 1 names no brick id, and the line records how far the answers' poses
-    of bricks were from them."""
+    of bricks were from them. A replay of its recording writes the same line."""
     http = ("--llm", "openai:reference", "--base-url", server.url, "--tools", tools)
-    line = run(tmp_path / "image", pattern, *http, "--observe", "image", "--transcripts")
+    record = ("--record", str(tmp_path / "recording.jsonl"))
+    line = run(tmp_path / "image", pattern, *http, "--observe", "image", "--transcripts", *record)
     assert line["success"] and line["observe"] == "image" and line["fallback_decisions"] == 0
     transcript = tmp_path / "image" / "transcripts" / "trial_000.jsonl"
     calls = [json.loads(text) for text in transcript.read_text().splitlines()]
@@ -116,3 +117,7 @@ def test_the_reference_builds_from_the_pictures_alone_over_http(
     for errors in perception.values():
         assert errors["answers"] >= 3 and errors["centre_offset_cm_max"] < 0.5
         assert errors["yaw_error_deg_max"] < 0.5
+    replay = ("--llm", f"replay:{record[1]}", "--tools", tools, "--observe", "image")
+    run(tmp_path / "replay", pattern, *replay)
+    lines = [(tmp_path / name / "results.jsonl").read_bytes() for name in ("image", "replay")]
+    assert lines[0] == lines[1]

@@ -18,6 +18,7 @@ from actionreasoning.agents.memory import TaskMemory
 from actionreasoning.agents.observation import Observation
 from actionreasoning.agents.prompt import cameras_text, render_prompt
 from actionreasoning.agents.spec import agent_specs
+from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.agents.view import StateView
 from actionreasoning.reasoners.chat import image_urls, message_text, user_message
 from actionreasoning.reasoners.reference_server import image_tokens, png_size
@@ -119,7 +120,9 @@ def test_a_prompt_reader_turns_a_depth_pixel_into_the_brick_it_shows(scene: Scen
     centre (from above, the waiting arm hides it) is that point. A state prompt has no such
     section."""
     state = scene_state(scene)
-    spec, both = agent_specs()[0], agent_specs(observation=Observation.BOTH)[0]
+    none = ToolTier.NONE  # the check tier adds the deproject tool too
+    spec, both = agent_specs(none)[0], agent_specs(none, Observation.BOTH)[0]
+    assert agent_specs(observation=Observation.BOTH)[0].tools[-1] == "deproject"
     view = StateView.of(state, TaskMemory(), spec.scope)
     shown = render_prompt(both, view, TaskMemory(), Tolerances())
     plain = render_prompt(spec, view, TaskMemory(), Tolerances())

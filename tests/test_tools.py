@@ -79,6 +79,7 @@ def test_every_tool_is_described_for_the_prompts() -> None:
         "collision_check",
         "finger_contacts",
         "slip_estimate",
+        "deproject",
     }
     for name, tool in TOOLS.items():
         assert tool.name == name and tool.description

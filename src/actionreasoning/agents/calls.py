@@ -8,7 +8,7 @@ the transcript of the :class:`BuildResult`.
 from __future__ import annotations
 
 from collections.abc import Callable, Collection, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 from typing import Any
 
@@ -112,11 +112,11 @@ class AgentCaller:
             step=memory.step,  # the stage asked (the single agent answers every stage)
         )
         state = self.world.observe(progress)
-        context = self.world.tools(state)
         shown = spec.observation
+        pictures = self.world.look() if shown.pictures else ()
+        context = replace(self.world.tools(state), pictures=pictures)
         view = StateView.of(state, memory, spec.scope, spec.robot_extras, shown.poses)
         prompt = render_prompt(spec, view, memory, self.tol)
-        pictures = self.world.look() if shown.pictures else ()
         tool_calls: list[ToolRecord] = []
         knowledge, gates = f"the knowledge base of {spec.key}", "the gates' measurements"
         call = AgentCall(

@@ -22,7 +22,7 @@ from actionreasoning.agents.observation import DEFAULT_OBSERVATION, Observation
 from actionreasoning.agents.outputs import AgentAnswer, SingleAgentAnswer
 from actionreasoning.agents.tiers import DEFAULT_TIER, TIERS, ToolTier
 from actionreasoning.agents.view import Scope
-from actionreasoning.tools.registry import POSE_TOOLS, TOOLS
+from actionreasoning.tools.registry import PICTURE_TOOL, POSE_TOOLS, TOOLS
 from actionreasoning.world.stages import Stage
 from actionreasoning.world.tolerances import Tolerances
 
@@ -74,9 +74,12 @@ def agent_specs(
     tier: ToolTier = DEFAULT_TIER, observation: Observation = DEFAULT_OBSERVATION
 ) -> tuple[AgentSpec, ...]:
     """The six agents in pipeline order, as the reasoning tier ``tier`` gives them, observing
-    ``observation``: in ``image`` without the tools that give a brick's pose, and agent 1
-    naming its brick by where it lies (``outputs.PreGraspSeenAnswer``)."""
+    ``observation``: with pictures, in the check tier, each with the ``deproject`` tool; in
+    ``image`` without the tools that give a brick's pose, and agent 1 naming its brick by
+    where it lies (``outputs.PreGraspSeenAnswer``)."""
     specs = parse_agents(_text("agents.yaml"), tier)
+    if observation.pictures and tier is ToolTier.CHECK:
+        specs = tuple(replace(spec, tools=(*spec.tools, PICTURE_TOOL)) for spec in specs)
     if not observation.poses:
         specs = tuple(
             replace(
@@ -185,7 +188,7 @@ def single_agent_spec(
     if not observation.poses:
         raise ValueError("the single agent names its brick by id: it observes the state")
     entry = yaml.safe_load(_text("single_agent.yaml"))
-    specs = agent_specs(tier)
+    specs = agent_specs(tier, observation)
     roles = "\n".join(f"- {spec.key}: {spec.role}" for spec in specs)
     chains = tuple(f"{spec.key}: {' '.join(spec.thinking)}" for spec in specs)
 

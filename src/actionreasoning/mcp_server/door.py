@@ -57,10 +57,16 @@ from actionreasoning.world.pictures import Picture
 from actionreasoning.world.scenarios import NOISE, PATTERNS, PHYSICS
 from actionreasoning.world.tolerances import Tolerances
 
-#: The tools of the six agents' knowledge bases together, in pipeline order, in any tier
-#: (an agent is served only those of its own knowledge base in the trial's tier).
+#: The tools of the six agents' knowledge bases together, in pipeline order, in any tier,
+#: with pictures or not (an agent is served only those of its own knowledge base in the
+#: trial's tier and observation).
 KNOWLEDGE_TOOLS: tuple[str, ...] = tuple(
-    dict.fromkeys(name for tier in ToolTier for name in single_agent_spec(tier).tools)
+    dict.fromkeys(
+        name
+        for tier in ToolTier
+        for observation in (Observation.STATE, Observation.BOTH)
+        for name in single_agent_spec(tier, observation).tools
+    )
 )
 #: Every registry tool the door serves: the knowledge bases', then the gates' measurements.
 REGISTRY_TOOLS: tuple[str, ...] = tuple(dict.fromkeys(KNOWLEDGE_TOOLS + GATE_MEASUREMENTS))

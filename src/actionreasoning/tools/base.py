@@ -16,6 +16,7 @@ from pydantic import BaseModel, ConfigDict
 
 from actionreasoning.tools.ports import ArmModel, ClearanceChecker
 from actionreasoning.world.models import WorldState
+from actionreasoning.world.pictures import Picture
 
 In = TypeVar("In", bound=BaseModel)
 Out = TypeVar("Out", bound=BaseModel)
@@ -30,11 +31,13 @@ class ToolModel(BaseModel):
 @dataclass(frozen=True)
 class ToolContext:
     """What a tool may look at: the measured world, the arm's kinematic model and its
-    collision checker (both on the kinematic copy, never on the simulation)."""
+    collision checker (both on the kinematic copy, never on the simulation), and the
+    pictures the agent's call carries (none without pictures)."""
 
     state: WorldState
     arm: ArmModel
     collisions: ClearanceChecker
+    pictures: tuple[Picture, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -12,6 +12,7 @@ from actionreasoning.errors import ToolError
 from actionreasoning.tools.base import Tool, ToolContext, ToolModel
 from actionreasoning.tools.collision import COLLISION
 from actionreasoning.tools.contact import FINGER_CONTACTS, SLIP
+from actionreasoning.tools.deproject import DEPROJECT
 from actionreasoning.tools.geometry import ALIGNMENT, SUPPORT
 from actionreasoning.tools.grasp_plan import GRASP_OPTIONS
 from actionreasoning.tools.placement import HELD_POSE, PLACEMENT_CHECK, PLACEMENT_POSE
@@ -32,6 +33,7 @@ TOOLS: Mapping[str, Tool] = {
         HELD_POSE,
         PLACEMENT_POSE,
         PLACEMENT_CHECK,
+        DEPROJECT,
     )
 }
 
@@ -41,6 +43,9 @@ TOOLS: Mapping[str, Tool] = {
 POSE_TOOLS: frozenset[str] = frozenset(
     {GRASP_OPTIONS.name, HELD_POSE.name, PLACEMENT_POSE.name, ALIGNMENT.name}
 )
+
+#: The check tier's tool for an agent sent pictures: a world point under a depth pixel.
+PICTURE_TOOL = DEPROJECT.name
 
 #: The gates' measurements, in no agent's knowledge base. An agent answered from outside
 #: (MCP, Gymnasium) may run them whichever it is: they only read the measured world, and
