@@ -239,12 +239,16 @@ Checked = Callable[..., Awaitable[tuple[dict[str, Any], bool]]]
 
 async def run_every_tool(checked: Checked, turn: dict[str, Any]) -> None:
     """Run each of the waiting agent's tools and each gate measurement, on its current
-    brick and target (brick 0 and target 0 before one is chosen) and the tool's pose."""
+    brick and target (brick 0 and target 0 before one is chosen), the tool's pose and the
+    top-down depth picture's centre."""
     memory = turn["memory"]
     values = {
         "brick_id": memory.get("current_brick", 0),
         "target_index": memory.get("current_target", 0),
         "pose": turn["state"]["robot"]["tool_pose"],
+        "camera": "top_down",
+        "u": 320,
+        "v": 320,
     }
     for tool in turn["tools"] + turn["measurements"]:
         await checked(
@@ -287,7 +291,8 @@ def test_every_result_of_every_tool_is_of_its_output_schema(
     tmp_path: Path, one_brick: Path
 ) -> None:
     """Each tool refused before a trial starts; then, in the two tiers with tools (whose
-    agents hold every tool), a one-brick trial: the first agent's tools and the gates'
+    agents hold every tool; the check tier with pictures, whose agents also deproject), a
+    one-brick trial: the first agent's tools and the gates'
     measurements refused once each, every tool of every waiting agent and every gate
     measurement run, a lift refused for a speed that is not finite, and the reference
     model's answers. Each result is checked by jsonschema and by the SDK's client against
@@ -319,8 +324,10 @@ def test_every_result_of_every_tool_is_of_its_output_schema(
             arguments = {"seed": -1} if name == "start_trial" else {}
             data, refused = await checked(name, **arguments)
             assert refused and "refusal" in data, (name, data)
-        for tier in ("solve", "check"):
-            data, _ = await checked("start_trial", pattern=str(one_brick), seed=0, tools=tier)
+        for tier, observe in (("solve", "state"), ("check", "both")):
+            data, _ = await checked(
+                "start_trial", pattern=str(one_brick), seed=0, tools=tier, observe=observe
+            )
             tools = [tool["name"] for tool in data["turn"]["tools"]]
             for name in [*tools, *GATE_MEASUREMENTS]:
                 refused_call, refused = await checked(name)  # no arguments
