@@ -339,6 +339,33 @@ def test_tools_are_refused_with_the_classical_script(tmp_path: Path) -> None:
     """It asks no agent, so a tier would only split identical report rows and block resumes."""
     result = cli("eval", "--method", "classical", "--tools", "none", "--out", str(tmp_path / "o"))
     assert_clean_error(result, "--method classical gives no agent tools; drop --tools")
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (
+            ("eval", "--method", "classical", "--observe", "both"),
+            "--method classical asks no agent; drop --observe both",
+        ),
+        (
+            ("eval", "--method", "single-agent", "--observe", "image"),
+            "--method single-agent names its brick by id: observe state or both, not image",
+        ),
+        (
+            ("prompt", "--agent", "0", "--observe", "image"),
+            "--method single-agent names its brick by id: observe state or both, not image",
+        ),
+    ],
+    ids=["classical", "single agent", "single agent's prompt"],
+)
+def test_an_observation_the_method_cannot_run_under_is_refused(
+    tmp_path: Path, args: tuple[str, ...], message: str
+) -> None:
+    """The classical script asks no agent; the single agent names its brick by id, which
+    the image tier shows none of (its prompt was a traceback)."""
+    out = ("--out", str(tmp_path / "o")) if args[0] == "eval" else ()
+    assert_clean_error(cli(*args, *out), message)
     assert not (tmp_path / "o").exists()
 
 

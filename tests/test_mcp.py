@@ -45,7 +45,7 @@ from actionreasoning.tools.registry import GATE_MEASUREMENTS, TOOLS, tool_schema
 from actionreasoning.trial.rules import Method
 from actionreasoning.trial.session import Conditions, TrialSession
 from actionreasoning.world.cameras import TOP_DOWN
-from actionreasoning.world.pictures import SHOWN, read_depth
+from actionreasoning.world.pictures import SHOWN_NAMES, read_depth
 from actionreasoning.world.scene_spec import FINGERTIPS_BEYOND_TCP_M
 
 COMMAND = [sys.executable, "-m", "actionreasoning", "mcp"]
@@ -676,7 +676,7 @@ def test_with_pictures_the_turn_comes_with_them_as_png_image_content(
     """observe "both": start_trial and read_state return the waiting agent's pictures after
     their JSON, as the turn names them; the depth picture decodes to the camera's size and
     the prompt-only reference model answers the prompt that comes with them."""
-    names = [f"{camera.name}.{kind}" for camera, kinds in SHOWN for kind in kinds]
+    names = list(SHOWN_NAMES)
 
     async def scenario(client: ClientSession) -> None:
         start = await client.call_tool(

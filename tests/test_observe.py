@@ -15,10 +15,9 @@ import pytest
 from conftest import SMALL_PATTERN, assert_clean_error, cli
 
 from actionreasoning.reasoners.reference_server import ReferenceServer
-from actionreasoning.world.pictures import SHOWN
+from actionreasoning.world.pictures import SHOWN_NAMES
 
 pytestmark = pytest.mark.slow
-NAMES = [f"{camera.name}.{kind}" for camera, kinds in SHOWN for kind in kinds]
 
 
 @pytest.fixture(scope="module")
@@ -59,7 +58,9 @@ def test_pictures_go_over_http_counted_named_recorded_and_replayed(
     assert line["success"] and line["observe"] == "both"
     transcript = tmp_path / "http" / "transcripts" / "trial_000.jsonl"
     calls = [json.loads(text) for text in transcript.read_text().splitlines()]
-    assert calls and all([p["name"] for p in call["pictures"]] == NAMES for call in calls)
+    assert calls and all(
+        [p["name"] for p in call["pictures"]] == list(SHOWN_NAMES) for call in calls
+    )
     # Each completion is sent the prompt's pictures again: bytes x completions, per brick.
     sent = [sum(p["bytes"] for p in call["pictures"]) * call["usage"]["calls"] for call in calls]
     usage = line["llm_usage"]

@@ -30,7 +30,7 @@ from actionreasoning.world.patterns import load_pattern
 from actionreasoning.world.pictures import (
     CAMERAS,
     DEPTH_UNIT_M,
-    SHOWN,
+    SHOWN_NAMES,
     Picture,
     PictureKind,
     colour_png,
@@ -129,8 +129,7 @@ def test_a_prompt_reader_turns_a_depth_pixel_into_the_brick_it_shows(scene: Scen
     assert "## Cameras" not in plain
     section = f"## Cameras\n{cameras_text(Observation.BOTH)}\n\n"
     assert shown.replace(section, "") == plain  # all it adds
-    names = [f"{camera.name}.{kind}" for camera, kinds in SHOWN for kind in kinds]
-    assert f"in this order: {', '.join(names)}." in shown
+    assert f"in this order: {', '.join(SHOWN_NAMES)}." in shown
     cameras = {str(c["name"]): c for c in prompt_cameras(shown)}
     assert set(cameras) == set(CAMERAS)
     side = cameras["pick_side"]

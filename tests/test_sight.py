@@ -13,26 +13,14 @@ from actionreasoning.agents.memory import PlacedBrick, StepDecision, TaskMemory
 from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.agents.view import RobotView, StateView, TargetView
 from actionreasoning.reasoners.sight import SEEN_ID_BASE, is_seen, seen_view
-from actionreasoning.sim.eyes import capture
+from actionreasoning.sim.eyes import shown_pictures
 from actionreasoning.sim.scene import Scene
 from actionreasoning.tools import formulas
 from actionreasoning.world.geometry import quat_yaw, rotation_deg, top_down_quat, yaw_quat
 from actionreasoning.world.models import BrickStatus, Pose
-from actionreasoning.world.pictures import SHOWN, Picture, PictureKind, colour_png, depth_png
 from actionreasoning.world.stages import Stage
 
 SIZE = (0.2, 0.095, 0.06)
-
-
-def pictures(scene: Scene) -> tuple[Picture, ...]:
-    """The image tier's pictures of ``scene`` now, as an agent call carries them."""
-    shown = []
-    for camera, kinds in SHOWN:
-        seen = capture(scene.client, camera)
-        for kind in kinds:
-            png = colour_png(seen.rgb) if kind is PictureKind.COLOUR else depth_png(seen.depth_m)
-            shown.append(Picture(camera.name, kind, png))
-    return tuple(shown)
 
 
 def image_view(tool: Pose, targets: tuple[TargetView, ...]) -> StateView:
@@ -56,7 +44,9 @@ def test_the_free_bricks_are_found_where_they_lie_and_a_built_one_is_left_out(
     targets = (target(0, (0.6, 0.2, 0.03)), target(1, under))
     memory = TaskMemory(placed=(PlacedBrick(brick_id=2, target_index=1),))
     view = seen_view(
-        image_view(Pose(position_m=(0.45, -0.25, 0.4)), targets), memory, pictures(scene)
+        image_view(Pose(position_m=(0.45, -0.25, 0.4)), targets),
+        memory,
+        shown_pictures(scene.client),
     )
     assert all(is_seen(b.id) and b.id >= SEEN_ID_BASE for b in view.bricks)
     assert all(b.status is BrickStatus.IN_PICK_AREA and b.size_m == SIZE for b in view.bricks)
@@ -101,7 +91,9 @@ def test_a_held_brick_is_seen_rolled_and_shifted_as_it_sits_in_the_hand(
             StepDecision(agent=Stage.GRASP, close=True, passed=True),
         ),
     )
-    view = seen_view(image_view(tool, (target(0, (0.6, 0.2, 0.03)),)), memory, pictures(scene))
+    view = seen_view(
+        image_view(tool, (target(0, (0.6, 0.2, 0.03)),)), memory, shown_pictures(scene.client)
+    )
     brick = view.brick(0)
     assert brick.status is BrickStatus.GRASPED
     assert math.dist(brick.pose.position_m, held.position_m) < 0.001

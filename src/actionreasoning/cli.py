@@ -31,7 +31,7 @@ from actionreasoning.recording.names import VIDEO_FPS
 from actionreasoning.runs.layout import RunDir
 from actionreasoning.runs.paper import TRIALS as PAPER_TRIALS
 from actionreasoning.runs.printable import printable
-from actionreasoning.trial.rules import Method, check_rung, rung_of
+from actionreasoning.trial.rules import Method, check_observation, check_rung, rung_of
 from actionreasoning.world.budget import TrialBudget
 from actionreasoning.world.config_files import check_file_name
 from actionreasoning.world.geometry import quat_yaw
@@ -441,12 +441,7 @@ def eval_command(
         )
         if method is Method.CLASSICAL and tools != DEFAULT_TIER:
             raise ConfigError("--method classical gives no agent tools; drop --tools")
-        if method is Method.CLASSICAL and observe != DEFAULT_OBSERVATION:
-            raise ConfigError("--method classical asks no agent; drop --observe")
-        if method is Method.SINGLE_AGENT and not observe.poses:
-            raise ConfigError(
-                "--method single-agent names its brick by id: observe state or both, not image"
-            )
+        check_observation(method, observe)
         check_rung(method, verify)
         budget = TrialBudget(max_steps=max_steps, max_wall_s=max_trial_s)
         errors = AnswerErrors(
@@ -786,6 +781,7 @@ def prompt_command(
     try:
         if pictures is not None and not observe.pictures:
             raise ConfigError("--pictures needs --observe image or both: a state call carries none")
+        check_observation(Method.AGENTS if agent else Method.SINGLE_AGENT, observe)
         conditions = Conditions.load(pattern, physics, noise, tools=tools, observe=observe)
         trial = conditions.spec(seed, 0)
         spec = agent_specs(tools)[agent - 1] if agent else single_agent_spec(tools)

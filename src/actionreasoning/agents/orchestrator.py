@@ -99,7 +99,7 @@ from actionreasoning.world.models import (
     Pose,
     Progress,
     WorldState,
-    footprint_holds,
+    highest_under,
 )
 from actionreasoning.world.motion import CARRY_SPEED_MPS, Motion
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M, RETREAT_M, WORKSPACE
@@ -569,18 +569,14 @@ class Orchestrator:
         nothing is, whatever the rung. The call is recorded as about that brick."""
         x, y = answer.waypoint.position_m[:2]
         used = {p.brick_id for p in self.memory.placed}
-        under = [
-            b
-            for b in state.bricks
-            if b.id not in used and b.status is not BrickStatus.QUEUED and footprint_holds(b, x, y)
-        ]
-        if not under:
+        free = [b for b in state.bricks if b.id not in used and b.status is not BrickStatus.QUEUED]
+        brick = highest_under(free, x, y)
+        if brick is None:
             verdict = GateVerdict(
                 f"{Stage.PRE_GRASP}_choice",
                 (Check("brick_under_approach", 0.0, 1.0, at_most=False),),
             ).noted(f"no brick but placed ones lies under the approach pose ({x:.3f}, {y:.3f}) m")
             self._refuse(verdict, Stage.PRE_GRASP)
-        brick = max(under, key=lambda b: b.pose.position_m[2])
         self.result.transcript[-1].brick = brick.id
         return PreGraspDecision(brick_id=brick.id, **dict(answer))
 

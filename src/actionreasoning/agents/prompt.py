@@ -25,7 +25,7 @@ from actionreasoning.agents.tiers import TIER_HELP
 from actionreasoning.agents.view import Scope, StateView
 from actionreasoning.tools.registry import TOOLS
 from actionreasoning.world.geometry import round_floats
-from actionreasoning.world.pictures import SHOWN
+from actionreasoning.world.pictures import SHOWN, SHOWN_NAMES
 from actionreasoning.world.tolerances import Tolerances
 
 DIGITS = 5
@@ -118,6 +118,7 @@ def state_blocks(
     return shown_json(state), shown_json(shown)
 
 
+@cache
 def cameras_text(observation: Observation) -> str:
     """The Cameras section of a prompt whose call carries pictures: what the agent observes,
     which pictures in which order, how depth is encoded, each camera's intrinsics and pose,
@@ -125,9 +126,10 @@ def cameras_text(observation: Observation) -> str:
     cameras = [
         camera.model_dump(mode="json") | {"pictures": list(kinds)} for camera, kinds in SHOWN
     ]
-    names = [f"{camera.name}.{kind}" for camera, kinds in SHOWN for kind in kinds]
     template = _ENVIRONMENT.get_template("cameras.md.j2")
-    return template.render(observation=observation, names=names, cameras_json=compact_json(cameras))
+    return template.render(
+        observation=observation, names=SHOWN_NAMES, cameras_json=compact_json(cameras)
+    )
 
 
 def render_prompt(

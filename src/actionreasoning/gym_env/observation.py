@@ -23,6 +23,7 @@ from actionreasoning.world.pictures import (
     SHOWN,
     Picture,
     PictureKind,
+    picture_name,
     read_colour,
     read_depth,
 )
@@ -137,7 +138,7 @@ def pictures_space() -> spaces.Dict:
     boxes: dict[str, spaces.Space[Any]] = {}
     for camera, kinds in SHOWN:
         for kind in kinds:
-            name = f"{camera.name}.{kind}"
+            name = picture_name(camera.name, kind)
             size = (camera.height, camera.width)
             if kind is PictureKind.COLOUR:
                 boxes[name] = spaces.Box(0, 255, shape=(*size, 3), dtype=np.uint8)

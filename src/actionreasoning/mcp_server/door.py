@@ -99,9 +99,10 @@ class StartTrial(_Arguments):
     observe: str = Field(
         DEFAULT_OBSERVATION.value,
         description="What the agents observe, as eval's --observe: 'state', the bricks' "
-        "measured poses; 'both', the poses and the cameras' pictures, which start_trial and "
-        "read_state return as PNG image content after their JSON, in the order the "
-        "prompt's Cameras section names them.",
+        "measured poses; 'image', the cameras' pictures and no brick's pose (agent 1 names "
+        "its brick by where it lies; tools check or none); 'both', the poses and the "
+        "pictures. start_trial and read_state return the pictures as PNG image content "
+        "after their JSON, in the order the prompt's Cameras section names them.",
         json_schema_extra={"enum": list(Observation)},
         exclude_if=lambda shown: shown == DEFAULT_OBSERVATION,
     )

@@ -89,8 +89,9 @@ class AgentTurn(_Reply):
     feedback: str
     pictures: list[str] = Field(
         default_factory=list,
-        description="With observe 'both': the pictures the call carries, in the order of the "
-        "image content that follows the JSON (top_down.depth: 16-bit PNG, 0.1 mm a count).",
+        description="With observe 'image' or 'both': the pictures the call carries, in the "
+        "order of the image content that follows the JSON (top_down.depth: 16-bit PNG, "
+        "0.1 mm a count).",
         exclude_if=lambda names: not names,
     )
 

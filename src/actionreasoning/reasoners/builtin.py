@@ -37,7 +37,7 @@ from actionreasoning.agents.reasoner import AgentReply, AgentRequest, Briefing
 from actionreasoning.agents.spec import SINGLE_AGENT, AgentKey
 from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.agents.view import BrickView, TargetView
-from actionreasoning.reasoners.sight import corrected, is_seen, seen_view
+from actionreasoning.reasoners.sight import corrected, ends_swapped, is_seen, seen_view
 from actionreasoning.tools import formulas
 from actionreasoning.tools.collision import COLLISION, CollisionQuery
 from actionreasoning.tools.grasp_plan import (
@@ -94,8 +94,9 @@ def answer(briefing: Briefing) -> AgentAnswer:
     if not isinstance(decided, PreGraspDecision):
         return decided
     # The gate's refusals of approaches over the brick chosen measured where it lies.
-    seen = corrected(seen, decided.brick_id, briefing.memory)
-    decided = _pre_grasp(replace(briefing, view=seen))
+    better = corrected(seen, decided.brick_id, briefing.memory)
+    if better is not None:
+        decided = _pre_grasp(replace(briefing, view=better))
     return PreGraspSeenDecision(**decided.model_dump(exclude={"brick_id"}))
 
 
@@ -479,7 +480,7 @@ def _plan_corrected(briefing: Briefing, slot: Pose) -> Pose:
         for r in takewhile(
             lambda r: r.gate == f"{Stage.PLACEMENT}_plan", reversed(briefing.memory.refusals)
         )
-        if abs(r.measured.e_theta_deg or 0.0) <= 90.0
+        if not ends_swapped(r)
     ]
     if not misses:
         return slot

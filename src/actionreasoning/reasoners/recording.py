@@ -14,8 +14,6 @@ not in the file is an error.
 
 from __future__ import annotations
 
-import base64
-import binascii
 import hashlib
 import json
 from collections import defaultdict, deque
@@ -35,6 +33,7 @@ from actionreasoning.reasoners.chat import (
 from actionreasoning.reasoners.sampling import RecordedSampling, Sampling
 from actionreasoning.records import LLMUsage
 from actionreasoning.world.config_files import read_user_file
+from actionreasoning.world.pictures import png_of
 
 
 class ReplayMismatchError(ConfigError):
@@ -176,14 +175,9 @@ class ReplayChat:
 
 
 def image_hash(url: str) -> str:
-    """The SHA-256 of the picture behind an image URL: of its bytes for a base64 ``data:``
-    URL (as transcripts hash pictures), else of the URL's text."""
-    head, _, data = url.partition(";base64,")
-    try:
-        payload = base64.b64decode(data, validate=True) if head.startswith("data:") else b""
-    except binascii.Error:
-        payload = b""
-    return hashlib.sha256(payload or url.encode()).hexdigest()
+    """The SHA-256 of the picture behind an image URL: of its PNG's bytes for a PNG
+    ``data:`` URL (as transcripts hash pictures), else of the URL's text."""
+    return hashlib.sha256(png_of(url) or url.encode()).hexdigest()
 
 
 def read_header(path: Path) -> Header:

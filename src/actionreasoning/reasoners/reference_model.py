@@ -17,8 +17,6 @@ field) cannot be answered: :class:`UnreadableConversation` says which.
 
 from __future__ import annotations
 
-import base64
-import binascii
 import itertools
 import json
 import math
@@ -48,7 +46,7 @@ from actionreasoning.reasoners.llm import NO_MORE_TOOLS, TOOL_RESULTS
 from actionreasoning.tools.base import ToolModel
 from actionreasoning.tools.registry import TOOLS
 from actionreasoning.world.json_text import JSONTextError, parse_json
-from actionreasoning.world.pictures import MEDIA_TYPE, PNG_SIGNATURE, Picture, PictureKind
+from actionreasoning.world.pictures import Picture, PictureKind, png_of
 from actionreasoning.world.tolerances import Tolerances
 
 Message = Mapping[str, Any]
@@ -164,15 +162,9 @@ def _pictures(message: Message, prompt: str) -> tuple[Picture, ...]:
     pictures = []
     for name, url in zip(names, urls, strict=True):
         camera, _, kind = name.partition(".")
-        head, _, data = url.partition(",")
-        if head != f"data:{MEDIA_TYPE};base64" or kind not in PictureKind.__members__.values():
+        png = png_of(url)
+        if png is None or kind not in PictureKind.__members__.values():
             raise UnreadableConversation(f"picture {name[:40]!r} is no base64 PNG data URL")
-        try:
-            png = base64.b64decode(data, validate=True)
-        except binascii.Error:
-            raise UnreadableConversation(f"picture {name[:40]!r} is not valid base64") from None
-        if not png.startswith(PNG_SIGNATURE):
-            raise UnreadableConversation(f"picture {name[:40]!r} is no PNG")
         pictures.append(Picture(camera, PictureKind(kind), png))
     return tuple(pictures)
 

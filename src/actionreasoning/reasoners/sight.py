@@ -31,7 +31,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from actionreasoning.agents.feedback import since_put_down
+from actionreasoning.agents.feedback import Refusal, since_put_down
 from actionreasoning.agents.memory import StepDecision, TaskMemory
 from actionreasoning.agents.view import BrickView, StateView, TargetView
 from actionreasoning.reasoners.brick_finder import (
@@ -169,11 +169,15 @@ def _turned_round(memory: TaskMemory) -> bool:
     guess was wrong (the gates measure the brick's own frame): an odd number of them,
     turned."""
     wrong = sum(
-        1
-        for r in since_put_down(memory.refusals)
-        if r.gate in _LANDING_GATES and abs(r.measured.e_theta_deg or 0.0) > 90.0
+        1 for r in since_put_down(memory.refusals) if r.gate in _LANDING_GATES and ends_swapped(r)
     )
     return wrong % 2 == 1
+
+
+def ends_swapped(refusal: Refusal) -> bool:
+    """Whether ``refusal`` measured a landing turned more than a quarter turn: the brick's
+    ends the other way round from how it was taken to be held, not a yaw to correct."""
+    return abs(refusal.measured.e_theta_deg or 0.0) > 90.0
 
 
 #: The held brick's points: brick-coloured pixels within this of the tool centre point (m):
@@ -237,13 +241,15 @@ def _depth_pairs(pictures: Sequence[Picture]) -> list[tuple[Picture, Picture]]:
     ]
 
 
-def corrected(view: StateView, brick_id: int, memory: TaskMemory) -> StateView:
+def corrected(view: StateView, brick_id: int, memory: TaskMemory) -> StateView | None:
     """``view`` with brick ``brick_id`` where the pre-grasp gate's refusals in a row, of
-    approaches over it, measured it (``_corrected``)."""
+    approaches over it, measured it (``_corrected``); None if the last refusal is none of
+    them, which leaves the view as it is."""
+    gate = f"{Stage.PRE_GRASP}_plan"
+    if not memory.refusals or memory.refusals[-1].gate != gate:
+        return None
     bricks = tuple(
-        b.model_copy(update={"pose": _corrected(b.pose, memory, f"{Stage.PRE_GRASP}_plan")})
-        if b.id == brick_id
-        else b
+        b.model_copy(update={"pose": _corrected(b.pose, memory, gate)}) if b.id == brick_id else b
         for b in view.bricks
     )
     return view.model_copy(update={"bricks": bricks})

@@ -9,6 +9,7 @@ import numpy as np
 import pybullet as p
 
 from actionreasoning.world.cameras import Camera
+from actionreasoning.world.pictures import SHOWN, Picture, PictureKind, colour_png, depth_png
 
 #: The depth buffer's clipping planes (m): nearer than any camera is to a brick, beyond the
 #: farthest ground it sees.
@@ -51,6 +52,18 @@ def capture(client: int, camera: Camera) -> Capture:
     buffer = np.asarray(depth_buffer, dtype=np.float64).reshape(shape)
     depth = FAR_M * NEAR_M / (FAR_M - (FAR_M - NEAR_M) * buffer)
     return Capture(camera=camera, rgb=rgb, depth_m=depth.astype(np.float32))
+
+
+def shown_pictures(client: int) -> tuple[Picture, ...]:
+    """The image tier's pictures of the scene in ``client`` now (``world/pictures.py``:
+    SHOWN, in its order), PNG-encoded as an agent call carries them."""
+    pictures = []
+    for camera, kinds in SHOWN:
+        seen = capture(client, camera)
+        for kind in kinds:
+            png = colour_png(seen.rgb) if kind is PictureKind.COLOUR else depth_png(seen.depth_m)
+            pictures.append(Picture(camera.name, kind, png))
+    return tuple(pictures)
 
 
 def _projection(camera: Camera) -> list[float]:

@@ -28,7 +28,7 @@ from actionreasoning.world.models import (
     BrickStatus,
     Pose,
     WorldState,
-    footprint_holds,
+    highest_under,
 )
 from actionreasoning.world.scene_spec import GRIPPER_GAP_M
 
@@ -77,9 +77,8 @@ def _left_out(state: WorldState, query: CollisionQuery) -> int | None:
     """The brick the query leaves out: by id, or the one under its point."""
     if query.ignore_brick_at_m is None:
         return query.ignore_brick_id
-    x, y = query.ignore_brick_at_m
-    under = [b for b in state.bricks if footprint_holds(b, x, y)]
-    return max(under, key=lambda b: b.pose.position_m[2]).id if under else None
+    under = highest_under(state.bricks, *query.ignore_brick_at_m)
+    return None if under is None else under.id
 
 
 def _obstacles(state: WorldState, ignore: int | None) -> tuple[list[Box], BrickState | None]:

@@ -11,6 +11,7 @@ from enum import StrEnum
 
 import numpy as np
 
+from actionreasoning.agents.observation import DEFAULT_OBSERVATION, Observation
 from actionreasoning.agents.verification import Verification
 from actionreasoning.errors import ConfigError
 
@@ -34,6 +35,16 @@ def check_rung(method: Method, verify: Verification | None) -> None:
         raise ConfigError(f"--method single-agent has no stage gating: drop --verify {verify}")
     if method is Method.CLASSICAL and verify is not None:
         raise ConfigError(f"--method classical verifies nothing; drop --verify {verify}")
+
+
+def check_observation(method: Method, observe: Observation) -> None:
+    """Refuse an observation the method cannot run under, in one line."""
+    if method is Method.CLASSICAL and observe is not DEFAULT_OBSERVATION:
+        raise ConfigError(f"--method classical asks no agent; drop --observe {observe}")
+    if method is Method.SINGLE_AGENT and not observe.poses:
+        raise ConfigError(
+            f"--method single-agent names its brick by id: observe state or both, not {observe}"
+        )
 
 
 def rung_of(method: Method, verify: Verification | None) -> Verification | None:

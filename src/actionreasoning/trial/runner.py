@@ -38,7 +38,13 @@ from actionreasoning.trial.results import (
     TrialResult,
     refusals_of,
 )
-from actionreasoning.trial.rules import Method, check_rung, rung_of, trial_seed
+from actionreasoning.trial.rules import (
+    Method,
+    check_observation,
+    check_rung,
+    rung_of,
+    trial_seed,
+)
 from actionreasoning.trial.sim_world import SimWorld
 from actionreasoning.world.geometry import QuatXYZW, Vec3
 from actionreasoning.world.models import READY_POSE, GoalPattern
@@ -66,6 +72,7 @@ class TrialSpec:
         if self.method is Method.CLASSICAL and self.config.answer_errors.rate > 0:
             raise ConfigError("--method classical asks no reasoner; drop --answer-errors")
         check_rung(self.method, self.config.verify)
+        check_observation(self.method, self.config.observe)
 
     @property
     def rung(self) -> Verification | None:

@@ -5,12 +5,12 @@ from __future__ import annotations
 from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.control.waypoint import GripperCommand, Waypoint, WaypointController
 from actionreasoning.sim.collision import CollisionChecker
-from actionreasoning.sim.eyes import capture
+from actionreasoning.sim.eyes import shown_pictures
 from actionreasoning.sim.perceive import Sensor
 from actionreasoning.tools.base import ToolContext
 from actionreasoning.world.models import GoalPattern, Pose, Progress, WorldState
 from actionreasoning.world.motion import Motion
-from actionreasoning.world.pictures import SHOWN, Picture, PictureKind, colour_png, depth_png
+from actionreasoning.world.pictures import Picture
 
 
 class SimWorld:
@@ -31,15 +31,7 @@ class SimWorld:
 
     def look(self) -> tuple[Picture, ...]:
         """The cameras' pictures now, rendered by TinyRenderer (the scene is not stepped)."""
-        pictures = []
-        for camera, kinds in SHOWN:
-            seen = capture(self.controller.scene.client, camera)
-            for kind in kinds:
-                png = (
-                    colour_png(seen.rgb) if kind is PictureKind.COLOUR else depth_png(seen.depth_m)
-                )
-                pictures.append(Picture(camera.name, kind, png))
-        return tuple(pictures)
+        return shown_pictures(self.controller.scene.client)
 
     def tools(self, state: WorldState) -> ToolContext:
         """Tools on the kinematic copy of the arm, for a measured state."""

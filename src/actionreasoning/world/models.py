@@ -172,6 +172,13 @@ class Sensing(_Model):
     friction_tolerance: float = Field(0.0, description="Its friction is within +- this share.")
 
 
+def highest_under(bricks: Sequence[BrickState], x: float, y: float) -> BrickState | None:
+    """Of ``bricks``, the highest whose footprint holds the point (x, y): the brick there,
+    on top of any it lies on; None if none does."""
+    under = [brick for brick in bricks if footprint_holds(brick, x, y)]
+    return max(under, key=lambda brick: brick.pose.position_m[2], default=None)
+
+
 def footprint_holds(brick: BrickState, x: float, y: float) -> bool:
     """Whether ``brick``'s footprint, as measured, holds the point (x, y) on the ground."""
     cx, cy, _ = brick.pose.position_m

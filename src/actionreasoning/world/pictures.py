@@ -9,6 +9,7 @@ bytes, so a picture is named by its content hash.
 from __future__ import annotations
 
 import base64
+import binascii
 import hashlib
 import io
 from dataclasses import dataclass
@@ -44,6 +45,17 @@ SHOWN: tuple[tuple[Camera, tuple[PictureKind, ...]], ...] = (
 CAMERAS: dict[str, Camera] = {camera.name: camera for camera, _ in SHOWN}
 
 
+def picture_name(camera: str, kind: PictureKind) -> str:
+    """How prompts, transcripts and observations name a picture, e.g. ``top_down.depth``."""
+    return f"{camera}.{kind}"
+
+
+#: The names of SHOWN's pictures, in its order.
+SHOWN_NAMES: tuple[str, ...] = tuple(
+    picture_name(camera.name, kind) for camera, kinds in SHOWN for kind in kinds
+)
+
+
 @dataclass(frozen=True)
 class Picture:
     """One camera's colour or depth image, PNG-encoded."""
@@ -54,8 +66,8 @@ class Picture:
 
     @property
     def name(self) -> str:
-        """How prompts and transcripts name it, e.g. ``top_down.depth``."""
-        return f"{self.camera}.{self.kind}"
+        """How prompts and transcripts name it (:func:`picture_name`)."""
+        return picture_name(self.camera, self.kind)
 
     @property
     def sha256(self) -> str:
@@ -66,6 +78,19 @@ class Picture:
     def data_url(self) -> str:
         """A ``data:`` URL of it, as chat image parts carry images."""
         return f"data:{MEDIA_TYPE};base64,{base64.b64encode(self.png).decode()}"
+
+
+def png_of(url: str) -> bytes | None:
+    """The bytes of a base64 PNG ``data:`` URL (:attr:`Picture.data_url`'s inverse); None
+    for any other URL, bad base64 or bytes that are no PNG."""
+    head, _, data = url.partition(",")
+    if head != f"data:{MEDIA_TYPE};base64":
+        return None
+    try:
+        png = base64.b64decode(data, validate=True)
+    except binascii.Error:
+        return None
+    return png if png.startswith(PNG_SIGNATURE) else None
 
 
 def colour_png(rgb: np.ndarray) -> bytes:
