@@ -18,12 +18,20 @@ from pathlib import Path
 from typing import Any
 
 import jsonschema
+import numpy as np
 import pytest
 from conftest import SMALL_PATTERN, cli, free_port
 from inspect_ai.log import EvalLog, read_eval_log
-from inspect_ai.model import ChatMessageAssistant, ChatMessageTool, ChatMessageUser
+from inspect_ai.model import (
+    ChatMessageAssistant,
+    ChatMessageTool,
+    ChatMessageUser,
+    ContentImage,
+    ContentText,
+)
 from inspect_ai.tool import ToolCall
 
+from actionreasoning.agents.observation import Observation
 from actionreasoning.agents.outputs import PreGraspDecision, WaypointProposal
 from actionreasoning.agents.spec import agent_specs, single_agent_spec
 from actionreasoning.agents.tiers import ToolTier
@@ -33,6 +41,7 @@ from actionreasoning.inspect_task.options import TaskOptions
 from actionreasoning.inspect_task.schemas import agent_tools, response_schema, tool_info
 from actionreasoning.inspect_task.solver import RESULT
 from actionreasoning.inspect_task.task import brick_stack
+from actionreasoning.reasoners.chat import user_message
 from actionreasoning.reasoners.llm import NO_MORE_TOOLS, TOOL_RESULTS
 from actionreasoning.reasoners.reference_model import reply
 from actionreasoning.reasoners.reference_server import (
@@ -43,6 +52,7 @@ from actionreasoning.reasoners.reference_server import (
 from actionreasoning.trial.provenance import Provenance
 from actionreasoning.trial.rules import Method, trial_seed
 from actionreasoning.trial.session import Conditions
+from actionreasoning.world.pictures import Picture, PictureKind, colour_png
 
 TASK = "actionreasoning/brick_stack"
 #: Two trials of the pyramid at seed 0: what the end-to-end tests run.
@@ -107,6 +117,8 @@ def test_its_samples_are_the_seeded_trials_of_eval() -> None:
         ({"physics": "moon"}, "physics profile 'moon'"),
         ({"tools": "all"}, "tools 'all'"),
         ({"pattern": "no-such-pattern.json"}, "no-such-pattern.json"),
+        ({"observe": "eyes"}, "-T observe=eyes"),
+        ({"method": "single-agent", "observe": "image"}, "-T observe=image"),
     ],
 )
 def test_bad_options_are_refused_in_one_line(options: dict[str, Any], named: str) -> None:
@@ -160,6 +172,11 @@ def test_each_agent_gets_its_tiers_tools() -> None:
         str(spec.key): list(spec.tools) for spec in specs
     }
     assert not any(agent_tools(ToolTier.NONE).values())
+    seeing = agent_tools(ToolTier.CHECK, Observation.IMAGE)
+    assert {key: [t.name for t in tools] for key, tools in seeing.items()} == {
+        str(spec.key): list(spec.tools) for spec in agent_specs(ToolTier.CHECK, Observation.IMAGE)
+    }
+    assert all("deproject" in [t.name for t in tools] for tools in seeing.values())
 
 
 def native_call() -> ChatMessageAssistant:
@@ -211,6 +228,18 @@ def test_tool_results_go_back_as_tool_messages_and_a_refused_call_as_text() -> N
     repair = {"role": "user", "content": "Your answer was refused: ..."}
     refused = chat_messages([{"role": "assistant", "content": text}, repair], {text: own})
     assert [(m.role, m.text) for m in refused] == [("assistant", text), ("user", repair["content"])]
+
+
+def test_a_prompts_pictures_go_as_inspect_images_after_its_text() -> None:
+    picture = Picture("top_down", PictureKind.COLOUR, colour_png(np.zeros((2, 3, 3), np.uint8)))
+    prompt = user_message("prompt", [picture, picture])
+    (message,) = chat_messages([prompt], {})
+    assert isinstance(message, ChatMessageUser) and not isinstance(message.content, str)
+    text, *images = message.content
+    assert isinstance(text, ContentText) and text.text == "prompt"
+    assert [(type(i), getattr(i, "image", None)) for i in images] == [
+        (ContentImage, picture.data_url)
+    ] * 2
 
 
 # End to end: inspect eval against actionreasoning eval, over the reference model.
@@ -442,3 +471,29 @@ def test_a_sample_the_model_api_failed_is_run_again_by_eval_retry(
     assert log.status == "success" and log.samples
     score = log.samples[0].scores["trial_outcome"]  # type: ignore[index]
     assert score.answer == "success" and score.value["bricks_placed"] == 1  # type: ignore[index]
+
+
+@pytest.mark.slow
+def test_inspect_eval_with_pictures_scores_as_eval_does(reference: str, tmp_path: Path) -> None:
+    """``-T observe=image``: the pictures reach the model through Inspect's model API (the
+    reference model answers from them alone: the state shows no brick), one brick to be
+    quick, scored exactly as ``eval --observe image`` scores the same trial."""
+    pattern = tmp_path / "one.json"
+    pattern.write_text(json.dumps({**SMALL_PATTERN, "bricks": SMALL_PATTERN["bricks"][:1]}))
+    out = tmp_path / "eval"
+    result = cli(
+        *("eval", "--llm", "openai:reference", "--base-url", reference, "--pattern", str(pattern)),
+        *("--observe", "image", "--trials", "1", "--seed", "0", "--out", str(out)),
+    )
+    assert result.returncode == 0, result.stderr
+    lines = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+    assert lines[0]["success"] and lines[0]["llm_usage"]["image_bytes"] > 0
+    options = ("-T", f"pattern={pattern}", "-T", "trials=1", "-T", "observe=image")
+    run = inspect_eval(reference, tmp_path / "logs", *options)
+    assert run.returncode == 0, run.stdout + run.stderr
+    log = the_log(tmp_path / "logs")
+    assert_scored_as_eval(log, lines)
+    (sample,) = log.samples or []
+    first = next(event for event in sample.events if event.event == "model").input[0]
+    assert isinstance(first.content, list)
+    assert [type(part) for part in first.content] == [ContentText] + [ContentImage] * 5

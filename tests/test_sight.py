@@ -62,6 +62,45 @@ def test_the_free_bricks_are_found_where_they_lie_and_a_built_one_is_left_out(
         assert abs(math.degrees(turn - math.pi / 2)) < 1.0
 
 
+def test_a_brick_lying_on_a_target_not_yet_built_is_numbered_first(scene: Scene) -> None:
+    """The brick numbered last lies on target 1's slot, unbuilt: it is in that target's
+    way, and is numbered first, for the policy, taking bricks by number, to pick first."""
+    tool = Pose(position_m=(0.45, -0.25, 0.4))
+    pictures = shown_pictures(scene.client)
+    far = (target(0, (0.6, 0.2, 0.03)),)
+    *_, last = sorted(
+        seen_view(image_view(tool, far), TaskMemory(), pictures).bricks, key=lambda b: b.id
+    )
+    on = last.pose.position_m
+    view = seen_view(image_view(tool, (*far, target(1, on))), TaskMemory(), pictures)
+    first, *others = sorted(view.bricks, key=lambda b: b.id)
+    assert first.pose.position_m == on
+    assert len(others) == len(scene.bricks) - 1
+
+
+def test_a_brick_put_down_out_of_sight_lies_under_the_tool_that_let_go(scene: Scene) -> None:
+    """After a put-down (memory.regrasps), before agent 1 chooses again: where no find lies
+    within a brick's length of the tool, the current brick lies under it, on the ground,
+    turned as the tool is; where one does, the pictures show it and nothing is added."""
+    targets = (target(0, (0.6, 0.2, 0.03)),)
+    memory = TaskMemory(current_brick=7, current_target=0, regrasps=1)
+    pictures = shown_pictures(scene.client)
+    tool = Pose(position_m=(0.3, 0.45, 0.3), quat_xyzw=top_down_quat(math.radians(30.0)))
+    view = seen_view(image_view(tool, targets), memory, pictures)
+    put_down = view.brick(7)
+    assert put_down.status is BrickStatus.DROPPED and put_down.size_m == SIZE
+    assert put_down.pose.position_m == pytest.approx((0.3, 0.45, SIZE[2] / 2.0))
+    assert math.degrees(quat_yaw(put_down.pose.quat_xyzw)) == pytest.approx(30.0)
+    over, _ = scene.brick_pose(3)
+    seen = Pose(position_m=(over[0], over[1], 0.3))
+    assert 7 not in [b.id for b in seen_view(image_view(seen, targets), memory, pictures).bricks]
+    approach = WaypointProposal(position_m=(0.3, 0.45, 0.3), quat_xyzw=tool.quat_xyzw)
+    chosen = StepDecision(agent=Stage.PRE_GRASP, target_index=0, waypoint=approach, passed=True)
+    again = memory.model_copy(update={"this_brick": (chosen,)})
+    shown = seen_view(image_view(tool, targets), again, pictures).bricks
+    assert all(b.status is not BrickStatus.DROPPED for b in shown)
+
+
 @pytest.mark.parametrize(
     ("roll_deg", "offset_m"),
     [(0.0, (0.0, 0.0, 0.0)), (17.0, (0.012, 0.0015, 0.004)), (-38.0, (-0.008, -0.002, 0.01))],

@@ -7,7 +7,9 @@ reasoner's in-band form, an answer listing ``tool_calls`` (:func:`in_band`), whi
 reasoner validates and runs as it does any answer. Going back to the model, each answer is
 the model's own message again (its reasoning kept), a native tool call answered by one tool
 message per call, split from the reasoner's tool results; a tool call the reasoner refused
-or did not run stays its in-band text, as no tool message answers it.
+or did not run stays its in-band text, as no tool message answers it. A prompt that
+carries pictures (``--observe image`` or ``both``) goes as its text and one image per
+picture, the same base64 PNG ``data:`` URLs.
 """
 
 from __future__ import annotations
@@ -20,9 +22,12 @@ from inspect_ai.model import (
     ChatMessageAssistant,
     ChatMessageTool,
     ChatMessageUser,
+    Content,
+    ContentImage,
+    ContentText,
 )
 
-from actionreasoning.reasoners.chat import Message
+from actionreasoning.reasoners.chat import Message, image_urls, message_text
 from actionreasoning.reasoners.llm import TOOL_RESULTS
 
 
@@ -50,13 +55,13 @@ def chat_messages(
     chat: list[ChatMessage] = []
     answered = False
     for index, message in enumerate(messages):
-        text = message["content"]
         if answered:  # the tool results, already given as tool messages
             answered = False
             continue
         if message["role"] != "assistant":
-            chat.append(ChatMessageUser(content=text))
+            chat.append(ChatMessageUser(content=_content(message)))
             continue
+        text = message["content"]
         own = said.get(text)
         if own is None:
             chat.append(ChatMessageAssistant(content=text))
@@ -70,14 +75,23 @@ def chat_messages(
     return chat
 
 
+def _content(message: Message) -> str | list[Content]:
+    """A user message's content in Inspect's terms: its text, then its pictures if any."""
+    urls = image_urls(message)
+    if not urls:
+        return message_text(message)
+    return [ContentText(text=message_text(message)), *(ContentImage(image=u) for u in urls)]
+
+
 def _tool_messages(
     call: ChatMessageAssistant, following: Sequence[Message]
 ) -> list[ChatMessage] | None:
     """The tool messages answering ``call``'s tool calls and the reasoner's words after
     them, from the message following it if that holds one result per call; else None."""
-    if not following or not following[0]["content"].startswith(TOOL_RESULTS):
+    told = message_text(following[0]) if following else ""
+    if not told.startswith(TOOL_RESULTS):
         return None
-    results_text, _, then = following[0]["content"][len(TOOL_RESULTS) :].partition("\n")
+    results_text, _, then = told[len(TOOL_RESULTS) :].partition("\n")
     results = json.loads(results_text)
     calls = call.tool_calls or []
     if len(results) != len(calls):

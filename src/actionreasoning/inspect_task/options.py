@@ -7,9 +7,10 @@ from dataclasses import dataclass, replace
 
 from inspect_ai._util.error import PrerequisiteError
 
+from actionreasoning.agents.observation import DEFAULT_OBSERVATION, load_observation
 from actionreasoning.agents.tiers import DEFAULT_TIER
 from actionreasoning.errors import ConfigError
-from actionreasoning.trial.rules import Method
+from actionreasoning.trial.rules import Method, check_observation
 from actionreasoning.trial.runner import TrialSpec
 from actionreasoning.trial.session import Conditions
 
@@ -28,9 +29,10 @@ class TaskOptionError(ConfigError, PrerequisiteError):
 
 @dataclass(frozen=True)
 class TaskOptions:
-    """What the trials run under: the pattern, physics profile, noise level, reasoning tier
-    and method by name, how many trials, the run seed, and whether Inspect caches the
-    model's answers. A bad value is refused in one line naming the option."""
+    """What the trials run under: the pattern, physics profile, noise level, reasoning tier,
+    method and what the agents observe by name, how many trials, the run seed, and whether
+    Inspect caches the model's answers. A bad value is refused in one line naming the
+    option."""
 
     pattern: str = "pyramid"
     physics: str = "paper"
@@ -40,9 +42,10 @@ class TaskOptions:
     trials: int = 10
     seed: int = 0
     cache: bool = False
+    observe: str = str(DEFAULT_OBSERVATION)
 
     def __post_init__(self) -> None:
-        for name in ("pattern", "physics", "noise", "tools", "method"):
+        for name in ("pattern", "physics", "noise", "tools", "method", "observe"):
             value = getattr(self, name)
             if not isinstance(value, str) or not value:
                 raise ConfigError(f"-T {name}={value!r}: give a name")
@@ -57,10 +60,16 @@ class TaskOptions:
                 raise ConfigError(f"-T {name}={value!r}: give a whole number >= {least}")
         if not isinstance(self.cache, bool):
             raise ConfigError(f"-T cache={self.cache!r}: give true or false")
+        try:
+            check_observation(Method(self.method), load_observation(self.observe))
+        except ConfigError as error:
+            raise ConfigError(f"-T observe={self.observe}: {error}") from None
 
     def conditions(self) -> Conditions:
         """The conditions loaded as ``eval`` loads them; a bad name or file is refused."""
-        return Conditions.load(self.pattern, self.physics, self.noise, tools=self.tools)
+        return Conditions.load(
+            self.pattern, self.physics, self.noise, tools=self.tools, observe=self.observe
+        )
 
     def spec(self, conditions: Conditions, trial: int) -> TrialSpec:
         """Trial ``trial`` of the run under ``conditions``, with the method asked for."""

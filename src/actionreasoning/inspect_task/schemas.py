@@ -18,6 +18,7 @@ from inspect_ai.model import ResponseSchema
 from inspect_ai.tool import ToolInfo, ToolParams
 from inspect_ai.util import JSONSchema
 
+from actionreasoning.agents.observation import DEFAULT_OBSERVATION, Observation
 from actionreasoning.agents.spec import agent_specs, single_agent_spec
 from actionreasoning.agents.tiers import ToolTier
 from actionreasoning.tools.registry import TOOLS
@@ -48,10 +49,13 @@ def tool_info(name: str) -> ToolInfo:
     return ToolInfo(name=name, description=tool.description.strip(), parameters=parameters)
 
 
-def agent_tools(tier: ToolTier) -> dict[str, tuple[ToolInfo, ...]]:
-    """Each agent's tools under ``tier``, by agent key (the six agents and the single
-    agent)."""
-    specs = (*agent_specs(tier), single_agent_spec(tier))
+def agent_tools(
+    tier: ToolTier, observation: Observation = DEFAULT_OBSERVATION
+) -> dict[str, tuple[ToolInfo, ...]]:
+    """Each agent's tools under ``tier`` when observing ``observation``, by agent key (the
+    six agents, and the single agent where it runs: observing poses)."""
+    single = (single_agent_spec(tier, observation),) if observation.poses else ()
+    specs = (*agent_specs(tier, observation), *single)
     return {str(spec.key): tuple(tool_info(name) for name in spec.tools) for spec in specs}
 
 

@@ -20,7 +20,7 @@ RESULT = "trial_result"
 
 @solver
 def gated_trial(
-    pattern: str, physics: str, noise: str, tools: str, method: str, seed: int
+    pattern: str, physics: str, noise: str, tools: str, method: str, seed: int, observe: str
 ) -> Solver:
     """Run the sample's trial (``metadata["trial"]``) under these options (TaskOptions)."""
     options = TaskOptions(
@@ -30,11 +30,12 @@ def gated_trial(
         tools=tools,
         method=method,
         seed=seed,
+        observe=observe,
     )
     conditions = options.conditions()
     llm = conditions.config.llm
     assert llm is not None  # eval's default backend settings: their turn limits are used
-    by_agent = agent_tools(conditions.config.tools)
+    by_agent = agent_tools(conditions.config.tools, conditions.config.observe)
     provenance = current_provenance()
 
     async def solve(state: TaskState, generate: Generate) -> TaskState:

@@ -7,6 +7,7 @@ from inspect_ai import Task, task
 from inspect_ai.dataset import MemoryDataset, Sample
 from inspect_ai.model import GenerateConfig
 
+from actionreasoning.agents.observation import DEFAULT_OBSERVATION
 from actionreasoning.agents.tiers import DEFAULT_TIER
 from actionreasoning.errors import ActionReasoningError
 from actionreasoning.inspect_task.options import TaskOptionError, TaskOptions
@@ -27,21 +28,25 @@ def brick_stack(
     trials: int = 10,
     seed: int = 0,
     cache: bool = False,
+    observe: str = str(DEFAULT_OBSERVATION),
 ) -> Task:
     """Trials 0 .. trials-1 of ``actionreasoning eval --seed SEED`` on ``pattern`` under
     ``physics`` and ``noise``, the agents (``method``: the six gated agents or the single
-    agent) given the ``tools`` tier; with ``cache``, Inspect caches the model's answers (for
-    a week; ``--cache`` sets another expiry).
+    agent) given the ``tools`` tier and observing ``observe`` (``state``, ``image``: the
+    cameras' pictures instead of the bricks' poses, or ``both``); with ``cache``, Inspect
+    caches the model's answers (for a week; ``--cache`` sets another expiry).
     Sampling defaults to eval's (greedy, seed 0, 300 tokens); Inspect's options override it."""
     try:
-        options = TaskOptions(pattern, physics, noise, tools, method, trials, seed, cache)
+        options = TaskOptions(
+            pattern, physics, noise, tools, method, trials, seed, cache, observe=observe
+        )
         conditions = options.conditions()
     except ActionReasoningError as error:
         raise TaskOptionError(f"actionreasoning/brick_stack: {error}") from None
     sampling = Sampling()
     return Task(
         dataset=MemoryDataset(samples(options, conditions), name=f"{pattern}-seed-{seed}"),
-        solver=gated_trial(pattern, physics, noise, tools, method, seed),
+        solver=gated_trial(pattern, physics, noise, tools, method, seed, observe),
         scorer=trial_outcome(),
         config=GenerateConfig(
             temperature=sampling.temperature,
@@ -55,13 +60,16 @@ def brick_stack(
 def samples(options: TaskOptions, conditions: Conditions) -> list[Sample]:
     """One sample per trial, in order: its index, run seed and trial seed in metadata."""
     bricks = len(conditions.goal.targets)
+    observe = conditions.config.observe
+    seeing = f", observing {observe}" if observe is not DEFAULT_OBSERVATION else ""
     return [
         Sample(
             id=trial,
             input=(
                 f"Build {conditions.pattern_name} ({bricks} bricks) with the {options.method} "
                 f"method under {options.physics} physics, noise {options.noise}, tools "
-                f"{options.tools}: trial {trial} of `actionreasoning eval --seed {options.seed}` "
+                f"{options.tools}{seeing}: trial {trial} of "
+                f"`actionreasoning eval --seed {options.seed}` "
                 f"(trial seed {trial_seed(options.seed, trial)})."
             ),
             metadata={

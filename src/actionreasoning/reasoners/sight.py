@@ -10,7 +10,10 @@ one in from the pictures and the memory alone:
   built target (memory.placed), at that target's height, is the brick placed there and is
   left out, as the state block leaves out placed bricks. Found bricks are numbered from
   :data:`SEEN_ID_BASE`, ids no brick of the scene has: the policy never sends them back,
-  since agent 1 names its brick by where it lies.
+  since agent 1 names its brick by where it lies. A find on a target not yet built (a
+  brick set down off its slot, left there) is in that target's way and numbered first, so
+  that the policy picks it first, as the state tier's policy picks first the brick a
+  refusal found in the way.
 - **The current brick** (memory.current_brick, once this cycle's agent 1 has chosen it)
   lies under the tool until it is grasped: agent 1 moved the tool over its centre, agent 2
   down to it, turned as the tool is (the pads close across its width); shifted by what the
@@ -19,6 +22,11 @@ one in from the pictures and the memory alone:
   squared to them (closing, they square it), rolled about their axis and shifted as its
   points in the depth pictures lie, the roll as the gates measured it over the slot once
   they have; turned half round where the placement plan's refusals say.
+- **A brick put down** for a re-grasp (memory.regrasps, before this cycle's agent 1 has
+  chosen again) that the pictures do not show within its length of the tool lies under the
+  tool, turned as the tool is: the arm let go of it there, pressed flat between the pads,
+  and rose straight up over it, which hides it from above (and often from the side).
+  Where it lies off that, the pre-grasp gate's refusals measure it (:func:`corrected`).
 """
 
 from __future__ import annotations
@@ -64,7 +72,7 @@ def seen_view(view: StateView, memory: TaskMemory, pictures: Sequence[Picture]) 
     if not sizes:
         raise ValueError("the state shows no target's brick size: no brick can be found")
     finds = _finds(pictures, sizes)
-    current = _current(view, memory, finds, sizes, pictures)
+    current = _current(view, memory, finds, sizes, pictures) or _put_down(view, memory, finds)
     built = _built(view, memory)
     free = [
         find
@@ -72,6 +80,9 @@ def seen_view(view: StateView, memory: TaskMemory, pictures: Sequence[Picture]) 
         if not any(_on(find, target) for target in built)
         and (current is None or _apart(find, current.pose.position_m))
     ]
+    # A brick lying on a target not yet built is in its way: numbered first, picked first.
+    unbuilt = [t for t in view.targets if t not in built]
+    free.sort(key=lambda find: not any(_on(find, target) for target in unbuilt))
     bricks = [_brick(SEEN_ID_BASE + number, find, sizes) for number, find in enumerate(free)]
     return view.model_copy(update={"bricks": (*([current] if current else []), *bricks)})
 
@@ -144,6 +155,24 @@ def _current(
     return BrickView(
         id=memory.current_brick, size_m=size, pose=pose, status=BrickStatus.IN_PICK_AREA
     )
+
+
+def _put_down(view: StateView, memory: TaskMemory, finds: Sequence[SeenBrick]) -> BrickView | None:
+    """The brick put down for a re-grasp, under the tool, where no find shows it (see the
+    module); None if none was put down, agent 1 has chosen again, or the pictures show it."""
+    brick = memory.current_brick
+    placed = {p.brick_id for p in memory.placed}
+    if brick is None or brick in placed or not memory.regrasps or memory.this_brick:
+        return None
+    target = next((t for t in view.targets if t.index == memory.current_target), None)
+    if target is None or target.size_m is None:
+        return None
+    size, tool = target.size_m, view.robot.tool_pose
+    x, y, _ = tool.position_m
+    if any(math.dist(f.top_centre_m[:2], (x, y)) < size[0] for f in finds):
+        return None
+    pose = Pose(position_m=(x, y, size[2] / 2.0), quat_xyzw=yaw_quat(quat_yaw(tool.quat_xyzw)))
+    return BrickView(id=brick, size_m=size, pose=pose, status=BrickStatus.DROPPED)
 
 
 #: A brick squared in the hand: level, its long side along the tool's x axis (the pads close
