@@ -9,6 +9,7 @@ import math
 import pybullet as p
 import pytest
 
+from actionreasoning.agents.feedback import Measured, Refusal
 from actionreasoning.agents.memory import PlacedBrick, StepDecision, TaskMemory
 from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.agents.view import RobotView, StateView, TargetView
@@ -137,3 +138,24 @@ def test_a_held_brick_is_seen_rolled_and_shifted_as_it_sits_in_the_hand(
     assert brick.status is BrickStatus.GRASPED
     assert math.dist(brick.pose.position_m, held.position_m) < 0.001
     assert rotation_deg(brick.pose.quat_xyzw, held.quat_xyzw) < 0.5
+
+
+def test_the_brick_under_the_tool_is_where_refused_descents_measured_it(scene: Scene) -> None:
+    """Agent 1 chose the brick under the tool; where the pictures show no top face there
+    (the arm over a stack can hide it) it lies on the ground, and each refused descent in a
+    row shifts it by what its gate measured, in height too."""
+    tool = Pose(position_m=(0.3, 0.45, 0.3), quat_xyzw=top_down_quat(0.0))
+    approach = WaypointProposal(position_m=(0.3, 0.45, 0.3), quat_xyzw=tool.quat_xyzw)
+    chosen = StepDecision(agent=Stage.PRE_GRASP, target_index=0, waypoint=approach, passed=True)
+    missed = [
+        Refusal(agent="descent", gate="descent_plan", measured=Measured(e_x_m=dx, e_z_m=dz))
+        for dx, dz in ((0.004, 0.06), (-0.001, 0.002))
+    ]
+    pictures = shown_pictures(scene.client)
+    targets = (target(0, (0.6, 0.2, 0.03)),)
+    for refusals, expected in (((), (0.3, 0.45, 0.03)), (missed, (0.303, 0.45, 0.092))):
+        memory = TaskMemory(
+            current_brick=7, current_target=0, this_brick=(chosen,), refusals=tuple(refusals)
+        )
+        view = seen_view(image_view(tool, targets), memory, pictures)
+        assert view.brick(7).pose.position_m == pytest.approx(expected)

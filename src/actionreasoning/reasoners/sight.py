@@ -16,9 +16,10 @@ one in from the pictures and the memory alone:
   refusal found in the way.
 - **The current brick** (memory.current_brick, once this cycle's agent 1 has chosen it)
   lies under the tool until it is grasped: agent 1 moved the tool over its centre, agent 2
-  down to it, turned as the tool is (the pads close across its width); shifted by what the
-  refusals of a descent in a row measured of it; its height that of the top face the
-  pictures show there (the ground's, if they show none). Held, it sits between the pads,
+  down to it, turned as the tool is (the pads close across its width); its height that of
+  the top face the pictures show there (the ground's, if they show none: the arm over it
+  can hide a brick on a stack from every camera); shifted, in height too, by what the
+  refusals of a descent in a row measured of it. Held, it sits between the pads,
   squared to them (closing, they square it), rolled about their axis and shifted as its
   points in the depth pictures lie, the roll as the gates measured it over the slot once
   they have; turned half round where the placement plan's refusals say.
@@ -287,15 +288,18 @@ def corrected(view: StateView, brick_id: int, memory: TaskMemory) -> StateView |
 def _corrected(pose: Pose, memory: TaskMemory, gate: str) -> Pose:
     """A brick's ``pose`` as seen, corrected by the refusals in a row (the last ones) of
     ``gate``, each of an answer made from the pose as corrected by those before it: each
-    measured the brick off that pose by (e_x, e_y) and turned by e_theta (wanted minus
-    measured: the brick minus the tool), so their sum is where the gate measures it."""
+    measured the brick off that pose by (e_x, e_y, and e_z where the gate measures height:
+    a descent's) and turned by e_theta (wanted minus measured: the brick minus the tool), so
+    their sum is where the gate measures it."""
     trailing = list(takewhile(lambda r: r.gate == gate, reversed(memory.refusals)))
     x, y, z = pose.position_m
-    dx = sum(r.measured.e_x_m or 0.0 for r in trailing)
-    dy = sum(r.measured.e_y_m or 0.0 for r in trailing)
+    dx, dy, dz = (
+        sum(getattr(r.measured, axis) or 0.0 for r in trailing)
+        for axis in ("e_x_m", "e_y_m", "e_z_m")
+    )
     turn = sum(r.measured.e_theta_deg or 0.0 for r in trailing)
     yaw = quat_yaw(pose.quat_xyzw) + math.radians(turn)
-    return Pose(position_m=(x + dx, y + dy, z), quat_xyzw=yaw_quat(yaw))
+    return Pose(position_m=(x + dx, y + dy, z + dz), quat_xyzw=yaw_quat(yaw))
 
 
 def _decision(memory: TaskMemory, stage: Stage) -> StepDecision | None:
