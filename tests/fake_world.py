@@ -535,6 +535,23 @@ def lands_off(shift_m: Vec3, turn_deg: float = 0.0, tilt_deg: float = 0.0) -> De
     return Deviation("move", apply, only=_guarded)
 
 
+def falls_out(shift_m: Vec3) -> Deviation:
+    """On a set-down, the brick slips out of the pads and lands flat ``shift_m`` (world
+    frame) off where it was carried, and the pads close on nothing."""
+
+    def apply(world: FakeWorld, waypoint: WaypointProposal, stop: int | None) -> Motion:
+        done = world.ideal_move(waypoint, stop)
+        assert world.held is not None
+        brick = world.bricks[world.held]
+        x, y, _ = brick.pose.position_m
+        flat = (x + shift_m[0], y + shift_m[1], brick.size_m[2] / 2.0)
+        brick.pose = Pose(position_m=flat, quat_xyzw=_level(brick.pose.quat_xyzw))
+        world.held, world.pads = None, {}
+        return done
+
+    return Deviation("move", apply, only=_guarded)
+
+
 def closes_off(shift_m: tuple[float, float], turn_deg: float = 0.0) -> Deviation:
     """Closing, the pads leave the brick held ``shift_m`` (world x, y) off the tool centre
     point and turned ``turn_deg`` about the vertical (a grip that pulled the brick along)."""

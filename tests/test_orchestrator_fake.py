@@ -14,6 +14,7 @@ from fake_world import (
     FakeWorld,
     closes_off,
     creeps,
+    falls_out,
     lands_off,
     lets_go_off,
     one_pad_misses,
@@ -1275,3 +1276,22 @@ def test_a_set_down_hover_out_of_reach_at_the_carry_height_steps_down_to_where_i
     )
     higher = above.model_copy(update={"position_m": (x, y, z + HOVER_STEP_M)})
     assert not orchestrator._clearance(state, higher, start=state.robot.ee_pose).reachable
+
+
+def test_a_brick_that_falls_out_at_the_set_down_is_grasped_again_where_it_lies(
+    world, one_brick
+) -> None:
+    """sigma_5 raises the tool without the brick: Ag5 is not asked again for a brick the
+    pads no longer hold; it is left where it fell and grasped again from there."""
+    world.script("placement", falls_out((0.03, 0.0, 0.0)))
+    reasoner = Scripted()
+    result = build(world, reasoner, tier=ToolTier.CHECK)
+    assert_built(world, result)
+    raised = [c for c in calls(result, "placement") if c.outcome == "raised"]
+    assert len(raised) == 1 and raised[0].feedback.startswith("sigma5_placement failed")
+    second = reasoner.asked("pre_grasp")[1]
+    assert second.memory.regrasps == 1
+    assert second.memory.refusals[-1].gate == "placement_regrasp"
+    assert "left the hand on the set-down" in second.memory.refusals[-1].note
+    assert second.state.brick(0).status == "dropped"
+    assert calls(result, "pre_grasp")[1].answer["brick_id"] == 0

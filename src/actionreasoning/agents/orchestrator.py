@@ -803,7 +803,26 @@ class Orchestrator:
             )
             self.world.move(up)
             self._note(refusal)
+            self._dropped_at_set_down(brick, back)
         raise TrialStopped(FailureCode.PLACEMENT_MISALIGNED, Stage.PLACEMENT, failed)
+
+    def _dropped_at_set_down(self, brick: int, back: Callable[[], None]) -> None:
+        """A brick that left the hand on a set-down (sigma_5 raised the tool without it) is
+        no answer's to place: left where it lies, the cycle starts again at Ag1, which grasps
+        it there if it lies flat (if not, the trial ends as no brick left, a physics
+        failure, not as answers refused for a brick no longer held)."""
+        state = self.world.observe(Progress(current_brick=brick, step=Stage.PLACEMENT))
+        if state.brick(brick).status == BrickStatus.GRASPED:
+            return
+        back()
+        raise _Regrasp(
+            Refusal(
+                agent=Stage.PLACEMENT,
+                gate="placement_regrasp",
+                note="the brick left the hand on the set-down: it is grasped again where it lies",
+            ),
+            ErrorCategory.GRASP,
+        )
 
     def _placement_phase(self, phase: PlacementPhase | None) -> None:
         """Tell Ag5 which of its calls comes next (None: it is done with this brick)."""
