@@ -62,3 +62,23 @@ def test_the_top_down_camera_sees_the_pick_and_build_areas() -> None:
     for corner in corners:
         u, v, _ = TOP_DOWN.project(corner)
         assert 0 <= u < TOP_DOWN.width and 0 <= v < TOP_DOWN.height, corner
+
+
+def test_the_view_of_a_plane_by_hand() -> None:
+    """Straight down from 2 m over 90 deg: the image's outer corners, half a pixel past the
+    outer pixels' centres, are 50.5 pixels from the principal point, one focal length, so
+    the plane z = h shows (2 - h) m either side; its top edge lies towards +y."""
+    camera = straight_down()
+    for height in (0.0, 0.5):
+        half = 2.0 - height
+        corners = [(-half, half), (half, half), (half, -half), (-half, -half)]
+        np.testing.assert_allclose(camera.view_at_height(height), corners, atol=1e-12)
+
+
+def test_a_plane_seen_up_to_the_horizon_has_no_bounded_view() -> None:
+    up = (0.0, 0.0, 1.0)
+    level = Camera.looking_at("level", (0.0, 0.0, 1.0), (1.0, 0.0, 1.0), up, 60.0, 64, 48)
+    with pytest.raises(ValueError, match="level"):
+        level.view_at_height(0.0)
+    with pytest.raises(ValueError, match="down"):
+        straight_down().view_at_height(2.5)  # above the camera, behind it

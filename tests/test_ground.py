@@ -5,6 +5,9 @@ from __future__ import annotations
 import itertools
 import math
 
+import pytest
+from shapely.geometry import box
+
 from actionreasoning.world.boxes import Box
 from actionreasoning.world.geometry import yaw_quat
 from actionreasoning.world.ground import GRID_STEP_M, free_spots
@@ -36,3 +39,14 @@ def test_the_nearest_spot_keeps_the_margin_from_every_occupied_footprint() -> No
 def test_no_spot_when_everything_within_range_is_taken() -> None:
     occupied = [footprint(0.5, 0.2)]
     assert list(free_spots((0.5, 0.2), SIZE, yaw_quat(0.0), occupied, 0.08, 0.05)) == []
+
+
+def test_a_spot_within_an_area_keeps_the_whole_footprint_inside_it() -> None:
+    """Free ground at (0.5, 0.2), but the area ends at y = 0.22, inside the brick's far side
+    (0.2 + 0.095 / 2): the nearest spot inside is the first grid step that brings that side
+    within it, 0.22 - 0.0475 = 0.1725 rounded down to the grid, 0.16."""
+    area = box(0.0, 0.0, 1.0, 0.22)
+    assert not area.contains(footprint(0.5, 0.2))
+    x, y = next(free_spots((0.5, 0.2), SIZE, yaw_quat(0.0), [], 0.08, 0.3, within=area))
+    assert (x, y) == pytest.approx((0.5, 0.16))
+    assert area.contains(footprint(x, y))

@@ -26,8 +26,9 @@ from fake_world import (
     stalls,
 )
 from scipy.spatial.transform import Rotation
+from shapely.geometry import Polygon
 
-from actionreasoning.agents.calls import BuildResult
+from actionreasoning.agents.calls import AgentCaller, BuildResult
 from actionreasoning.agents.orchestrator import (
     HOVER_STEP_M,
     ROLL_WATCH_S,
@@ -45,7 +46,7 @@ from actionreasoning.agents.outputs import (
     ReleaseAnswer,
     WaypointProposal,
 )
-from actionreasoning.agents.put_down import SET_ASIDE_MARGIN_M, SET_ASIDE_SLACK_M
+from actionreasoning.agents.put_down import SET_ASIDE_MARGIN_M, SET_ASIDE_SLACK_M, PutDown
 from actionreasoning.agents.reasoner import AgentReply, AgentRequest
 from actionreasoning.agents.tiers import DEFAULT_TIER, ToolTier
 from actionreasoning.agents.transcript import AgentCall
@@ -53,6 +54,7 @@ from actionreasoning.reasoners.builtin import BuiltinReasoner
 from actionreasoning.tools import formulas
 from actionreasoning.tools.geometry import alignment_of
 from actionreasoning.world.boxes import Box
+from actionreasoning.world.cameras import TOP_DOWN
 from actionreasoning.world.geometry import quat_yaw, tilt_deg, top_down_quat, wrap_angle, yaw_quat
 from actionreasoning.world.layout import sample_pick_poses
 from actionreasoning.world.models import READY_POSE, BrickState, GoalPattern, Pose, Progress
@@ -719,6 +721,33 @@ def test_a_brick_still_swinging_after_the_lift_is_held_still_and_then_judged(wor
     lift, hold = [m for m in world.moves if m.stage == "lift"]
     assert hold.waypoint.position_m == lift.waypoint.position_m
     assert hold.waypoint.duration_s == SETTLE_S
+
+
+def test_agents_shown_no_poses_get_a_brick_set_aside_where_the_top_down_picture_shows_it(
+    kinematics, one_brick
+) -> None:
+    """A brick held at the top-down picture's far edge (y 0.60 m; the picture ends at
+    0.625 m at a brick's top): blind to the pictures, the nearest free ground is where it
+    is, half out of the picture; in sight, a spot whose footprint keeps SET_ASIDE_SLACK_M
+    inside it, so that a landing off by that much still lies in the picture."""
+    edge = Pose(position_m=(0.05, 0.60, 0.03), quat_xyzw=yaw_quat(0.3))
+    world = FakeWorld(one_brick, [edge, *BRICKS[1:]], *kinematics)
+    world.go(Pose(position_m=edge.position_m, quat_xyzw=top_down_quat(0.3)))
+    world.ideal_grip(None)
+    world.go(Pose(position_m=(0.05, 0.60, 0.2), quat_xyzw=top_down_quat(0.3)))
+    state = world.observe(Progress(current_brick=0, step="lift"))
+    calls = AgentCaller(world, BuiltinReasoner(), TOL, BuildResult())
+    picture = Polygon(TOP_DOWN.view_at_height(SPEC.brick_size_m[2]))
+
+    def footprint(spot: Pose) -> Polygon:
+        return Box(spot.position_m, spot.quat_xyzw, SPEC.brick_size_m).footprint
+
+    blind = PutDown(world, calls).free_spot(state, 0, 0, set(), 0.2)
+    assert blind is not None and math.dist(blind.position_m[:2], edge.position_m[:2]) < 0.03
+    assert not picture.contains(footprint(blind))
+    seen = PutDown(world, calls, in_sight=True).free_spot(state, 0, 0, set(), 0.2)
+    assert seen is not None
+    assert picture.buffer(-SET_ASIDE_SLACK_M).contains(footprint(seen))
 
 
 def test_slips_past_the_regrasp_budget_end_the_trial_as_grasp_slip(world) -> None:

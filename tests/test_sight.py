@@ -9,7 +9,7 @@ import math
 import pybullet as p
 import pytest
 
-from actionreasoning.agents.feedback import Measured, Refusal
+from actionreasoning.agents.feedback import FailedCheck, Measured, Refusal
 from actionreasoning.agents.memory import PlacedBrick, StepDecision, TaskMemory
 from actionreasoning.agents.outputs import WaypointProposal
 from actionreasoning.agents.view import RobotView, StateView, TargetView
@@ -100,6 +100,28 @@ def test_a_brick_put_down_out_of_sight_lies_under_the_tool_that_let_go(scene: Sc
     again = memory.model_copy(update={"this_brick": (chosen,)})
     shown = seen_view(image_view(tool, targets), again, pictures).bricks
     assert all(b.status is not BrickStatus.DROPPED for b in shown)
+
+
+def test_a_put_down_brick_refused_under_the_tool_is_not_taken_to_lie_there_again(
+    scene: Scene,
+) -> None:
+    """Agent 1's approach over the put-down brick was refused: no brick lies under it (it
+    fell or rolled away on the way down). It is not put there again; a refusal of that
+    kind before the put-down does not count."""
+    targets = (target(0, (0.6, 0.2, 0.03)),)
+    tool = Pose(position_m=(0.3, 0.45, 0.3), quat_xyzw=top_down_quat(0.0))
+    pictures = shown_pictures(scene.client)
+    put_down = Refusal(agent="lift", gate="sigma4_lift")
+    missed = Refusal(
+        agent="pre_grasp",
+        gate="pre_grasp_choice",
+        failed=(FailedCheck(name="brick_under_approach", value=0.0, relation=">=", threshold=1),),
+    )
+    for refusals, there in (((missed, put_down), True), ((put_down, missed), False)):
+        memory = TaskMemory(current_brick=7, current_target=0, regrasps=1, refusals=refusals)
+        shown = [b.id for b in seen_view(image_view(tool, targets), memory, pictures).bricks]
+        assert (7 in shown) is there
+        assert len(shown) == len(scene.bricks) + there
 
 
 @pytest.mark.parametrize(

@@ -214,7 +214,7 @@ class Orchestrator:
         )
         self.result = BuildResult()
         self.calls = AgentCaller(world, reasoner, self.tol, self.result, on_call)
-        self.put_down = PutDown(world, self.calls)
+        self.put_down = PutDown(world, self.calls, in_sight=not observation.poses)
         self.memory = TaskMemory()
         #: When the held brick, creeping in the hand faster than v_th, would leave it (state
         #: time, s); None when it creeps no faster.

@@ -2,7 +2,9 @@
 
 Where: on the nearest free ground where it can be grasped again (inside the arm's reach
 band, clear of the other bricks and the unbuilt targets), so that a loose brick is not
-carried far; back on the spot it was grasped from if there is none. How: pressed
+carried far; in the image tier, also where the top-down picture shows all of it, since
+agents shown no poses find a brick only in the pictures; back on the spot it was grasped
+from if there is none. How: pressed
 onto the ground, still held, until it lies flat, then let go just past its width. A brick
 that rolled in the hand turns about the pads, which hold little torque: pressed down it
 turns back flat, where one let go on a corner falls, often onto its side. Rolled so far
@@ -27,6 +29,7 @@ from actionreasoning.tools.formulas import in_hand, roll_in_hand_deg, slot_pose
 from actionreasoning.tools.grasp_plan import GRASP_OPTIONS, GraspOptionsQuery
 from actionreasoning.tools.placement import SEAT_CLEARANCE_M
 from actionreasoning.world.boxes import Box
+from actionreasoning.world.cameras import TOP_DOWN
 from actionreasoning.world.geometry import Vec3, quat_yaw, top_down_quat, yaw_quat
 from actionreasoning.world.ground import free_spots
 from actionreasoning.world.models import BrickStatus, Pose, WorldState
@@ -54,11 +57,13 @@ PRESS_TOLERANCE_M = 0.005
 
 
 class PutDown:
-    """Puts the held brick down for a re-grasp, through the orchestrator's world and tools."""
+    """Puts the held brick down for a re-grasp, through the orchestrator's world and tools;
+    ``in_sight``: only where the top-down picture shows all of it (agents shown no poses)."""
 
-    def __init__(self, world: World, calls: AgentCaller) -> None:
+    def __init__(self, world: World, calls: AgentCaller, in_sight: bool = False) -> None:
         self.world = world
         self.calls = calls
+        self.in_sight = in_sight
 
     def put_back(
         self, observe: Callable[[], WorldState], brick: int, spot: Pose, height: float
@@ -146,10 +151,10 @@ class PutDown:
     ) -> Pose | None:
         """The tool pose that grasps brick ``brick`` set down on the nearest free ground:
         clear of every other brick and every target not in ``built``, inside the arm's
-        measured reach band and its base joint's turn with room for a landing off by
-        SET_ASIDE_SLACK_M, reached on the
-        way down from ``height``, and graspable there for ``target`` (a grasp that reaches
-        the brick and the target)."""
+        measured reach band and its base joint's turn (and, ``in_sight``, the top-down
+        picture) with room for a landing off by SET_ASIDE_SLACK_M, reached on the way down
+        from ``height``, and graspable there for ``target`` (a grasp that reaches the brick
+        and the target)."""
         occupied = [_footprint(b.pose, b.size_m) for b in state.bricks if b.id != brick]
         occupied += [
             _footprint(t.pose, t.size_m) for t in state.goal.targets if t.index not in built
@@ -163,6 +168,7 @@ class PutDown:
             occupied,
             SET_ASIDE_MARGIN_M,
             SET_ASIDE_RANGE_M,
+            seen_ground(held.size_m[2]) if self.in_sight else None,
         )
         band = ReachBand()
         low, high = band.min_radius_m + SET_ASIDE_SLACK_M, band.max_radius_m - SET_ASIDE_SLACK_M
@@ -222,6 +228,12 @@ class PutDown:
     def _gently(self, move: WaypointProposal, length_m: float) -> None:
         seconds = max(length_m / PUT_BACK_SPEED_MPS, MIN_MOVE_S)
         self.world.move(move.model_copy(update={"duration_s": seconds}))
+
+
+def seen_ground(height_m: float) -> Polygon:
+    """Where a brick's footprint may lie for the top-down picture to show all of its top
+    face, at ``height_m``, after a landing off by up to SET_ASIDE_SLACK_M."""
+    return Polygon(TOP_DOWN.view_at_height(height_m)).buffer(-SET_ASIDE_SLACK_M)
 
 
 def _tips_onto_its_end(state: WorldState, brick: int) -> bool:

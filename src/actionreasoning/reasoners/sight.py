@@ -27,7 +27,10 @@ one in from the pictures and the memory alone:
   chosen again) that the pictures do not show within its length of the tool lies under the
   tool, turned as the tool is: the arm let go of it there, pressed flat between the pads,
   and rose straight up over it, which hides it from above (and often from the side).
-  Where it lies off that, the pre-grasp gate's refusals measure it (:func:`corrected`).
+  Where it lies off that, the pre-grasp gate's refusals measure it (:func:`corrected`);
+  where agent 1's approach over it was refused for finding no brick there (it fell or
+  rolled away on the way down), it is not taken to be there again: it is among the finds,
+  if the pictures show it.
 """
 
 from __future__ import annotations
@@ -163,7 +166,13 @@ def _put_down(view: StateView, memory: TaskMemory, finds: Sequence[SeenBrick]) -
     module); None if none was put down, agent 1 has chosen again, or the pictures show it."""
     brick = memory.current_brick
     placed = {p.brick_id for p in memory.placed}
-    if brick is None or brick in placed or not memory.regrasps or memory.this_brick:
+    if (
+        brick is None
+        or brick in placed
+        or not memory.regrasps
+        or memory.this_brick
+        or _missed_since_put_down(memory)
+    ):
         return None
     target = next((t for t in view.targets if t.index == memory.current_target), None)
     if target is None or target.size_m is None:
@@ -176,6 +185,19 @@ def _put_down(view: StateView, memory: TaskMemory, finds: Sequence[SeenBrick]) -
     return BrickView(id=brick, size_m=size, pose=pose, status=BrickStatus.DROPPED)
 
 
+def _missed_since_put_down(memory: TaskMemory) -> bool:
+    """Whether an approach of agent 1's since the last put-down was refused for finding no
+    brick under it. The first approach after a put-down goes over the brick taken to lie
+    under the tool, if the pictures show none near it: that refusal says it does not."""
+    return any(
+        r.gate == _CHOICE_GATE and any(c.name == _NOTHING_UNDER for c in r.failed)
+        for r in since_put_down(memory.refusals)
+    )
+
+
+#: The pre-grasp choice's refusal of an approach over no brick (``orchestrator._named``).
+_CHOICE_GATE = f"{Stage.PRE_GRASP}_choice"
+_NOTHING_UNDER = "brick_under_approach"
 #: A brick squared in the hand: level, its long side along the tool's x axis (the pads close
 #: across its width, along the tool's y axis), as a quaternion in the tool frame.
 _SQUARE = formulas.in_hand(

@@ -88,6 +88,23 @@ class Camera(BaseModel):
         )
         return self.rotation.apply(in_camera) + np.asarray(self.pose.position_m)
 
+    def view_at_height(self, height_m: float) -> tuple[tuple[float, float], ...]:
+        """The corners (x, y) of the part of the horizontal plane at ``height_m`` that the
+        image shows: where the rays through the image's four outer corners meet the plane.
+        A camera whose image reaches the horizon shows no bounded part of it: ValueError."""
+        u = (-0.5, self.width - 0.5, self.width - 0.5, -0.5)
+        v = (-0.5, -0.5, self.height - 0.5, self.height - 0.5)
+        rays = self.rotation.apply(
+            np.column_stack(
+                [(np.array(u) - self.cx) / self.fx, (np.array(v) - self.cy) / self.fy, np.ones(4)]
+            )
+        )
+        drop = height_m - self.pose.position_m[2]
+        if np.any(rays[:, 2] * drop <= 0.0):
+            raise ValueError(f"camera {self.name!r} sees past the plane z = {height_m} m")
+        points = np.asarray(self.pose.position_m) + rays * (drop / rays[:, 2])[:, None]
+        return tuple((float(x), float(y)) for x, y, _ in points)
+
     def project(self, point_m: Vec3) -> tuple[float, float, float]:
         """Pixel (u, v) where ``point_m`` is seen, and its depth (m)."""
         x, y, z = self.rotation.inv().apply(np.subtract(point_m, self.pose.position_m))

@@ -23,11 +23,13 @@ def free_spots(
     occupied: Sequence[Polygon],
     margin_m: float,
     max_distance_m: float,
+    within: Polygon | None = None,
 ) -> Iterator[tuple[float, float]]:
     """Spots for a brick of ``size`` lying at the yaw of ``quat_xyzw``, nearest ``near``
-    first, whose footprint keeps ``margin_m`` from every ``occupied`` footprint, within
-    ``max_distance_m``."""
+    first, whose footprint keeps ``margin_m`` from every ``occupied`` footprint and, given
+    ``within``, lies wholly inside it, within ``max_distance_m``."""
     blocked = prep(unary_union(list(occupied)).buffer(margin_m)) if occupied else None
+    inside = prep(within) if within is not None else None
     reach = int(max_distance_m / GRID_STEP_M)
     steps = [k * GRID_STEP_M for k in range(-reach, reach + 1)]
     offsets = sorted(((dx, dy) for dx in steps for dy in steps), key=lambda d: (math.hypot(*d), d))
@@ -36,5 +38,7 @@ def free_spots(
             return
         x, y = near[0] + dx, near[1] + dy
         footprint = Box((x, y, size[2] / 2.0), quat_xyzw, size).footprint
-        if blocked is None or not blocked.intersects(footprint):
+        if (blocked is None or not blocked.intersects(footprint)) and (
+            inside is None or inside.contains(footprint)
+        ):
             yield x, y
