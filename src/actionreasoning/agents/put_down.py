@@ -168,7 +168,7 @@ class PutDown:
             occupied,
             SET_ASIDE_MARGIN_M,
             SET_ASIDE_RANGE_M,
-            seen_ground(held.size_m[2]) if self.in_sight else None,
+            _seen_ground(held.size_m[2]) if self.in_sight else None,
         )
         band = ReachBand()
         low, high = band.min_radius_m + SET_ASIDE_SLACK_M, band.max_radius_m - SET_ASIDE_SLACK_M
@@ -230,7 +230,7 @@ class PutDown:
         self.world.move(move.model_copy(update={"duration_s": seconds}))
 
 
-def seen_ground(height_m: float) -> Polygon:
+def _seen_ground(height_m: float) -> Polygon:
     """Where a brick's footprint may lie for the top-down picture to show all of its top
     face, at ``height_m``, after a landing off by up to SET_ASIDE_SLACK_M."""
     return Polygon(TOP_DOWN.view_at_height(height_m)).buffer(-SET_ASIDE_SLACK_M)

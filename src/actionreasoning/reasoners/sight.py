@@ -198,6 +198,7 @@ def _missed_since_put_down(memory: TaskMemory) -> bool:
 #: The pre-grasp choice's refusal of an approach over no brick (``orchestrator._named``).
 _CHOICE_GATE = f"{Stage.PRE_GRASP}_choice"
 _NOTHING_UNDER = "brick_under_approach"
+
 #: A brick squared in the hand: level, its long side along the tool's x axis (the pads close
 #: across its width, along the tool's y axis), as a quaternion in the tool frame.
 _SQUARE = formulas.in_hand(

@@ -92,17 +92,14 @@ class Camera(BaseModel):
         """The corners (x, y) of the part of the horizontal plane at ``height_m`` that the
         image shows: where the rays through the image's four outer corners meet the plane.
         A camera whose image reaches the horizon shows no bounded part of it: ValueError."""
-        u = (-0.5, self.width - 0.5, self.width - 0.5, -0.5)
-        v = (-0.5, -0.5, self.height - 0.5, self.height - 0.5)
-        rays = self.rotation.apply(
-            np.column_stack(
-                [(np.array(u) - self.cx) / self.fx, (np.array(v) - self.cy) / self.fy, np.ones(4)]
-            )
-        )
-        drop = height_m - self.pose.position_m[2]
+        right, bottom = self.width - 0.5, self.height - 0.5
+        corners = np.array([[-0.5, -0.5], [right, -0.5], [right, bottom], [-0.5, bottom]])
+        eye = np.asarray(self.pose.position_m)
+        rays = self.deproject_all(corners, np.ones(4)) - eye  # one unit of depth along each
+        drop = height_m - eye[2]
         if np.any(rays[:, 2] * drop <= 0.0):
             raise ValueError(f"camera {self.name!r} sees past the plane z = {height_m} m")
-        points = np.asarray(self.pose.position_m) + rays * (drop / rays[:, 2])[:, None]
+        points = eye + rays * (drop / rays[:, 2])[:, None]
         return tuple((float(x), float(y)) for x, y, _ in points)
 
     def project(self, point_m: Vec3) -> tuple[float, float, float]:
